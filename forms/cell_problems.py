@@ -1,0 +1,47 @@
+"""Growth-weighted unit-cell problems and their averages (MODEL.md section 3).
+
+[UC_weak]:  int_{Y_w} Jg E[ d[w] + b ] : grad_g(phi) dy = 0,   d[w] = sym(grad(w) Fg^{-1})
+[UCw_weak]: int_{Y_w} Jg ( E[ d[v] ] + I ) : grad_g(phi) dy = 0
+All problems share one bilinear form; they differ in the right-hand side only.
+"""
+
+from __future__ import annotations
+
+import ufl
+
+from .elasticity import grad_g, sym_grad_g, wall_stress
+
+
+def cell_bilinear_form(z, phi, Fg, E, nu, dx) -> ufl.Form:
+    """``a(z, phi) = int_{Y_w} Jg E[d[z]] : grad_g(phi) dy``, shared by [UC_weak] and [UCw_weak]."""
+    Jg = ufl.det(Fg)
+    return Jg * ufl.inner(wall_stress(sym_grad_g(z, Fg), E, nu), grad_g(phi, Fg)) * dx
+
+
+def cell_strain_rhs(b, phi, Fg, E, nu, dx) -> ufl.Form:
+    """Right-hand side of [UC_weak] for the unit strain ``b = b_ij`` (a 2x2 ``Constant``)."""
+    Jg = ufl.det(Fg)
+    return -Jg * ufl.inner(wall_stress(b, E, nu), grad_g(phi, Fg)) * dx
+
+
+def cell_pressure_rhs(phi, Fg, dx) -> ufl.Form:
+    """Right-hand side of [UCw_weak]: the unit pressure term ``-int Jg I : grad_g(phi)``."""
+    Jg = ufl.det(Fg)
+    return -Jg * ufl.tr(grad_g(phi, Fg)) * dx
+
+
+def stress_average_form(z, selector, Fg, E, nu, dx) -> ufl.Form:
+    """``int_{Y_w} E[d[z]] : S dy``; with S = e_k (x) e_l it gives one component of
+    ``|Y| * mean(E d[z])`` used in [maacro_E] and [maacro_K]."""
+    return ufl.inner(wall_stress(sym_grad_g(z, Fg), E, nu), selector) * dx
+
+
+def strain_average_form(z, selector, Fg, dx) -> ufl.Form:
+    """``int_{Y_w} d[z] : S dy``, one component of ``|Y| * dbar[z]`` (needed by the strain law)."""
+    return ufl.inner(sym_grad_g(z, Fg), selector) * dx
+
+
+def membrane_moment_form(selector, x, n, ds) -> ufl.Form:
+    """``int_Gamma (S n) . x dgamma``; with S = e_i (x) e_j it gives ``int_Gamma y_j N_i``, from
+    which ``P2vec = -(1/|Y|) int_Gamma (grad P1 . y) N`` follows for P2 = -grad(P1) . y ([P2])."""
+    return ufl.inner(ufl.dot(selector, n), x) * ds

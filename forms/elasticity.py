@@ -1,0 +1,32 @@
+"""Wall material law and growth kinematics shared by every weak form (MODEL.md sections 1, 3, 4).
+
+Pure UFL: UFL expressions (or ``fem.Constant``/``fem.Function``) in, UFL expressions out.
+"""
+
+from __future__ import annotations
+
+import ufl
+
+
+def lame_parameters(E, nu) -> tuple:
+    """Plane-stress Lame constants (paper appendix A).
+
+    ``mu = E / (2 (1 + nu))``, ``lam = E nu / (1 - nu^2)``.
+    """
+    return E / (2.0 * (1.0 + nu)), E * nu / (1.0 - nu**2)
+
+
+def wall_stress(e, E, nu):
+    """Isotropic wall stress ``E[e] = lam tr(e) I + 2 mu e`` (MODEL.md section 1)."""
+    mu, lam = lame_parameters(E, nu)
+    return lam * ufl.tr(e) * ufl.Identity(e.ufl_shape[0]) + 2.0 * mu * e
+
+
+def grad_g(z, Fg):
+    """Growth-weighted gradient ``grad(z) Fg^{-1}`` (MODEL.md section 3)."""
+    return ufl.grad(z) * ufl.inv(Fg)
+
+
+def sym_grad_g(z, Fg):
+    """``d[z] = sym(grad(z) Fg^{-1})``, the paper's generalised strain."""
+    return ufl.sym(grad_g(z, Fg))

@@ -1,0 +1,110 @@
+"""Command line: ``plantgrowth cell ...`` (more commands join as they are built).
+
+``main(argv) -> int`` logs on rank 0 only; bad input exits with code 2 and a one-line message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+
+from mpi4py import MPI
+
+from plantgrowth.errors import USER_ERRORS, InputError, check_growth_tensor, check_wall_material
+
+log = logging.getLogger("plantgrowth")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises InputError instead of exiting, so every rank fails the same way."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise InputError(message)
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        return [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers a,b,...: {text!r}") from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The CLI's argument parser (sub-commands)."""
+    parser = _Parser(prog="plantgrowth", description="Multiscale plant tissue growth.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    cell = sub.add_parser(
+        "cell",
+        help="solve the unit-cell problems and print the homogenized tensors",
+        description="Homogenized properties of one honeycomb cell (MODEL.md sections 2-3). "
+        "Defaults: the reference cell of MODEL.md section 9 with Fg = I.",
+    )
+    cell.add_argument("--l1", type=float, default=1.0, help="vertical wall length (default 1)")
+    cell.add_argument("--l2", type=float, default=1.0, help="inclined wall length (default 1)")
+    cell.add_argument("--theta", type=float, default=30.0, help="wall angle, degrees (default 30)")
+    cell.add_argument("--w", type=float, default=0.05, help="own wall thickness (default 0.05)")
+    cell.add_argument("--E", type=float, default=1.0, help="wall Young modulus (default 1)")
+    cell.add_argument("--nu", type=float, default=0.3, help="wall Poisson ratio (default 0.3)")
+    cell.add_argument(
+        "--Fg",
+        type=_floats,
+        default=[1.0, 0.0, 0.0, 1.0],
+        help="growth tensor F11,F12,F21,F22, row-major (default identity)",
+    )
+    cell.add_argument(
+        "--resolution",
+        type=int,
+        default=None,
+        help="P2 elements across a wall (default: about 0.3%% error on moduli)",
+    )
+    cell.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+    cell.set_defaults(handler=_cell_command)
+    return parser
+
+
+def _cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    import numpy as np
+
+    from plantgrowth.cell_solver import DEFAULT_RESOLUTION, CellSolver
+    from plantgrowth.meshes.honeycomb import HoneycombCell
+
+    E, nu = check_wall_material(args.E, args.nu)
+    if len(args.Fg) != 4:
+        raise InputError(f"--Fg needs 4 numbers F11,F12,F21,F22, got {len(args.Fg)}")
+    Fg = np.array(check_growth_tensor("Fg", [args.Fg[:2], args.Fg[2:]]))
+    resolution = DEFAULT_RESOLUTION if args.resolution is None else args.resolution
+    cell = HoneycombCell(args.l1, args.l2, args.theta, args.w)
+    result = CellSolver(cell, resolution, comm).solve(Fg, E, nu).summary()
+    if comm.rank == 0:
+        if args.json:
+            print(json.dumps(result))
+        else:
+            width = max(len(k) for k in result)
+            for key, value in result.items():
+                shown = value if key == "ndofs" else f"{value:.6g}"
+                print(f"{key:<{width}}  {shown}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``plantgrowth`` command."""
+    comm = MPI.COMM_WORLD
+    logging.basicConfig(
+        level=logging.INFO if comm.rank == 0 else logging.WARNING, format="%(message)s"
+    )
+    for noisy in ("root", "ffcx", "UFL"):
+        logging.getLogger(noisy if noisy != "root" else None).setLevel(logging.WARNING)
+    log.setLevel(logging.INFO if comm.rank == 0 else logging.WARNING)
+    try:
+        args = build_parser().parse_args(argv)
+        return args.handler(args, comm)
+    except USER_ERRORS as err:
+        if comm.rank == 0:
+            print(f"plantgrowth: error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

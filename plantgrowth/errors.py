@@ -1,0 +1,58 @@
+"""User-facing errors: every foreseeable bad input or failure ends in one of these.
+
+The CLI turns them into a one-line message on stderr and exit code 2 (bad input) or 3
+(a run that failed numerically), never a traceback.
+"""
+
+from __future__ import annotations
+
+import math
+
+from plantgrowth.meshes.honeycomb import GeometryError
+
+
+class InputError(ValueError):
+    """Bad user input; the message names the field and its valid range."""
+
+
+USER_ERRORS = (InputError, GeometryError)
+
+
+def check_number(
+    name: str, value: object, low: float, high: float, low_open: bool = True, high_open: bool = True
+) -> float:
+    """Return ``value`` as a float if it is finite and inside the interval, else raise.
+
+    The interval is (low, high) with each end open or closed as asked; use +-inf for no bound.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    below = v <= low if low_open else v < low
+    above = v >= high if high_open else v > high
+    if not math.isfinite(v) or below or above:
+        lo = ("(" if low_open else "[") + f"{low:g}"
+        hi = f"{high:g}" + (")" if high_open else "]")
+        raise InputError(f"{name} = {value!r} is out of range: it must be finite and in {lo}, {hi}")
+    return v
+
+
+def check_wall_material(E: object, nu: object) -> tuple[float, float]:
+    """Young modulus E > 0 and Poisson ratio nu in (-1, 0.5) (plane-stress walls)."""
+    return check_number("E", E, 0.0, math.inf), check_number("nu", nu, -1.0, 0.5)
+
+
+def check_growth_tensor(name: str, Fg: object) -> list[list[float]]:
+    """A finite 2x2 growth tensor with det Fg > 0."""
+    try:
+        rows = [[float(x) for x in row] for row in Fg]  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a 2x2 array of numbers, got {Fg!r}") from None
+    if len(rows) != 2 or any(len(r) != 2 for r in rows):
+        raise InputError(f"{name} must be a 2x2 array of numbers, got {Fg!r}")
+    if not all(math.isfinite(x) for r in rows for x in r):
+        raise InputError(f"{name} = {rows} is invalid: all entries must be finite")
+    det = rows[0][0] * rows[1][1] - rows[0][1] * rows[1][0]
+    if det <= 0.0:
+        raise InputError(f"{name} = {rows} is invalid: det {name} = {det:g} must be > 0")
+    return rows

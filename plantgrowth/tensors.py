@@ -1,0 +1,45 @@
+"""Small 2D tensor helpers: the paper's six-component storage and orthotropic moduli.
+
+Storage order (paper appendix, MODEL.md section 1): {E1111, E2222, E1122, E1212, E1112, E2212}.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+VOIGT_PAIRS = (
+    ((0, 0), (0, 0)),
+    ((1, 1), (1, 1)),
+    ((0, 0), (1, 1)),
+    ((0, 1), (0, 1)),
+    ((0, 0), (0, 1)),
+    ((1, 1), (0, 1)),
+)
+VOIGT_NAMES = ("E1111", "E2222", "E1122", "E1212", "E1112", "E2212")
+
+
+def unit_strain(i: int, j: int, sym: bool = True) -> np.ndarray:
+    """``b_ij = (e_i x e_j + e_j x e_i) / 2`` (or ``e_i x e_j`` when ``sym`` is False)."""
+    b = np.zeros((2, 2))
+    b[i, j] = 1.0
+    return 0.5 * (b + b.T) if sym else b
+
+
+def orthotropic_moduli(E6: np.ndarray) -> dict[str, float]:
+    """E1, E2, nu12, G12 from the six components (paper appendix A)."""
+    E1111, E2222, E1122, E1212 = E6[:4]
+    return {
+        "E1": E1111 - E1122**2 / E2222,
+        "E2": E2222 - E1122**2 / E1111,
+        "nu12": E1122 / E2222,
+        "G12": E1212,
+    }
+
+
+def isotropic_tensor(E: float, nu: float) -> np.ndarray:
+    """(2, 2, 2, 2) plane-stress wall tensor with mu = E/(2(1+nu)), lam = E nu/(1-nu^2)."""
+    mu, lam = E / (2.0 * (1.0 + nu)), E * nu / (1.0 - nu**2)
+    I = np.eye(2)
+    return lam * np.einsum("ij,kl->ijkl", I, I) + mu * (
+        np.einsum("ik,jl->ijkl", I, I) + np.einsum("il,jk->ijkl", I, I)
+    )

@@ -1,0 +1,97 @@
+#!/usr/bin/env bash
+# The one install script of plantgrowth (used by README, .ci/run and the Dockerfile).
+#
+# Idempotent. On a bare Debian bookworm, run as root, it:
+#   1. apt-installs the Debian packages that provide dolfinx, gmsh, h5py, PETSc, MPI, ...
+#      (only if some are missing; no `apt-get update` otherwise);
+#   2. creates the venv .venv at the repo root from /usr/bin/python3 with
+#      --system-site-packages (so the Debian builds are seen; NEVER pip-install
+#      dolfinx, gmsh, h5py, petsc4py, mpi4py, numpy or scipy into it);
+#   3. pip-installs this repo in editable mode plus the dev tools into .venv;
+#   4. as root, links /usr/local/bin/plantgrowth -> .venv/bin/plantgrowth.
+set -euo pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO"
+
+RUFF_VERSION="0.6.9"
+
+APT_PACKAGES=(
+    python3-dolfinx
+    python3-dolfinx-mpc
+    python3-gmsh
+    python3-h5py
+    python3-petsc4py
+    python3-mpi4py
+    python3-pytest
+    python3-matplotlib
+    python3-scipy
+    python3-venv
+    python3-pip
+    git
+    openmpi-bin
+)
+
+log() { echo "[install.sh] $*"; }
+
+# --- 1. Debian packages -------------------------------------------------------
+missing=()
+for pkg in "${APT_PACKAGES[@]}"; do
+    status="$(dpkg-query -W -f='${db:Status-Status}' "$pkg" 2>/dev/null || true)"
+    if [[ "$status" != "installed" ]]; then
+        missing+=("$pkg")
+    fi
+done
+if ((${#missing[@]} > 0)); then
+    if [[ "$(id -u)" -ne 0 ]]; then
+        echo "[install.sh] missing Debian packages: ${missing[*]}" >&2
+        echo "[install.sh] run this script as root (or apt-get install them yourself)." >&2
+        exit 1
+    fi
+    log "installing Debian packages: ${missing[*]}"
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -q
+    # --no-install-recommends is enough: gcc/g++ and python3-dev (needed by the
+    # ffcx JIT) and openssh-client (mpirun) are hard dependencies.
+    apt-get install -y -q --no-install-recommends "${APT_PACKAGES[@]}"
+else
+    log "Debian packages already installed"
+fi
+
+# --- 2. venv --------------------------------------------------------------------
+VENV="$REPO/.venv"
+if [[ -x "$VENV/bin/python" ]] && "$VENV/bin/python" -c 'import sys' >/dev/null 2>&1 \
+    && grep -qi '^include-system-site-packages *= *true' "$VENV/pyvenv.cfg" 2>/dev/null; then
+    log "venv .venv already present"
+else
+    log "creating venv .venv (with system site packages)"
+    rm -rf "$VENV"
+    /usr/bin/python3 -m venv --system-site-packages "$VENV"
+fi
+
+# --- 3. editable install + dev tools ---------------------------------------------
+# Re-run pip only if pyproject.toml changed since the last successful install
+# (or the console script / ruff are missing).
+export PIP_DISABLE_PIP_VERSION_CHECK=1
+STAMP="$VENV/.plantgrowth-install-stamp"
+want_stamp="$(sha256sum pyproject.toml | cut -d' ' -f1) ruff==$RUFF_VERSION"
+if [[ -f "$STAMP" && "$(cat "$STAMP")" == "$want_stamp" && -x "$VENV/bin/plantgrowth" \
+    && -x "$VENV/bin/ruff" ]]; then
+    log "plantgrowth (editable) and ruff already installed in .venv"
+else
+    log "pip install -e . and ruff==$RUFF_VERSION into .venv"
+    # --no-build-isolation: build with Debian's setuptools (>= 64, PEP 660 editable)
+    # instead of downloading one.
+    "$VENV/bin/python" -m pip install --quiet --no-build-isolation --no-deps -e .
+    "$VENV/bin/python" -m pip install --quiet "ruff==$RUFF_VERSION"
+    echo "$want_stamp" >"$STAMP"
+fi
+
+# --- 4. CLI on PATH ---------------------------------------------------------------
+if [[ "$(id -u)" -eq 0 ]]; then
+    ln -sfn "$VENV/bin/plantgrowth" /usr/local/bin/plantgrowth
+    log "linked /usr/local/bin/plantgrowth -> $VENV/bin/plantgrowth"
+else
+    log "not root: use $VENV/bin/plantgrowth or 'source .venv/bin/activate'"
+fi
+log "done"

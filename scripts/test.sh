@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# The test command: set up (scripts/install.sh), lint, then run the tests in serial
+# and on 2 MPI ranks. Tests marked `slow` are deselected. Exits non-zero on any failure.
+set -euo pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO"
+
+bash scripts/install.sh
+
+# Open MPI as root in a container: allow root, allow more ranks than detected cores,
+# and no CMA single-copy (needs ptrace, often forbidden in containers).
+export OMPI_ALLOW_RUN_AS_ROOT=1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+export OMPI_MCA_rmaps_base_oversubscribe=1
+export OMPI_MCA_btl_vader_single_copy_mechanism=none
+
+PY="$REPO/.venv/bin/python"
+failed=()
+
+echo "=== ruff check ."
+if ! .venv/bin/ruff check .; then
+    failed+=("ruff")
+fi
+
+echo "=== pytest (serial)"
+rc=0
+"$PY" -m pytest -q -m "not slow" tests || rc=$?
+if ((rc != 0)); then
+    # rc 5 = no tests collected: a failure for the serial run.
+    failed+=("pytest-serial(rc=$rc)")
+fi
+
+echo "=== pytest (mpirun -n 2)"
+rc=0
+mpirun -n 2 "$PY" -m mpi4py -m pytest -q -p no:cacheprovider --color=no -m "not slow" tests || rc=$?
+if ((rc != 0 && rc != 5)); then
+    failed+=("pytest-parallel(rc=$rc)")
+fi
+
+if ((${#failed[@]} > 0)); then
+    echo "test.sh: FAILED: ${failed[*]}"
+    exit 1
+fi
+echo "test.sh: OK (ruff, pytest serial, pytest mpirun -n 2)"

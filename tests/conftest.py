@@ -1,0 +1,35 @@
+"""Shared pytest configuration (dolfinx style), valid in serial and under mpirun."""
+
+import gc
+
+import pytest
+from mpi4py import MPI
+
+
+def pytest_runtest_setup(item):
+    """Skip tests marked ``skip_in_parallel`` when running on more than one MPI rank."""
+    if item.get_closest_marker("skip_in_parallel") and MPI.COMM_WORLD.size > 1:
+        pytest.skip("skipped in parallel (MPI.COMM_WORLD.size > 1)")
+
+
+@pytest.fixture(autouse=True)
+def _collect_garbage_and_sync():
+    """After each test: free PETSc/dolfinx objects collectively, then synchronise ranks."""
+    yield
+    gc.collect()
+    MPI.COMM_WORLD.Barrier()
+
+
+@pytest.fixture
+def mpi_tmp_path(request, tmp_path_factory):
+    """A fresh temporary directory shared by all ranks (created on rank 0, path broadcast).
+
+    Lives under pytest's basetemp, never in the source tree.
+    """
+    comm = MPI.COMM_WORLD
+    path = None
+    if comm.rank == 0:
+        name = request.node.name.replace("[", "_").replace("]", "_")[:30]
+        path = tmp_path_factory.mktemp(name)
+    path = comm.bcast(path, root=0)
+    return path
