@@ -131,7 +131,7 @@ class CellSolver:
         z, phi = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
         self._z = fem.Function(self.mpc.function_space)
         Fg, E, nu = self._Fg, self._E, self._nu
-        self._a = fem.form(cell_problems.cell_bilinear_form(z, phi, Fg, E, nu, dx))
+        self.bilinear_form = fem.form(cell_problems.cell_bilinear_form(z, phi, Fg, E, nu, dx))
         self._L_strain = fem.form(cell_problems.cell_strain_rhs(self._b, phi, Fg, E, nu, dx))
         self._L_pressure = fem.form(cell_problems.cell_pressure_rhs(phi, Fg, dx))
         self._stress_avg = fem.form(
@@ -157,10 +157,9 @@ class CellSolver:
             )
             self.P2_matrix = -M / self.area
 
-        self.A = dolfinx_mpc.assemble_matrix(self._a, self.mpc, bcs=self.bcs)
+        self.A = dolfinx_mpc.assemble_matrix(self.bilinear_form, self.mpc, bcs=self.bcs)
         self.ksp = _lu_solver(self.A, comm)
         self._rhs = dolfinx_mpc.assemble_vector(self._L_pressure, self.mpc)
-        self._solution = self._rhs.duplicate()
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
 
     def _integrate(self, form: fem.FormMetaClass, selector: np.ndarray | None = None) -> float:
@@ -173,11 +172,9 @@ class CellSolver:
         dolfinx_mpc.assemble_vector(L, self.mpc, b=self._rhs)
         self._rhs.ghostUpdate(addv=PETSc.InsertMode.ADD_VALUES, mode=PETSc.ScatterMode.REVERSE)
         fem.petsc.set_bc(self._rhs, self.bcs)
-        self.ksp.solve(self._rhs, self._solution)
-        self._solution.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        self.mpc.backsubstitution(self._solution)
-        self._z.x.array[:] = self._solution.array_r[: self._z.x.array.size]
+        self.ksp.solve(self._rhs, self._z.vector)
         self._z.x.scatter_forward()
+        self.mpc.backsubstitution(self._z.vector)
 
     def _averages(self, form: fem.FormMetaClass) -> np.ndarray:
         """(1/|Y|) int_{Y_w} X_kl for the current ``self._z``; X is the form's tensor."""
@@ -197,7 +194,7 @@ class CellSolver:
         self._Fg.value[:] = np.eye(2) if Fg is None else np.asarray(Fg, dtype=float)
         self._E.value = E
         self._nu.value = nu
-        dolfinx_mpc.assemble_matrix(self._a, self.mpc, bcs=self.bcs, A=self.A)
+        dolfinx_mpc.assemble_matrix(self.bilinear_form, self.mpc, bcs=self.bcs, A=self.A)
         self.ksp.setOperators(self.A)
         self.ksp.setUp()
 
