@@ -22,7 +22,13 @@ from plantgrowth.forms import cell_problems
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.meshes.unit_cell import CELL_TAGS, FACET_TAGS, build_unit_cell_mesh
 from plantgrowth.periodic import periodic_constraint
-from plantgrowth.tensors import VOIGT_NAMES, VOIGT_PAIRS, orthotropic_moduli, unit_strain
+from plantgrowth.tensors import (
+    VOIGT_NAMES,
+    VOIGT_PAIRS,
+    isotropic_tensor,
+    orthotropic_moduli,
+    unit_strain,
+)
 
 DEFAULT_RESOLUTION = 3
 """Elements across a wall (P2): about 0.3% error on moduli for the reference cell."""
@@ -34,9 +40,9 @@ class CellResult:
 
     Attributes:
         E_hom: (2, 2, 2, 2) effective elasticity tensor.
-        K_hom: (2, 2) effective pressure tensor.
-        dbar_w: (2, 2, 2, 2) ``dbar[w^ij]_kl`` (i, j symmetric).
-        dbar_v: (2, 2) ``dbar[v]``.
+        K_hom: (2, 2) effective pressure tensor (None if not computed).
+        dbar_w: (2, 2, 2, 2) ``dbar[w^ij]_kl`` (i, j symmetric; None if not computed).
+        dbar_v: (2, 2) ``dbar[v]`` (None if not computed).
         phi_w: wall fraction |Y_w| / |Y|.
         P2_matrix: (2, 2) M with ``P2vec = M grad(P1)``, or None for a non-hexagonal domain.
         ndofs: global number of unconstrained displacement dofs.
@@ -44,9 +50,9 @@ class CellResult:
     """
 
     E_hom: np.ndarray
-    K_hom: np.ndarray
-    dbar_w: np.ndarray
-    dbar_v: np.ndarray
+    K_hom: np.ndarray | None
+    dbar_w: np.ndarray | None
+    dbar_v: np.ndarray | None
     phi_w: float
     P2_matrix: np.ndarray | None
     ndofs: int
@@ -185,10 +191,19 @@ class CellSolver:
             / self.area
         )
 
-    def solve(self, Fg: np.ndarray | None = None, E: float = 1.0, nu: float = 0.3) -> CellResult:
+    def solve(
+        self,
+        Fg: np.ndarray | None = None,
+        E: float = 1.0,
+        nu: float = 0.3,
+        pressure: bool = True,
+        strain_averages: bool = True,
+    ) -> CellResult:
         """Homogenize for the growth tensor Fg and wall moduli (E, nu).
 
-        Returns E_hom, K_hom, dbar[w^ij], dbar[v] ([maacro_E], [maacro_K]) and the P2 matrix.
+        Returns E_hom ([maacro_E]) and, when asked for, K_hom ([maacro_K], the pressure problem
+        [UCw_weak]) and the strain averages dbar[w^ij], dbar[v] (needed by the strain law only);
+        what is not asked for is not computed and is None in the result.
         """
         start = time.perf_counter()
         self._Fg.value[:] = np.eye(2) if Fg is None else np.asarray(Fg, dtype=float)
@@ -198,19 +213,23 @@ class CellSolver:
         self.ksp.setOperators(self.A)
         self.ksp.setUp()
 
-        mu, lam = E / (2.0 * (1.0 + nu)), E * nu / (1.0 - nu**2)
-        E_hom = np.zeros((2, 2, 2, 2))
-        dbar_w = np.zeros((2, 2, 2, 2))
+        wall = isotropic_tensor(E, nu)
         phi_w = self.wall_area / self.area
+        E_hom = np.zeros((2, 2, 2, 2))
+        dbar_w = np.zeros((2, 2, 2, 2)) if strain_averages else None
         for i, j in ((0, 0), (1, 1), (0, 1)):
             b = unit_strain(i, j)
             self._b.value[:] = b
             self._solve_rhs(self._L_strain)
-            wall_part = phi_w * (lam * np.trace(b) * np.eye(2) + 2.0 * mu * b)
-            E_hom[i, j] = E_hom[j, i] = wall_part + self._averages(self._stress_avg)
-            dbar_w[i, j] = dbar_w[j, i] = self._averages(self._strain_avg)
-        self._solve_rhs(self._L_pressure)
-        K_hom = self._averages(self._stress_avg)
-        dbar_v = self._averages(self._strain_avg)
+            E_hom[i, j] = E_hom[j, i] = phi_w * np.einsum("klmn,mn->kl", wall, b) + self._averages(
+                self._stress_avg
+            )
+            if strain_averages:
+                dbar_w[i, j] = dbar_w[j, i] = self._averages(self._strain_avg)
+        K_hom = dbar_v = None
+        if pressure:
+            self._solve_rhs(self._L_pressure)
+            K_hom = self._averages(self._stress_avg)
+            dbar_v = self._averages(self._strain_avg) if strain_averages else None
         seconds = self.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
         return CellResult(E_hom, K_hom, dbar_w, dbar_v, phi_w, self.P2_matrix, self.ndofs, seconds)

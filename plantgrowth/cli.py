@@ -9,10 +9,17 @@ import argparse
 import json
 import logging
 import sys
+from pathlib import Path
 
 from mpi4py import MPI
 
-from plantgrowth.errors import USER_ERRORS, InputError, check_growth_tensor, check_wall_material
+from plantgrowth.errors import (
+    USER_ERRORS,
+    InputError,
+    RunError,
+    check_growth_tensor,
+    check_wall_material,
+)
 
 log = logging.getLogger("plantgrowth")
 
@@ -61,6 +68,26 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cell.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     cell.set_defaults(handler=_cell_command)
+
+    run = sub.add_parser(
+        "run",
+        help="run a scene (also under mpirun)",
+        description="Run the simulation a scene describes; writes DIR/fields.xdmf (+ .h5), "
+        "DIR/summary.csv, DIR/scene.toml (the resolved scene) and DIR/run.log.",
+    )
+    run.add_argument("scene", type=Path, help="scene TOML file")
+    run.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="output directory (default: results/<scene name>)",
+    )
+    run.set_defaults(handler=_run_command)
+
+    validate = sub.add_parser("validate", help="check a scene without running it")
+    validate.add_argument("scene", type=Path, help="scene TOML file")
+    validate.set_defaults(handler=_validate_command)
     return parser
 
 
@@ -85,6 +112,46 @@ def _cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
             for key, value in result.items():
                 shown = value if key == "ndofs" else f"{value:.6g}"
                 print(f"{key:<{width}}  {shown}")
+    return 0
+
+
+def _validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from plantgrowth.scene import load_scene
+
+    scene = load_scene(args.scene)
+    if comm.rank == 0:
+        print(
+            f"{args.scene}: valid {scene.model} scene, growth law {scene.growth.law}, "
+            f"{scene.time.n_steps} steps of dt = {scene.time.dt:g}"
+        )
+    return 0
+
+
+def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from plantgrowth.coupled import run_macro
+    from plantgrowth.output import prepare_directory
+    from plantgrowth.scene import load_scene
+
+    scene = load_scene(args.scene)
+    if scene.model != "macro":
+        raise InputError(f"model = {scene.model!r} is not available yet: use model = 'macro'")
+    outdir = args.output if args.output is not None else Path("results") / args.scene.stem
+    try:
+        prepare_directory(outdir, comm)
+    except OSError as err:
+        raise InputError(str(err)) from None
+    if comm.rank == 0:
+        (outdir / "scene.toml").write_text(scene.to_toml())
+        handler = logging.FileHandler(outdir / "run.log")
+        handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
+        log.addHandler(handler)
+    log.info("plantgrowth run %s -> %s on %d rank(s)", args.scene, outdir, comm.size)
+    try:
+        run_macro(scene, outdir, comm)
+    except RunError as err:
+        log.error("plantgrowth: run failed: %s", err)
+        return 3
+    log.info("done: %s", outdir)
     return 0
 
 

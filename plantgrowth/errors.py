@@ -15,6 +15,10 @@ class InputError(ValueError):
     """Bad user input; the message names the field and its valid range."""
 
 
+class RunError(RuntimeError):
+    """A run that failed numerically; the message names the step, time, place and cause."""
+
+
 USER_ERRORS = (InputError, GeometryError)
 
 

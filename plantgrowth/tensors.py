@@ -16,6 +16,8 @@ VOIGT_PAIRS = (
     ((1, 1), (0, 1)),
 )
 VOIGT_NAMES = ("E1111", "E2222", "E1122", "E1212", "E1112", "E2212")
+VOIGT_POSITIONS = ((0, 0), (1, 1), (0, 1), (2, 2), (0, 2), (1, 2))
+"""Position of each of the six components in the 3x3 Voigt matrix (see :func:`voigt_matrix`)."""
 
 
 def unit_strain(i: int, j: int, sym: bool = True) -> np.ndarray:
@@ -42,4 +44,24 @@ def isotropic_tensor(E: float, nu: float) -> np.ndarray:
     I = np.eye(2)
     return lam * np.einsum("ij,kl->ijkl", I, I) + mu * (
         np.einsum("ik,jl->ijkl", I, I) + np.einsum("il,jk->ijkl", I, I)
+    )
+
+
+def voigt_matrix(E_hom: np.ndarray) -> np.ndarray:
+    """Voigt matrix C, ``(s11, s22, s12) = C (e11, e22, 2 e12)``, of (..., 2, 2, 2, 2) tensors."""
+    idx = ((0, 0), (1, 1), (0, 1))
+    return np.stack(
+        [np.stack([E_hom[..., i, j, k, l] for k, l in idx], axis=-1) for i, j in idx], axis=-2
+    )
+
+
+def voigt_vector(e: np.ndarray) -> np.ndarray:
+    """``(e11, e22, 2 e12)`` of (..., 2, 2) symmetric tensors."""
+    return np.stack([e[..., 0, 0], e[..., 1, 1], 2.0 * e[..., 0, 1]], axis=-1)
+
+
+def from_voigt_stress(s: np.ndarray) -> np.ndarray:
+    """(..., 2, 2) tensors from stress Voigt vectors ``(s11, s22, s12)``."""
+    return np.stack(
+        [np.stack([s[..., 0], s[..., 2]], -1), np.stack([s[..., 2], s[..., 1]], -1)], -2
     )

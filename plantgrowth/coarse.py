@@ -1,0 +1,79 @@
+"""The coarse mesh M of the coupled algorithm (MODEL.md section 5): cell problems live at its nodes.
+
+A structured triangulation of the tissue rectangle (each rectangle split along the diagonal
+from its lower-right to its upper-left corner). It is small and replicated on every rank; fine
+mesh data meet it through P1 interpolation weights (coarse -> fine) and their transpose, a
+lumped L2 projection (fine -> coarse), both plain sparse matrices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+
+
+@dataclass(frozen=True)
+class CoarseGrid:
+    """Nodes ``(i dX, j dY)``, i = 0..nx, j = 0..ny, numbered ``j (nx + 1) + i``."""
+
+    width: float
+    height: float
+    nx: int
+    ny: int
+
+    @classmethod
+    def with_edge(cls, width: float, height: float, H: float) -> CoarseGrid:
+        """The grid whose edges are closest to H (at least one cell each way)."""
+        return cls(width, height, max(1, round(width / H)), max(1, round(height / H)))
+
+    @property
+    def nodes(self) -> np.ndarray:
+        """(n_nodes, 2) node coordinates."""
+        x = np.linspace(0.0, self.width, self.nx + 1)
+        y = np.linspace(0.0, self.height, self.ny + 1)
+        X, Y = np.meshgrid(x, y)
+        return np.column_stack([X.ravel(), Y.ravel()])
+
+    def interpolation_matrix(self, points: np.ndarray) -> sp.csr_matrix:
+        """W with ``f(points) = W f(nodes)`` for the P1 interpolant on the coarse triangles.
+
+        Points outside the rectangle are clamped onto it (round-off at the boundary).
+        """
+        dX, dY = self.width / self.nx, self.height / self.ny
+        xi = np.clip(points[:, 0] / dX, 0.0, self.nx)
+        eta = np.clip(points[:, 1] / dY, 0.0, self.ny)
+        i = np.minimum(np.floor(xi).astype(int), self.nx - 1)
+        j = np.minimum(np.floor(eta).astype(int), self.ny - 1)
+        a, b = xi - i, eta - j
+        n00 = j * (self.nx + 1) + i
+        n10, n01, n11 = n00 + 1, n00 + self.nx + 1, n00 + self.nx + 2
+        lower = a + b <= 1.0
+        # lower triangle (00, 10, 01); upper triangle (11, 01, 10)
+        cols = np.where(lower, [n00, n10, n01], [n11, n01, n10]).T
+        weights = np.where(lower, [1 - a - b, a, b], [a + b - 1, 1 - a, 1 - b]).T
+        rows = np.repeat(np.arange(len(points)), 3)
+        n_nodes = (self.nx + 1) * (self.ny + 1)
+        return sp.csr_matrix((weights.ravel(), (rows, cols.ravel())), shape=(len(points), n_nodes))
+
+
+def project_to_nodes(
+    W: sp.csr_matrix, areas: np.ndarray, values: np.ndarray, comm: MPI.Comm
+) -> np.ndarray:
+    """Lumped L2 projection of cell values onto coarse nodes (paper Algorithm 1, last step).
+
+    ``F_n = sum_c W_cn |c| F_c / sum_c W_cn |c|`` over the owned fine cells of all ranks.
+    Args:
+        W: interpolation weights at the owned fine cells' midpoints.
+        areas: owned fine cells' areas.
+        values: (n_cells, k) values per owned cell.
+    """
+    weighted = W.T @ (areas[:, None] * values)
+    mass = W.T @ areas
+    weighted = comm.allreduce(weighted, op=MPI.SUM)
+    mass = comm.allreduce(mass, op=MPI.SUM)
+    if np.any(mass <= 0.0):
+        raise ValueError("a coarse node has no fine cell around it: is the fine mesh too coarse?")
+    return weighted / mass[:, None]

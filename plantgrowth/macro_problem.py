@@ -1,0 +1,185 @@
+"""The macroscopic elasticity problem on the fine mesh m (MODEL.md section 4, Algorithm 2).
+
+P1 displacement; every coefficient (Fg, E_hom, K_hom, phi_w, P2vec) is piecewise constant on
+the fine cells, so the forms are integrated exactly by one-point quadrature. Only the terms
+the scene activates are assembled. Boundary conditions: ``u2 = 0`` on the bottom edge
+(symmetry plane, no tangential traction) and ``u1 = 0`` at the origin (removes the remaining
+rigid translation); the other edges carry the scene's tractions or none.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from plantgrowth.forms import macro
+from plantgrowth.scene import Scene
+
+log = logging.getLogger("plantgrowth")
+
+EDGES = {"left": (0, 0.0), "right": (0, None), "top": (1, None)}
+"""Loadable edges: (coordinate index, position; None = the far side of the rectangle)."""
+
+
+@dataclass(frozen=True)
+class SolveReport:
+    """Linear solve diagnostics: PETSc converged reason and true relative residual."""
+
+    reason: int
+    residual: float
+
+
+class MacroProblem:
+    """Fine mesh, pruned forms, boundary conditions and LU solver of the macro problem.
+
+    Args:
+        scene: the scene (tissue size, mesh sizes, pressure field, loads).
+        comm: communicator the fine mesh is distributed on.
+    """
+
+    def __init__(self, scene: Scene, comm: MPI.Comm) -> None:
+        t = scene.tissue
+        nx, ny = max(1, round(t.width / t.h)), max(1, round(t.height / t.h))
+        self.mesh = mesh.create_rectangle(
+            comm, [np.zeros(2), np.array([t.width, t.height])], [nx, ny], mesh.CellType.triangle
+        )
+        msh = self.mesh
+        self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+        self.Q0 = fem.FunctionSpace(msh, ("DG", 0))
+        self.T0 = fem.TensorFunctionSpace(msh, ("DG", 0))
+        self.u = fem.Function(self.V, name="u")
+        self.Fg = fem.Function(self.T0, name="Fg")
+        self.C = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=(3, 3)), name="C")
+        self.phi_w = fem.Function(self.Q0, name="phi_w")
+
+        cells = msh.topology.index_map(2)
+        self.n_cells = cells.size_local + cells.num_ghosts
+        self.n_owned = cells.size_local
+        self.midpoints = mesh.compute_midpoints(msh, 2, np.arange(self.n_cells, dtype=np.int32))
+        area_form = fem.form(ufl.TestFunction(self.Q0) * ufl.dx)
+        areas = fem.petsc.assemble_vector(area_form)
+        self.areas = areas.array[self.Q0.dofmap.list.array[: self.n_owned]].copy()
+        self.total_area = comm.allreduce(self.areas.sum(), op=MPI.SUM)
+
+        u, psi = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
+        dx = ufl.dx
+        self.P1 = scene.P1
+        self.active_terms = ["elasticity", "growth"]
+        rhs = macro.macro_growth_rhs(psi, self.Fg, self.C, dx)
+        self.K = None
+        self.P2vec = None
+        if not (scene.P1.is_constant and scene.P1.start == 0.0):
+            self.K = fem.Function(self.T0, name="K")
+            x = ufl.SpatialCoordinate(msh)
+            P1 = fem.Constant(msh, scene.P1.start) + fem.Constant(msh, scene.P1.gradient) * x[0]
+            rhs += macro.macro_pressure_rhs(psi, self.Fg, self.K, self.phi_w, P1, dx)
+            self.active_terms.append("pressure")
+            if not scene.P1.is_constant:
+                self.P2vec = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)), name="P2vec")
+                grad_P1 = ufl.as_vector([fem.Constant(msh, scene.P1.gradient), 0.0])
+                rhs += macro.macro_pressure_gradient_rhs(
+                    psi, self.Fg, self.phi_w, grad_P1, self.P2vec, dx
+                )
+                self.active_terms.append("pressure gradient (grad P1, P2)")
+        rhs += self._traction_terms(scene, psi)
+        self.a = fem.form(macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx))
+        self.L = fem.form(rhs)
+        self.bcs = self._boundary_conditions()
+        self.A = fem.petsc.create_matrix(self.a)
+        self.b = fem.petsc.create_vector(self.L)
+        self.ksp = PETSc.KSP().create(comm)
+        self.ksp.setOptionsPrefix("plantgrowth_macro_")
+        self.ksp.setOperators(self.A)
+        self.ksp.setType("preonly")
+        self.ksp.getPC().setType("lu")
+        self.ksp.getPC().setFactorSolverType("mumps")
+        self.ksp.setFromOptions()
+        self._grad_u = fem.Function(self.T0)
+        self._grad_u_expr = fem.Expression(ufl.grad(self.u), self.T0.element.interpolation_points())
+        self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
+
+    def _traction_terms(self, scene: Scene, psi) -> ufl.Form | int:
+        """``int_{Gamma_N} Jg |Fg^{-T} N| f . psi ds`` on each loaded edge (0 without loads)."""
+        terms = 0
+        if not scene.loads:
+            return terms
+        msh = self.mesh
+        far = {0: scene.tissue.width, 1: scene.tissue.height}
+        facets, values = [], []
+        for tag, name in enumerate(sorted(scene.loads), start=1):
+            axis, position = EDGES[name]
+            at = far[axis] if position is None else position
+            found = mesh.locate_entities_boundary(
+                msh, 1, lambda x, a=axis, p=at: np.isclose(x[a], p)
+            )
+            facets.append(found)
+            values.append(np.full(len(found), tag, dtype=np.int32))
+            self.active_terms.append(f"traction on {name}")
+        order = np.argsort(np.concatenate(facets))
+        tags = mesh.meshtags(
+            msh, 1, np.concatenate(facets)[order].astype(np.int32), np.concatenate(values)[order]
+        )
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+        n = ufl.FacetNormal(msh)
+        for tag, (_, f) in enumerate(sorted(scene.loads.items()), start=1):
+            traction = fem.Constant(msh, np.asarray(f, dtype=PETSc.ScalarType))
+            terms += macro.macro_traction_rhs(psi, self.Fg, traction, n, ds(tag))
+        return terms
+
+    def _boundary_conditions(self) -> list:
+        msh = self.mesh
+        bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
+        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, bottom)
+        origin = mesh.locate_entities_boundary(
+            msh, 0, lambda x: np.isclose(x[0], 0.0) & np.isclose(x[1], 0.0)
+        )
+        origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
+        zero = PETSc.ScalarType(0.0)
+        return [
+            fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),
+            fem.dirichletbc(zero, origin_dofs, self.V.sub(0)),
+        ]
+
+    def set_cell_values(self, function: fem.Function, values: np.ndarray) -> None:
+        """Write per-cell values (n_cells, ...) into a DG0 function (cell order -> dof order)."""
+        dofmap = function.function_space.dofmap
+        array = function.x.array.reshape(-1, dofmap.index_map_bs)
+        array[dofmap.list.array[: self.n_cells]] = values.reshape(self.n_cells, -1)
+        function.x.scatter_forward()
+
+    def cell_values(self, function: fem.Function) -> np.ndarray:
+        """Per-cell values (n_cells, bs) of a DG0 function."""
+        dofmap = function.function_space.dofmap
+        return function.x.array.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
+
+    def solve(self) -> SolveReport:
+        """Assemble the active terms and solve for u; returns the solver diagnostics."""
+        self.A.zeroEntries()
+        fem.petsc.assemble_matrix(self.A, self.a, bcs=self.bcs)
+        self.A.assemble()
+        with self.b.localForm() as local:
+            local.set(0.0)
+        fem.petsc.assemble_vector(self.b, self.L)
+        fem.petsc.apply_lifting(self.b, [self.a], bcs=[self.bcs])
+        self.b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem.petsc.set_bc(self.b, self.bcs)
+        self.ksp.solve(self.b, self.u.vector)
+        self.u.x.scatter_forward()
+        residual = self.b.duplicate()
+        self.A.mult(self.u.vector, residual)
+        residual.axpy(-1.0, self.b)
+        scale = self.b.norm()
+        relative = residual.norm() / scale if scale > 0.0 else residual.norm()
+        residual.destroy()
+        return SolveReport(self.ksp.getConvergedReason(), relative)
+
+    def grad_u(self) -> np.ndarray:
+        """(n_cells, 2, 2) displacement gradient per cell."""
+        self._grad_u.interpolate(self._grad_u_expr)
+        return self.cell_values(self._grad_u).reshape(-1, 2, 2)

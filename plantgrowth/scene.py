@@ -1,0 +1,567 @@
+"""Scenes: one TOML file describes one simulation (MODEL.md sections 4-6 and 9).
+
+Every table and key is optional and defaults to the reference scene of MODEL.md section 9,
+except ``growth.law``. Unknown keys, wrong types, NaN/inf and out-of-range values are errors
+(:class:`SceneError`) whose message starts with the dotted key, e.g. ``material.nu = 0.5 is out
+of range: ...``. Integers are accepted for floats. Everything is non-dimensional (wall E = 1,
+inclined wall length l2 = 1)::
+
+    model = "macro"            # "macro" | "micro" | "both"
+    [tissue]                   # the rectangle [0, width] x [0, height]; x2 = 0 is a symmetry plane
+    width = 6.928203230275509  # 8 cos(30 deg), at most 1e6
+    height = 3.0               # at most 1e6
+    h = 0.1                    # fine-mesh edge length: 0 < h <= min(width, height)/2, <= 4e6 cells
+    H = 1.0                    # coarse-mesh edge (cell-problem nodes): h <= H <= max(width, height)
+    [cell]                     # honeycomb unit cell, MODEL.md section 2
+    l1 = 1.0                   # vertical wall length, > 0
+    l2 = 1.0                   # inclined wall length, > 0
+    theta = 30.0               # inclined wall angle in degrees, in (0, 90)
+    w = 0.05                   # one cell's own wall thickness, > 0 and leaving a void
+    [material]                 # wall material, MODEL.md section 1
+    E = 1.0                    # Young modulus, > 0
+    nu = 0.3                   # Poisson ratio, in (-1, 0.5)
+    [pressure]
+    P1 = 0.001                 # turgor pressure, >= 0 (MODEL.md section 6)
+    [growth]                   # growth law, MODEL.md section 4
+    law = "stress"             # REQUIRED: "stress" | "strain" | "none"
+    eta = 1.0                  # extensibility, >= 0
+    tau = 0.0                  # yield threshold, >= 0
+    clamp = 1.0                # M: G is clipped component-wise to [-M, M], M > 0
+    Fg0 = [[1.0, 0.0], [0.0, 1.0]]  # initial growth tensor, finite entries, det > 0
+    [time]
+    t_max = 60.0               # end time, a whole number (<= 1e6) of steps dt
+    dt = 1.0                   # time step, > 0
+    integrator = "exp"         # "exp": Fg <- expm(dt G) Fg (det Fg >= 1, stable); "euler": paper's
+    [loads]                    # traction f on an edge (default none); "bottom" cannot be loaded
+    right = [0.0, 0.0]         # also "left", "top"
+    [output]
+    fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these and "eps_hom"
+    [accuracy]
+    cell_resolution = 2        # P2 elements across a cell wall, integer in [1, 64]
+    key_tolerance = 1e-6       # cell-problem inputs are rounded to this before caching, (0, 1e-2]
+    [micro]
+    nx = 16                    # cells per row of the micro model, even integer in [2, 1024]
+
+The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta`` and ``growth.tau`` are
+*fields*: a number, or ``{from = a, to = b}`` for a value linear in x1 from a at x1 = 0 to b at
+x1 = width (MODEL.md section 9). A field's range is checked at both ends, and the cell geometry
+is checked at x1 = 0, width/2 and width. Magnitudes above 1e12 (1e6 for lengths and Fg0) are
+rejected as typos: the model is non-dimensional with reference values of order 1.
+
+Load with :func:`load_scene` (a file) or :func:`parse_scene` (a dict); ``Scene.to_toml()``
+writes the fully resolved scene, which loads back to an equal ``Scene``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from plantgrowth.errors import InputError, check_growth_tensor, check_number
+from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
+
+BIG = 1e12
+"""Largest magnitude accepted for a non-dimensional parameter without a natural bound."""
+MAX_LENGTH = 1e6  # tissue and cell lengths, |Fg0 entries|
+MAX_CELLS = 4e6  # triangles of the fine mesh
+MAX_STEPS = 1e6  # t_max / dt
+MAX_RESOLUTION = 64  # accuracy.cell_resolution
+MAX_NX = 1024  # micro.nx
+LAWS = ("stress", "strain", "none")
+INTEGRATORS = ("euler", "exp")
+MODELS = ("macro", "micro", "both")
+OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
+DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
+EDGES = ("left", "right", "top")
+IDENTITY = ((1.0, 0.0), (0.0, 1.0))
+REFERENCE_WIDTH = 4.0 * math.sqrt(3.0)  # = 8 cos(30 deg), exactly rounded
+"""Reference tissue width 8c = 6.928203230275509 (MODEL.md section 9)."""
+
+
+class SceneError(InputError):
+    """Bad scene input; the message starts with the dotted key (or the file name)."""
+
+
+# --- checks shared by the dataclasses and the loader ----------------------------------------------
+
+
+def _show(value: object) -> str:
+    kind = {dict: "a table ", list: "an array ", tuple: "an array "}.get(type(value), "")
+    text = repr(value)
+    return kind + (text if len(text) <= 60 else text[:57] + "...")
+
+
+def _number(key: str, value: object) -> float:
+    """``value`` as a float (ints accepted), else SceneError naming ``key``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f"{key}: expected a number, got {_show(value)}")
+    try:
+        return float(value)
+    except OverflowError:  # a TOML integer beyond the float range
+        raise SceneError(f"{key} = {str(value)[:12]}... is out of range: far too large") from None
+
+
+def _range(key: str, value: object, low: float, high: float, lo_open=True, hi_open=True) -> float:
+    """A finite number in the interval (open or closed ends), else SceneError naming ``key``."""
+    _number(key, value)  # the type and float-range check, with the key
+    try:  # the user's own value (e.g. 0, not 0.0) in the message
+        return check_number(key, value, low, high, lo_open, hi_open)
+    except InputError as e:
+        raise SceneError(str(e)) from None
+
+
+def _integer(key: str, value: object, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise SceneError(f"{key}: expected an integer, got {_show(value)}")
+    if not low <= value <= high:
+        raise SceneError(
+            f"{key} = {value} is out of range: it must be an integer in [{low}, {high}]"
+        )
+    return value
+
+
+def _choice(key: str, value: object, choices: tuple[str, ...]) -> str:
+    options = ", ".join(map(repr, choices))
+    if not isinstance(value, str):
+        raise SceneError(f"{key}: expected a string (one of {options}), got {_show(value)}")
+    if value not in choices:
+        raise SceneError(f"{key} = {value!r} is invalid: it must be one of {options}")
+    return value
+
+
+def _array(key: str, value: object, n: int) -> list | tuple:
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise SceneError(f"{key}: expected an array of {n} items, got {_show(value)}")
+    return value
+
+
+def _set(obj: object, **values: object) -> None:
+    """Store normalised values in a frozen dataclass."""
+    for name, value in values.items():
+        object.__setattr__(obj, name, value)
+
+
+# --- the scene ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Field:
+    """A scene parameter: constant, or linear in x1 across the tissue (MODEL.md section 9).
+
+    Ranges are checked by the owner (:meth:`check`), which knows the key.
+    """
+
+    start: float  # value at x1 = 0
+    end: float  # value at x1 = width (== start for a constant)
+    width: float  # tissue width
+
+    def __post_init__(self) -> None:
+        _set(self, start=_number("field.start", self.start), end=_number("field.end", self.end))
+        _set(self, width=_range("field.width", self.width, 0.0, math.inf))
+
+    @property
+    def is_constant(self) -> bool:
+        return self.start == self.end
+
+    @property
+    def gradient(self) -> float:
+        """d/dx1 = (end - start) / width."""
+        return (self.end - self.start) / self.width
+
+    def __call__(self, x1: np.ndarray) -> np.ndarray:
+        """Values at the points x1 (vectorised): start + gradient * x1."""
+        return self.start + self.gradient * np.asarray(x1, dtype=float)
+
+    def to_toml(self) -> float | dict[str, float]:
+        """A number for a constant, else the inline table {from = start, to = end}."""
+        return self.start if self.is_constant else {"from": self.start, "to": self.end}
+
+    def check(self, key: str, low: float, high: float, lo_open=True, hi_open=True) -> None:
+        """SceneError unless both ends lie in the interval (the extremes of a linear field)."""
+        same = self.is_constant or (math.isnan(self.start) and math.isnan(self.end))
+        ends = (
+            [(key, self.start)] if same else [(f"{key}.from", self.start), (f"{key}.to", self.end)]
+        )
+        for name, value in ends:
+            _range(name, value, low, high, lo_open, hi_open)
+
+
+@dataclass(frozen=True)
+class Tissue:
+    """The tissue rectangle [0, width] x [0, height] and the fine (h) / coarse (H) mesh sizes."""
+
+    width: float = REFERENCE_WIDTH
+    height: float = 3.0
+    h: float = 0.1
+    H: float = 1.0
+
+    def __post_init__(self) -> None:
+        W = _range("tissue.width", self.width, 0.0, MAX_LENGTH, hi_open=False)
+        Ht = _range("tissue.height", self.height, 0.0, MAX_LENGTH, hi_open=False)
+        h = _range("tissue.h", self.h, 0.0, min(W, Ht) / 2, hi_open=False)
+        H = _range("tissue.H", self.H, h, max(W, Ht), lo_open=False, hi_open=False)
+        cells = 2.0 * math.ceil(W / h) * math.ceil(Ht / h)
+        if cells > MAX_CELLS:
+            raise SceneError(
+                f"tissue.h = {h!r} is too small: the fine mesh would have about {cells:.3g} "
+                f"triangles (limit {MAX_CELLS:g}); use h >= {math.sqrt(2 * W * Ht / MAX_CELLS):.3g}"
+            )
+        _set(self, width=W, height=Ht, h=h, H=H)
+
+
+@dataclass(frozen=True)
+class CellGeometry:
+    """Honeycomb cell parameters (MODEL.md section 2); theta in degrees."""
+
+    l1: Field
+    l2: Field
+    theta: Field
+    w: Field
+
+    def __post_init__(self) -> None:
+        self.l1.check("cell.l1", 0.0, MAX_LENGTH, hi_open=False)
+        self.l2.check("cell.l2", 0.0, MAX_LENGTH, hi_open=False)
+        self.theta.check("cell.theta", 0.0, 90.0)
+        self.w.check("cell.w", 0.0, MAX_LENGTH, hi_open=False)
+        constant = all(f.is_constant for f in (self.l1, self.l2, self.theta, self.w))
+        # w_max is not linear in x1: check the ends and the middle
+        for x1 in (0.0, self.w.width / 2, self.w.width):
+            try:
+                self.at(x1)
+            except GeometryError as e:  # its message starts with the parameter's name
+                msg = str(e) if str(e).startswith(("l1", "l2", "theta", "w")) else f"w: {e}"
+                raise SceneError(
+                    f"cell.{msg}" + ("" if constant else f" (at x1 = {x1:g})")
+                ) from None
+
+    def at(self, x1: float) -> HoneycombCell:
+        """The unit cell at x1 (GeometryError if impossible there)."""
+        return HoneycombCell(*(float(f(x1)) for f in (self.l1, self.l2, self.theta, self.w)))
+
+
+@dataclass(frozen=True)
+class Material:
+    """Wall Young modulus E > 0 and Poisson ratio -1 < nu < 0.5 (MODEL.md section 1)."""
+
+    E: Field
+    nu: Field
+
+    def __post_init__(self) -> None:
+        self.E.check("material.E", 0.0, BIG, hi_open=False)
+        self.nu.check("material.nu", -1.0, 0.5)
+
+
+@dataclass(frozen=True)
+class Growth:
+    """Growth law (MODEL.md section 4): G = clip(eta [X / phi_w - tau]_+, -clamp, clamp).
+
+    ``law`` is "stress" (X = sigma_hom), "strain" (X = eps_hom) or "none" (G = 0).
+    """
+
+    law: str
+    eta: Field
+    tau: Field
+    clamp: float = 1.0
+    Fg0: tuple[tuple[float, float], tuple[float, float]] = IDENTITY
+
+    def __post_init__(self) -> None:
+        _choice("growth.law", self.law, LAWS)
+        self.eta.check("growth.eta", 0.0, BIG, lo_open=False, hi_open=False)
+        self.tau.check("growth.tau", 0.0, BIG, lo_open=False, hi_open=False)
+        _set(self, clamp=_range("growth.clamp", self.clamp, 0.0, BIG, hi_open=False))
+        rows = tuple(
+            tuple(
+                _range(f"growth.Fg0[{i}][{j}]", x, -MAX_LENGTH, MAX_LENGTH, False, False)
+                for j, x in enumerate(_array(f"growth.Fg0[{i}]", row, 2))
+            )
+            for i, row in enumerate(_array("growth.Fg0", self.Fg0, 2))
+        )
+        try:
+            check_growth_tensor("growth.Fg0", rows)  # det > 0
+        except InputError as e:
+            raise SceneError(str(e)) from None
+        _set(self, Fg0=rows)
+
+
+@dataclass(frozen=True)
+class Time:
+    """Time interval [0, t_max] in n_steps steps dt; integrator "euler" or "exp"."""
+
+    t_max: float = 60.0
+    dt: float = 1.0
+    integrator: str = "exp"
+
+    def __post_init__(self) -> None:
+        dt = _range("time.dt", self.dt, 0.0, BIG, hi_open=False)
+        t_max = _range("time.t_max", self.t_max, 0.0, BIG, hi_open=False)
+        _choice("time.integrator", self.integrator, INTEGRATORS)
+        n = t_max / dt
+        if n < 1.0 - 1e-9:
+            raise SceneError(f"time.t_max = {t_max!r} is smaller than time.dt = {dt!r}")
+        if n > MAX_STEPS:
+            raise SceneError(
+                f"time.t_max / time.dt = {n:.3g} steps: too many (limit {MAX_STEPS:g})"
+            )
+        if abs(n - round(n)) > 1e-9 * n:
+            raise SceneError(
+                f"time.t_max = {t_max!r} is not a whole number of time steps: "
+                f"time.t_max / time.dt = {n!r} must be an integer"
+            )
+        _set(self, t_max=t_max, dt=dt)
+
+    @property
+    def n_steps(self) -> int:
+        return round(self.t_max / self.dt)
+
+
+@dataclass(frozen=True)
+class Output:
+    """Fields written at each step, a subset of OUTPUT_FIELDS."""
+
+    fields: tuple[str, ...] = DEFAULT_OUTPUT
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.fields, (list, tuple)):
+            raise SceneError(
+                f"output.fields: expected an array of strings, got {_show(self.fields)}"
+            )
+        for i, name in enumerate(self.fields):
+            _choice(f"output.fields[{i}]", name, OUTPUT_FIELDS)
+        if len(set(self.fields)) != len(self.fields):
+            raise SceneError(f"output.fields = {list(self.fields)} names a field twice")
+        _set(self, fields=tuple(self.fields))
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """Cell-problem resolution (P2 elements across a wall) and the rounding of their inputs."""
+
+    cell_resolution: int = 2
+    key_tolerance: float = 1e-6
+
+    def __post_init__(self) -> None:
+        _integer("accuracy.cell_resolution", self.cell_resolution, 1, MAX_RESOLUTION)
+        tol = _range("accuracy.key_tolerance", self.key_tolerance, 0.0, 1e-2, hi_open=False)
+        _set(self, key_tolerance=tol)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One fully validated simulation; build it with :func:`load_scene` or :func:`parse_scene`."""
+
+    model: str
+    tissue: Tissue
+    cell: CellGeometry
+    material: Material
+    P1: Field
+    growth: Growth
+    time: Time
+    loads: dict[str, tuple[float, float]] = field(default_factory=dict)
+    output: Output = Output()
+    accuracy: Accuracy = Accuracy()
+    micro_nx: int = 16
+
+    def __post_init__(self) -> None:
+        _choice("model", self.model, MODELS)
+        self.P1.check("pressure.P1", 0.0, BIG, lo_open=False, hi_open=False)
+        for key, f in self.parameter_fields().items():
+            if f.width != self.tissue.width:
+                raise SceneError(f"{key}: field width {f.width!r} != tissue.width")
+        loads = {}
+        for edge, f in self.loads.items():
+            _check_edge(edge)
+            pair = _array(f"loads.{edge}", f, 2)
+            pair = tuple(
+                _range(f"loads.{edge}[{i}]", x, -BIG, BIG, False, False) for i, x in enumerate(pair)
+            )
+            if pair != (0.0, 0.0):  # only non-zero loads are kept
+                loads[edge] = pair
+        _set(self, loads=loads)
+        if _integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
+            raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
+
+    def parameter_fields(self) -> dict[str, Field]:
+        """All spatially varying parameters by dotted key."""
+        cell, mat, g = self.cell, self.material, self.growth
+        out = {f"cell.{k}": getattr(cell, k) for k in ("l1", "l2", "theta", "w")}
+        return out | {
+            "material.E": mat.E,
+            "material.nu": mat.nu,
+            "pressure.P1": self.P1,
+            "growth.eta": g.eta,
+            "growth.tau": g.tau,
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fully resolved scene as plain TOML/JSON data (fields as numbers or {from, to})."""
+        out: dict[str, Any] = {"model": self.model}
+        out["tissue"] = {f.name: getattr(self.tissue, f.name) for f in fields(self.tissue)}
+        for key, f in self.parameter_fields().items():
+            section, name = key.split(".")
+            out.setdefault(section, {})[name] = f.to_toml()
+        g, t = self.growth, self.time
+        out["growth"] = {"law": g.law, **out["growth"], "clamp": g.clamp, "Fg0": g.Fg0}
+        out["time"] = {"t_max": t.t_max, "dt": t.dt, "integrator": t.integrator}
+        out["loads"] = dict(self.loads)
+        out["output"] = {"fields": self.output.fields}
+        out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
+        out["micro"] = {"nx": self.micro_nx}
+        return out
+
+    def to_toml(self) -> str:
+        """The fully resolved scene (all defaults filled) as TOML that load_scene reads back."""
+        lines = ["# plantgrowth scene, fully resolved (keys: see plantgrowth/scene.py)"]
+        for key, value in self.to_dict().items():
+            if isinstance(value, dict):
+                lines += ["", f"[{key}]"] + [f"{k} = {_toml_value(v)}" for k, v in value.items()]
+            else:
+                lines.append(f"{key} = {_toml_value(value)}")
+        return "\n".join(lines) + "\n"
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, str):
+        return json.dumps(v)  # a JSON string is a valid TOML basic string
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return repr(v)  # an int, or a float: repr round-trips exactly and is valid TOML
+
+
+# --- loader ---------------------------------------------------------------------------------------
+
+_TABLES = {
+    "tissue": ("width", "height", "h", "H"),
+    "cell": ("l1", "l2", "theta", "w"),
+    "material": ("E", "nu"),
+    "pressure": ("P1",),
+    "growth": ("law", "eta", "tau", "clamp", "Fg0"),
+    "time": ("t_max", "dt", "integrator"),
+    "loads": EDGES,
+    "output": ("fields",),
+    "accuracy": ("cell_resolution", "key_tolerance"),
+    "micro": ("nx",),
+}
+_FIELD_DEFAULTS = {
+    "cell": {"l1": 1.0, "l2": 1.0, "theta": 30.0, "w": 0.05},
+    "material": {"E": 1.0, "nu": 0.3},
+    "pressure": {"P1": 0.001},
+    "growth": {"eta": 1.0, "tau": 0.0},
+}
+
+
+def _check_edge(edge: str) -> None:
+    if edge == "bottom":
+        raise SceneError(
+            "loads.bottom: the bottom edge x2 = 0 is the symmetry plane (u2 = 0, no tangential "
+            f"traction) and cannot be loaded; loadable edges: {', '.join(EDGES)}"
+        )
+    if edge not in EDGES:
+        raise SceneError(f"unknown key 'loads.{edge}' (valid keys: {', '.join(EDGES)})")
+
+
+def _check_keys(table: dict, path: str, valid: tuple[str, ...]) -> None:
+    for key in table:
+        if key not in valid:
+            close = difflib.get_close_matches(key, valid, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise SceneError(f"unknown key '{path}{key}' (valid keys: {', '.join(valid)}){hint}")
+
+
+def _table(data: dict, name: str) -> dict:
+    """The top-level table ``name`` ({} if absent), its keys checked."""
+    table = data.get(name, {})
+    if not isinstance(table, dict):
+        raise SceneError(f"{name}: expected a table [{name}], got {_show(table)}")
+    if name == "loads":
+        for edge in table:
+            _check_edge(edge)
+    _check_keys(table, f"{name}.", _TABLES[name])
+    return table
+
+
+def _field(key: str, raw: object, width: float) -> Field:
+    """A field value: a number or {from = a, to = b}."""
+    if isinstance(raw, dict):
+        _check_keys(raw, f"{key}.", ("from", "to"))
+        if len(raw) != 2:
+            raise SceneError(f"{key}: a linear field needs both ends, {{from = a, to = b}}")
+        return Field(_number(f"{key}.from", raw["from"]), _number(f"{key}.to", raw["to"]), width)
+    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+        raise SceneError(f"{key}: expected a number or {{from = a, to = b}}, got {_show(raw)}")
+    return Field(_number(key, raw), _number(key, raw), width)
+
+
+def parse_scene(data: dict, source: str = "<scene>") -> Scene:
+    """Validate parsed TOML data into a Scene; error messages end with ``(in source)``."""
+    try:
+        return _parse(data)
+    except (InputError, GeometryError) as e:
+        suffix = "" if source == "<scene>" else f" (in {source})"
+        raise SceneError(f"{e}{suffix}") from None
+
+
+def _parse(data: dict) -> Scene:
+    if not isinstance(data, dict):
+        raise SceneError(f"scene: expected a table of tables, got {_show(data)}")
+    _check_keys(data, "", ("model", *_TABLES))
+    t = {name: _table(data, name) for name in _TABLES}
+    tissue = Tissue(**t["tissue"])
+    f = {
+        section: {
+            k: _field(f"{section}.{k}", t[section].get(k, d), tissue.width) for k, d in kd.items()
+        }
+        for section, kd in _FIELD_DEFAULTS.items()
+    }
+    if "law" not in t["growth"]:
+        raise SceneError(f"growth.law is required: one of {', '.join(map(repr, LAWS))}")
+    return Scene(
+        model=data.get("model", "macro"),
+        tissue=tissue,
+        cell=CellGeometry(**f["cell"]),
+        material=Material(**f["material"]),
+        P1=f["pressure"]["P1"],
+        growth=Growth(**(t["growth"] | f["growth"])),
+        time=Time(**t["time"]),
+        loads=dict(t["loads"]),
+        output=Output(**t["output"]),
+        accuracy=Accuracy(**t["accuracy"]),
+        micro_nx=t["micro"].get("nx", 16),
+    )
+
+
+def load_scene(path: str | os.PathLike) -> Scene:
+    """Read and validate a scene file; every problem is a SceneError naming the file or key."""
+    name = os.fspath(path)
+    try:
+        raw = Path(name).read_bytes()
+    except FileNotFoundError:
+        raise SceneError(f"{name}: scene file not found") from None
+    except IsADirectoryError:
+        raise SceneError(f"{name}: is a directory, not a scene file") from None
+    except OSError as e:
+        raise SceneError(f"{name}: cannot read the scene file: {e.strerror or e}") from None
+    if b"\x00" in raw:
+        raise SceneError(f"{name}: not a text file (it contains NUL bytes): a binary file?")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise SceneError(
+            f"{name}: not UTF-8 text (bad byte at {e.start}): a binary file?"
+        ) from None
+    if not text.strip():
+        raise SceneError(f"{name}: the scene file is empty (growth.law at least is required)")
+    try:
+        data = tomllib.loads(text)
+    except ValueError as e:  # TOMLDecodeError, or an integer literal of > 4300 digits
+        raise SceneError(f"{name}: invalid TOML: {e}") from None
+    return parse_scene(data, source=name)
