@@ -9,25 +9,22 @@ from __future__ import annotations
 
 import ufl
 
-from .elasticity import grad_g, sym_grad_g, wall_stress
+from .elasticity import growth_weighted_work, sym_grad_g, wall_stress
 
 
 def cell_bilinear_form(z, phi, Fg, E, nu, dx) -> ufl.Form:
     """``a(z, phi) = int_{Y_w} Jg E[d[z]] : grad_g(phi) dy``, shared by [UC_weak] and [UCw_weak]."""
-    Jg = ufl.det(Fg)
-    return Jg * ufl.inner(wall_stress(sym_grad_g(z, Fg), E, nu), grad_g(phi, Fg)) * dx
+    return growth_weighted_work(wall_stress(sym_grad_g(z, Fg), E, nu), phi, Fg, dx)
 
 
 def cell_strain_rhs(b, phi, Fg, E, nu, dx) -> ufl.Form:
     """Right-hand side of [UC_weak] for the unit strain ``b = b_ij`` (a 2x2 ``Constant``)."""
-    Jg = ufl.det(Fg)
-    return -Jg * ufl.inner(wall_stress(b, E, nu), grad_g(phi, Fg)) * dx
+    return -growth_weighted_work(wall_stress(b, E, nu), phi, Fg, dx)
 
 
 def cell_pressure_rhs(phi, Fg, dx) -> ufl.Form:
     """Right-hand side of [UCw_weak]: the unit pressure term ``-int Jg I : grad_g(phi)``."""
-    Jg = ufl.det(Fg)
-    return -Jg * ufl.tr(grad_g(phi, Fg)) * dx
+    return -growth_weighted_work(ufl.Identity(2), phi, Fg, dx)
 
 
 def stress_average_form(z, selector, Fg, E, nu, dx) -> ufl.Form:

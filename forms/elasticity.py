@@ -30,3 +30,25 @@ def grad_g(z, Fg):
 def sym_grad_g(z, Fg):
     """``d[z] = sym(grad(z) Fg^{-1})``, the paper's generalised strain."""
     return ufl.sym(grad_g(z, Fg))
+
+
+def growth_weighted_work(stress, psi, Fg, dx) -> ufl.Form:
+    """``int Jg stress : grad(psi) Fg^{-1} dx``: virtual work in the reference configuration,
+    shared by the cell, macro and micro problems ([UC_weak], [macro_weak_222], [var_inequal])."""
+    return ufl.det(Fg) * ufl.inner(stress, grad_g(psi, Fg)) * dx
+
+
+def boundary_traction(f, psi, Fg, n, ds) -> ufl.Form:
+    """``int Jg |Fg^{-T} N| f . psi ds``, a traction f given per current length (MODEL.md 4)."""
+    FinvT_n = ufl.dot(ufl.inv(Fg).T, n)
+    return ufl.det(Fg) * ufl.sqrt(ufl.inner(FinvT_n, FinvT_n)) * ufl.inner(f, psi) * ds
+
+
+def growth_strain(Fg):
+    """The displacement-free part of the elastic strain: ``sym(Fg^{-1}) - I``."""
+    return ufl.sym(ufl.inv(Fg)) - ufl.Identity(2)
+
+
+def elastic_strain(u, Fg):
+    """``eps_el(u, Fg) = sym(grad(u) Fg^{-1}) + sym(Fg^{-1}) - I`` (MODEL.md section 4)."""
+    return sym_grad_g(u, Fg) + growth_strain(Fg)

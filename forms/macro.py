@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import ufl
 
-from .elasticity import grad_g
+from .elasticity import growth_strain, growth_weighted_work, sym_grad_g
 
 
 def voigt(e):
@@ -25,27 +25,22 @@ def from_voigt(s):
     return ufl.as_matrix([[s[0], s[2]], [s[2], s[1]]])
 
 
-def growth_strain(Fg):
-    """The u-independent part of the elastic strain: ``sym(Fg^{-1}) - I``."""
-    return ufl.sym(ufl.inv(Fg)) - ufl.Identity(2)
-
-
 def macro_bilinear_form(u, psi, Fg, C, dx) -> ufl.Form:
     """``int Jg E_hom sym(grad(u) Fg^{-1}) : grad(psi) Fg^{-1} dx``."""
-    stress = from_voigt(ufl.dot(C, voigt(ufl.sym(grad_g(u, Fg)))))
-    return ufl.det(Fg) * ufl.inner(stress, grad_g(psi, Fg)) * dx
+    stress = from_voigt(ufl.dot(C, voigt(sym_grad_g(u, Fg))))
+    return growth_weighted_work(stress, psi, Fg, dx)
 
 
 def macro_growth_rhs(psi, Fg, C, dx) -> ufl.Form:
     """Growth load ``-int Jg E_hom (sym(Fg^{-1}) - I) : grad(psi) Fg^{-1} dx``."""
     stress = from_voigt(ufl.dot(C, voigt(growth_strain(Fg))))
-    return -ufl.det(Fg) * ufl.inner(stress, grad_g(psi, Fg)) * dx
+    return -growth_weighted_work(stress, psi, Fg, dx)
 
 
 def macro_pressure_rhs(psi, Fg, K, phi_w, P1, dx) -> ufl.Form:
     """Turgor load ``-int Jg (K_hom + (phi_w - 1) I) P1 : grad(psi) Fg^{-1} dx``."""
     stress = (K + (phi_w - 1.0) * ufl.Identity(2)) * P1
-    return -ufl.det(Fg) * ufl.inner(stress, grad_g(psi, Fg)) * dx
+    return -growth_weighted_work(stress, psi, Fg, dx)
 
 
 def macro_pressure_gradient_rhs(psi, Fg, phi_w, grad_P1, P2vec, dx) -> ufl.Form:
@@ -53,14 +48,3 @@ def macro_pressure_gradient_rhs(psi, Fg, phi_w, grad_P1, P2vec, dx) -> ufl.Form:
     ``int Jg Fg^{-T} ((1 - phi_w) grad(P1) - P2vec) . psi dx``."""
     force = ufl.dot(ufl.inv(Fg).T, (1.0 - phi_w) * grad_P1 - P2vec)
     return ufl.det(Fg) * ufl.inner(force, psi) * dx
-
-
-def macro_traction_rhs(psi, Fg, f, n, ds) -> ufl.Form:
-    """Boundary load ``int_{Gamma_N} Jg |Fg^{-T} N| f . psi ds``."""
-    scale = ufl.sqrt(ufl.inner(ufl.dot(ufl.inv(Fg).T, n), ufl.dot(ufl.inv(Fg).T, n)))
-    return ufl.det(Fg) * scale * ufl.inner(f, psi) * ds
-
-
-def elastic_strain(u, Fg):
-    """``eps_el(u, Fg) = sym(grad(u) Fg^{-1}) + sym(Fg^{-1}) - I`` (MODEL.md section 4)."""
-    return ufl.sym(grad_g(u, Fg)) + growth_strain(Fg)

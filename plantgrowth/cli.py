@@ -149,21 +149,36 @@ def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     try:
         run_macro(scene, outdir, comm)
     except RunError as err:
-        log.error("plantgrowth: run failed: %s", err)
+        log.error("run failed: %s", err)
+        if comm.rank == 0:
+            print(f"plantgrowth: run failed: {err}", file=sys.stderr)
         return 3
     log.info("done: %s", outdir)
     return 0
 
 
+def _configure_logging(comm: MPI.Comm) -> None:
+    """Progress of ``plantgrowth`` on rank 0 to stdout; other libraries' warnings only.
+
+    The root handler drops INFO records: the JIT's build tool raises the root level to INFO
+    when it compiles a form, which would otherwise flood the output.
+    """
+    root_handler = logging.StreamHandler()
+    root_handler.setLevel(logging.WARNING)
+    logging.basicConfig(handlers=[root_handler], format="%(name)s: %(message)s")
+    if not any(getattr(h, "plantgrowth_console", False) for h in log.handlers):
+        console = logging.StreamHandler(sys.stdout)
+        console.plantgrowth_console = True
+        console.setFormatter(logging.Formatter("%(message)s"))
+        log.addHandler(console)
+    log.propagate = False
+    log.setLevel(logging.INFO if comm.rank == 0 else logging.WARNING)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``plantgrowth`` command."""
     comm = MPI.COMM_WORLD
-    logging.basicConfig(
-        level=logging.INFO if comm.rank == 0 else logging.WARNING, format="%(message)s"
-    )
-    for noisy in ("root", "ffcx", "UFL"):
-        logging.getLogger(noisy if noisy != "root" else None).setLevel(logging.WARNING)
-    log.setLevel(logging.INFO if comm.rank == 0 else logging.WARNING)
+    _configure_logging(comm)
     try:
         args = build_parser().parse_args(argv)
         return args.handler(args, comm)

@@ -19,6 +19,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth.forms import macro
+from plantgrowth.forms.elasticity import boundary_traction
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -129,7 +130,7 @@ class MacroProblem:
         n = ufl.FacetNormal(msh)
         for tag, (_, f) in enumerate(sorted(scene.loads.items()), start=1):
             traction = fem.Constant(msh, np.asarray(f, dtype=PETSc.ScalarType))
-            terms += macro.macro_traction_rhs(psi, self.Fg, traction, n, ds(tag))
+            terms += boundary_traction(traction, psi, self.Fg, n, ds(tag))
         return terms
 
     def _boundary_conditions(self) -> list:

@@ -1,0 +1,188 @@
+"""The cellular tissue of the microscopic model and its outline (MODEL.md section 7), with gmsh.
+
+``Nx/2`` rows of ``Nx`` cells, each the honeycomb unit cell scaled by ``delta_s = 4 / Nx``; row r
+has its centres at ``x2 = r delta_s (l1 + s)``, ``x1 = (k + 1/2 + (r mod 2)/2) delta_s 2c``. The
+bottom row is cut at x2 = 0 (symmetry plane). Each cell owns the walls between its mid-line
+hexagon and its void (so a shared wall is 2w thick and an outer wall w thick). gmsh runs on
+``model_rank`` only; meshes are distributed over ``comm``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gmsh
+import numpy as np
+from dolfinx.io import gmshio
+from mpi4py import MPI
+
+from .honeycomb import GeometryError, HoneycombCell
+from .unit_cell import ensure_gmsh
+
+FACET_TAGS = {"membrane": 1, "bottom": 2, "outer": 3}
+"""Facet tags of the walls mesh; cell tags are ``cell id + 1``."""
+OUTLINE_TAG = 1
+"""Cell tag of the outline (macro) mesh."""
+
+
+def clip_below(polygon: np.ndarray) -> np.ndarray:
+    """The part x2 >= 0 of a convex polygon (Sutherland-Hodgman clip, order kept)."""
+    side = polygon[:, 1]
+    out = []
+    n = len(polygon)
+    for k in range(n):
+        a, b, sa, sb = polygon[k], polygon[(k + 1) % n], side[k], side[(k + 1) % n]
+        if sa >= 0.0:
+            out.append(a)
+        if (sa >= 0.0) != (sb >= 0.0):
+            out.append(a + (b - a) * sa / (sa - sb))
+    return np.array(out)
+
+
+@dataclass(frozen=True)
+class TissueLayout:
+    """Where the cells of an ``Nx`` tissue are (pure geometry, no mesh).
+
+    Attributes:
+        cell: the unit cell (before scaling).
+        nx: cells per row, even, >= 2.
+    """
+
+    cell: HoneycombCell
+    nx: int
+
+    def __post_init__(self) -> None:
+        if isinstance(self.nx, bool) or not isinstance(self.nx, int) or self.nx < 2:
+            raise GeometryError(
+                f"micro.nx = {self.nx!r} is invalid: it must be an even integer >= 2"
+            )
+        if self.nx % 2:
+            raise GeometryError(f"micro.nx = {self.nx} is invalid: it must be even (Nx/2 rows)")
+
+    @property
+    def delta_s(self) -> float:
+        """Scale of one cell: ``4 / Nx`` (MODEL.md section 7)."""
+        return 4.0 / self.nx
+
+    @property
+    def n_cells(self) -> int:
+        return self.nx * self.nx // 2
+
+    @property
+    def centres(self) -> np.ndarray:
+        """(n_cells, 2) cell centres, id = row * Nx + k."""
+        d, c = self.delta_s, self.cell.c
+        rows, ks = np.divmod(np.arange(self.n_cells), self.nx)
+        x1 = (ks + 0.5 + 0.5 * (rows % 2)) * d * 2.0 * c
+        x2 = rows * d * (self.cell.l1 + self.cell.s)
+        return np.column_stack([x1, x2])
+
+    def hexagon(self, cell_id: int) -> np.ndarray:
+        """Mid-line hexagon of a cell, cut at x2 = 0 for the bottom row."""
+        poly = self.delta_s * self.cell.hexagon() + self.centres[cell_id]
+        return clip_below(poly) if cell_id < self.nx else poly
+
+    def void(self, cell_id: int) -> np.ndarray:
+        """Void of a cell (not cut: the bottom row's voids are open at x2 = 0)."""
+        return self.delta_s * self.cell.void() + self.centres[cell_id]
+
+    @property
+    def bounding_box(self) -> tuple[float, float]:
+        """(width, height) of the smallest rectangle [0, width] x [0, height] holding the tissue."""
+        points = np.vstack([self.hexagon(i) for i in range(self.n_cells)])
+        return float(points[:, 0].max()), float(points[:, 1].max())
+
+
+def _add_polygon(points: np.ndarray) -> int:
+    occ = gmsh.model.occ
+    tags = [occ.addPoint(x, y, 0.0) for x, y in points]
+    lines = [occ.addLine(tags[i], tags[(i + 1) % len(tags)]) for i in range(len(tags))]
+    return occ.addPlaneSurface([occ.addCurveLoop(lines)])
+
+
+def _build_walls_model(layout: TissueLayout, h: float) -> None:
+    gmsh.model.add("tissue")
+    occ = gmsh.model.occ
+    n = layout.n_cells
+    hexagons = [(2, _add_polygon(layout.hexagon(i))) for i in range(n)]
+    voids = [(2, _add_polygon(layout.void(i))) for i in range(n)]
+    _, pieces = occ.fragment(hexagons, voids)
+    occ.synchronize()
+    # a hexagon's pieces are its walls and its void; a void's pieces are void only
+    void_surfaces = sorted({tag for piece in pieces[n:] for _, tag in piece})
+    owner = {i: sorted({t for _, t in pieces[i]} - set(void_surfaces)) for i in range(n)}
+    scale = layout.delta_s * max(layout.cell.l1, layout.cell.l2)
+    membrane = {
+        tag for s in void_surfaces for _, tag in gmsh.model.getBoundary([(2, s)], oriented=False)
+    }
+    occ.remove([(2, s) for s in void_surfaces], recursive=False)
+    occ.synchronize()
+    for cell_id, surfaces in owner.items():
+        gmsh.model.addPhysicalGroup(2, surfaces, cell_id + 1)
+    walls = [(2, s) for surfaces in owner.values() for s in surfaces]
+    boundary = [t for _, t in gmsh.model.getBoundary(walls, oriented=False, combined=True)]
+    groups: dict[str, list[int]] = {"membrane": [], "bottom": [], "outer": []}
+    for curve in boundary:
+        y = [gmsh.model.getValue(0, p, [])[1] for _, p in gmsh.model.getBoundary([(1, curve)])]
+        if curve in membrane:
+            groups["membrane"].append(curve)
+        elif max(abs(v) for v in y) < 1e-9 * scale:
+            groups["bottom"].append(curve)
+        else:
+            groups["outer"].append(curve)
+    for name, curves in groups.items():
+        gmsh.model.addPhysicalGroup(1, curves, FACET_TAGS[name])
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.1 * h)
+    gmsh.model.mesh.generate(2)
+
+
+def _build_outline_model(layout: TissueLayout, h: float) -> None:
+    gmsh.model.add("outline")
+    occ = gmsh.model.occ
+    hexagons = [(2, _add_polygon(layout.hexagon(i))) for i in range(layout.n_cells)]
+    union, _ = occ.fuse(hexagons[:1], hexagons[1:])
+    occ.synchronize()
+    gmsh.model.addPhysicalGroup(2, [t for d, t in union if d == 2], OUTLINE_TAG)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.1 * h)
+    gmsh.model.mesh.generate(2)
+
+
+def _to_dolfinx(build, comm: MPI.Comm, model_rank: int):
+    ensure_gmsh()
+    try:
+        if comm.rank == model_rank:
+            build()
+        return gmshio.model_to_mesh(gmsh.model, comm, model_rank, gdim=2)
+    finally:
+        if comm.rank == model_rank:
+            gmsh.model.remove()
+
+
+def wall_mesh_size(layout: TissueLayout, resolution: int) -> float:
+    """``resolution`` elements across one cell's own wall ``w delta_s`` (capped by the walls'
+    length as in the unit cell)."""
+    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 1:
+        raise GeometryError(f"resolution = {resolution!r} is invalid: an integer >= 1")
+    cell = layout.cell
+    return layout.delta_s * min(cell.w, 0.25 * min(cell.l1, cell.l2)) / resolution
+
+
+def build_walls_mesh(
+    layout: TissueLayout, resolution: int, comm: MPI.Comm = MPI.COMM_WORLD, model_rank: int = 0
+):
+    """Mesh of the walls of all cells: ``(mesh, cell_tags, facet_tags)``.
+
+    Cell tags are ``cell id + 1`` (each cell's own walls); facet tags ``FACET_TAGS``.
+    """
+    h = wall_mesh_size(layout, resolution)
+    return _to_dolfinx(lambda: _build_walls_model(layout, h), comm, model_rank)
+
+
+def build_outline_mesh(
+    layout: TissueLayout, h: float, comm: MPI.Comm = MPI.COMM_WORLD, model_rank: int = 0
+):
+    """Mesh of the region the cells cover (the union of their mid-line hexagons, cut at x2 = 0),
+    the macroscopic domain of a micro-macro comparison: ``(mesh, cell_tags, facet_tags)``."""
+    return _to_dolfinx(lambda: _build_outline_model(layout, h), comm, model_rank)
