@@ -17,23 +17,13 @@ from mpi4py import MPI
 
 from plantgrowth import growth
 from plantgrowth.coarse import CoarseGrid, project_to_nodes
-from plantgrowth.errors import RunError
 from plantgrowth.homogenization import Homogenizer
-from plantgrowth.macro_problem import MacroProblem
-from plantgrowth.output import FieldWriter, SummaryWriter
+from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.scene import Scene
 from plantgrowth.tensors import VOIGT_NAMES, VOIGT_POSITIONS
+from plantgrowth.timeloop import StepResult, run_model
 
 log = logging.getLogger("plantgrowth")
-
-SUMMARY_COLUMNS = [
-    "step", "t", "area", "growth_rate_11", "growth_rate_22", "growth_rate_area",
-    "u1_max", "u2_max", "det_Fg_min", "n_cell_solves", "residual",
-    "seconds", "seconds_cells", "seconds_solve", "seconds_growth", "seconds_io",
-]  # fmt: skip
-
-RESIDUAL_BOUND = 1e-8
-"""Largest accepted relative residual of the macro LU solve (round-off is ~1e-14)."""
 
 
 class _Outputs:
@@ -66,148 +56,139 @@ def _pruning_report(problem: MacroProblem, scene: Scene, strain_averages: bool) 
     return skipped
 
 
-def _check_step(step: int, t: float, report, fields: dict[str, np.ndarray], comm) -> None:
-    """Stop with a RunError naming step, time and cause if a solve or field went bad."""
-    problems = []
-    for name, values in fields.items():
-        if not np.all(np.isfinite(values)):
-            problems.append(f"{name} has NaN or Inf")
-    if report.reason <= 0 or not report.residual <= RESIDUAL_BOUND:
-        problems.append(
-            f"macro solve failed (PETSc reason {report.reason}, relative residual "
-            f"{report.residual:.3g} > {RESIDUAL_BOUND:g})"
-        )
-    problems = sorted(set(p for part in comm.allgather(problems) for p in part))
-    if problems:
-        raise RunError(f"step {step}, t = {t:g}: " + "; ".join(problems))
+class MacroModel:
+    """The coupled macroscopic model: Algorithm 1's inner steps for one time level.
 
-
-def run_macro(scene: Scene, outdir: Path, comm: MPI.Comm) -> list[dict[str, float]]:
-    """Run the coupled macroscopic model of a scene, writing into ``outdir``.
-
-    Returns the summary rows (also written to ``outdir/summary.csv``).
+    Args:
+        scene: the scene.
+        mesh: the fine mesh m (the scene's rectangle, or the outline of a micro tissue).
+        comm: communicator of the fine mesh; it also shares the cell problems.
     """
-    setup_start = time.perf_counter()
-    problem = MacroProblem(scene, comm)
-    grid = CoarseGrid.with_edge(scene.tissue.width, scene.tissue.height, scene.tissue.H)
-    nodes = grid.nodes
-    W = grid.interpolation_matrix(problem.midpoints[:, :2])
-    W_owned = W[: problem.n_owned]
-    x1_nodes, x1 = nodes[:, 0], problem.midpoints[:, 0]
-    cell = scene.cell
-    geometry = np.column_stack([f(x1_nodes) for f in (cell.l1, cell.l2, cell.theta, cell.w)])
-    E_nodes, nu_nodes = scene.material.E(x1_nodes), scene.material.nu(x1_nodes)
-    P1, eta, tau = scene.P1(x1), scene.growth.eta(x1), scene.growth.tau(x1)
-    grad_P1 = np.array([scene.P1.gradient, 0.0])
-    law = scene.growth.law
-    strain_averages = law == "strain" or "eps_hom" in scene.output.fields
-    homogenizer = Homogenizer(
-        scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
-        problem.K is not None, strain_averages, comm,
-    )  # fmt: skip
-    log.info(
-        "macro: %d fine dofs, %d coarse nodes, terms: %s",
-        problem.ndofs, len(nodes), ", ".join(problem.active_terms),
-    )  # fmt: skip
-    for line in _pruning_report(problem, scene, strain_averages):
-        log.info("skipped: %s", line)
 
-    out = _Outputs(problem, scene.output.fields)
-    writer = FieldWriter(outdir / "fields.xdmf", problem.mesh, out.functions)
-    summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm)
-    log.info("set-up: %.2f s", time.perf_counter() - setup_start)
+    def __init__(self, scene: Scene, mesh, comm: MPI.Comm) -> None:
+        self.scene = scene
+        self.comm = comm
+        self.problem = problem = MacroProblem(scene, mesh)
+        self.mesh = problem.mesh
+        width, height = problem.bounding_box
+        self.grid = CoarseGrid.with_edge(width, height, scene.tissue.H)
+        nodes = self.grid.nodes
+        self.W = self.grid.interpolation_matrix(problem.midpoints[:, :2])
+        x1_nodes, x1 = nodes[:, 0], problem.midpoints[:, 0]
+        cell = scene.cell
+        self.geometry = np.column_stack(
+            [f(x1_nodes) for f in (cell.l1, cell.l2, cell.theta, cell.w)]
+        )
+        self.E_nodes, self.nu_nodes = scene.material.E(x1_nodes), scene.material.nu(x1_nodes)
+        self.P1, self.eta, self.tau = scene.P1(x1), scene.growth.eta(x1), scene.growth.tau(x1)
+        self.grad_P1 = np.array([scene.P1.gradient, 0.0])
+        self.strain_averages = scene.growth.law == "strain" or "eps_hom" in scene.output.fields
+        self.homogenizer = Homogenizer(
+            scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
+            problem.K is not None, self.strain_averages, comm,
+        )  # fmt: skip
+        self.out = _Outputs(problem, scene.output.fields)
+        self.outputs = self.out.functions
+        log.info(
+            "macro: %d fine dofs, %d coarse nodes, terms: %s",
+            problem.ndofs, len(nodes), ", ".join(problem.active_terms),
+        )  # fmt: skip
+        for line in _pruning_report(problem, scene, self.strain_averages):
+            log.info("skipped: %s", line)
 
-    n_cells, n_owned = problem.n_cells, problem.n_owned
-    Fg = np.tile(np.array(scene.growth.Fg0, dtype=float), (n_cells, 1, 1))
-    n_steps = 0 if law == "none" else scene.time.n_steps
-    dt = scene.time.dt
-    rows = []
-    run_start = time.perf_counter()
-    for step in range(n_steps + 1):
-        t = step * dt
+    def initial_growth(self) -> np.ndarray:
+        return np.tile(np.array(self.scene.growth.Fg0, dtype=float), (self.problem.n_cells, 1, 1))
+
+    def _to_cells(self, node_values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+        """P1 interpolation of coarse-node values to the fine cells' midpoints."""
+        n = node_values.shape[0]
+        return (self.W @ node_values.reshape(n, -1)).reshape(-1, *shape)
+
+    def step(self, Fg: np.ndarray) -> StepResult:
+        problem, law = self.problem, self.scene.growth.law
         t0 = time.perf_counter()
-        Fg_nodes = project_to_nodes(W_owned, problem.areas, Fg[:n_owned].reshape(-1, 4), comm)
-        nt = homogenizer.homogenize(geometry, E_nodes, nu_nodes, Fg_nodes.reshape(-1, 2, 2))
-        n_nodes = len(nodes)
-        C = (W @ nt.C.reshape(n_nodes, 9)).reshape(-1, 3, 3)
-        phi_w = W @ nt.phi_w
-        K = None if nt.K is None else (W @ nt.K.reshape(n_nodes, 4)).reshape(-1, 2, 2)
+        n_owned = problem.n_owned
+        Fg_nodes = project_to_nodes(
+            self.W[:n_owned], problem.areas, Fg[:n_owned].reshape(-1, 4), self.comm
+        )
+        nt = self.homogenizer.homogenize(
+            self.geometry, self.E_nodes, self.nu_nodes, Fg_nodes.reshape(-1, 2, 2)
+        )
+        C = self._to_cells(nt.C, (3, 3))
+        phi_w = self._to_cells(nt.phi_w, ())
+        K = None if nt.K is None else self._to_cells(nt.K, (2, 2))
         problem.set_cell_values(problem.Fg, Fg)
         problem.set_cell_values(problem.C, C)
         problem.set_cell_values(problem.phi_w, phi_w)
         if K is not None:
             problem.set_cell_values(problem.K, K)
         if problem.P2vec is not None:
-            problem.set_cell_values(problem.P2vec, W @ (nt.P2_matrix @ grad_P1))
+            problem.set_cell_values(
+                problem.P2vec, self._to_cells(nt.P2_matrix @ self.grad_P1, (2,))
+            )
         t1 = time.perf_counter()
         report = problem.solve()
         t2 = time.perf_counter()
 
-        grad_u = problem.grad_u()
-        eps_el = growth.elastic_strain(grad_u, Fg)
-        sigma = growth.homogenized_stress(C, eps_el, K, P1)
+        eps_el = growth.elastic_strain(problem.grad_u(), Fg)
+        sigma = growth.homogenized_stress(C, eps_el, K, self.P1)
         eps_hom = None
-        if strain_averages:
-            dbar_w = (W @ nt.dbar_w.reshape(n_nodes, 16)).reshape(-1, 2, 2, 2, 2)
-            dbar_v = None if nt.dbar_v is None else (W @ nt.dbar_v.reshape(n_nodes, 4))
-            dbar_v = None if dbar_v is None else dbar_v.reshape(-1, 2, 2)
-            eps_hom = growth.homogenized_strain(eps_el, phi_w, dbar_w, dbar_v, P1)
+        if self.strain_averages:
+            dbar_v = None if nt.dbar_v is None else self._to_cells(nt.dbar_v, (2, 2))
+            dbar_w = self._to_cells(nt.dbar_w, (2, 2, 2, 2))
+            eps_hom = growth.homogenized_strain(eps_el, phi_w, dbar_w, dbar_v, self.P1)
         if law == "none":
             G = np.zeros_like(Fg)
         else:
             driving = sigma if law == "stress" else eps_hom
-            G = growth.growth_rate(driving, phi_w, eta, tau, scene.growth.clamp)
-        _check_step(step, t, report, {"u": problem.u.x.array, "G": G, "Fg": Fg}, comm)
-        t3 = time.perf_counter()
-
-        problem.set_cell_values(out.G, G)
-        problem.set_cell_values(out.sigma, sigma)
+            G = growth.growth_rate(driving, phi_w, self.eta, self.tau, self.scene.growth.clamp)
+        problem.set_cell_values(self.out.G, G)
+        problem.set_cell_values(self.out.sigma, sigma)
         if eps_hom is not None:
-            problem.set_cell_values(out.eps, eps_hom)
-        for function, (i, j) in zip(out.E, VOIGT_POSITIONS, strict=True):
+            problem.set_cell_values(self.out.eps, eps_hom)
+        for function, (i, j) in zip(self.out.E, VOIGT_POSITIONS, strict=True):
             problem.set_cell_values(function, C[:, i, j])
-        writer.write(t)
-        t4 = time.perf_counter()
-
-        row = _summary_row(problem, Fg, G, comm)
-        row.update(step=step, t=t, n_cell_solves=homogenizer.solves_last_call,
-                   residual=report.residual, seconds=t4 - t0, seconds_cells=t1 - t0,
-                   seconds_solve=t2 - t1, seconds_growth=t3 - t2, seconds_io=t4 - t3)  # fmt: skip
-        row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
-               for k, v in row.items()}  # fmt: skip
-        summary.write(row)
-        rows.append(row)
-        elapsed = time.perf_counter() - run_start
-        left = elapsed / (step + 1) * (n_steps - step)
-        log.info(
-            "step %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d  (%.1f s left)",
-            step, n_steps, t, row["growth_rate_area"], row["n_cell_solves"], left,
+        t3 = time.perf_counter()
+        return StepResult(
+            G, report.reason, report.residual, self.homogenizer.solves_last_call,
+            {"seconds_cells": t1 - t0, "seconds_solve": t2 - t1, "seconds_growth": t3 - t2},
         )  # fmt: skip
-        if step < n_steps:
-            Fg = growth.advance(Fg, G, dt, scene.time.integrator)
-    return rows
+
+    def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
+        """Current area ``int det(I + grad u)``, reference-area means of G11, G22, tr G,
+        max |u_i| and min det Fg."""
+        problem, comm = self.problem, self.comm
+        n = problem.n_owned
+        areas = problem.areas
+        area = np.sum(areas * np.linalg.det(np.eye(2) + problem.grad_u()[:n]))
+        means = np.array([np.sum(areas * G[:n, 0, 0]), np.sum(areas * G[:n, 1, 1])])
+        means = comm.allreduce(means, op=MPI.SUM) / problem.total_area
+        u1_max, u2_max = max_abs_components(problem.u, comm)
+        det_min = float(np.linalg.det(Fg[:n]).min()) if n else np.inf
+        return {
+            "area": comm.allreduce(area, op=MPI.SUM),
+            "growth_rate_11": means[0],
+            "growth_rate_22": means[1],
+            "growth_rate_area": means[0] + means[1],
+            "u1_max": u1_max,
+            "u2_max": u2_max,
+            "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
+        }
 
 
-def _summary_row(problem: MacroProblem, Fg: np.ndarray, G: np.ndarray, comm) -> dict:
-    """Tissue measures: current area, reference-area means of G11, G22, tr G, max |u_i|."""
-    n = problem.n_owned
-    areas = problem.areas
-    grad_u = problem.grad_u()[:n]
-    deformation = np.eye(2) + grad_u
-    area = np.sum(areas * np.linalg.det(deformation))
-    means = np.array([np.sum(areas * G[:n, 0, 0]), np.sum(areas * G[:n, 1, 1])])
-    u = problem.u.x.array.reshape(-1, 2)[: problem.V.dofmap.index_map.size_local]
-    u_max = np.abs(u).max(axis=0) if len(u) else np.zeros(2)
-    area = comm.allreduce(area, op=MPI.SUM)
-    means = comm.allreduce(means, op=MPI.SUM) / problem.total_area
-    u_max = [comm.allreduce(float(v), op=MPI.MAX) for v in u_max]
-    det_min = comm.allreduce(float(np.linalg.det(Fg[:n]).min()) if n else np.inf, op=MPI.MIN)
-    return {
-        "area": area,
-        "growth_rate_11": means[0],
-        "growth_rate_22": means[1],
-        "growth_rate_area": means[0] + means[1],
-        "u1_max": u_max[0],
-        "u2_max": u_max[1],
-        "det_Fg_min": det_min,
-    }
+def max_abs_components(u: fem.Function, comm: MPI.Comm) -> tuple[float, float]:
+    """max |u_1|, max |u_2| over the owned dofs of all ranks."""
+    owned = u.x.array.reshape(-1, 2)[: u.function_space.dofmap.index_map.size_local]
+    local = np.abs(owned).max(axis=0) if len(owned) else np.zeros(2)
+    return tuple(comm.allreduce(float(v), op=MPI.MAX) for v in local)
+
+
+def run_macro(scene: Scene, outdir: Path, comm: MPI.Comm) -> list[dict[str, float]]:
+    """Run the coupled macroscopic model of a scene on its rectangle, writing into ``outdir``.
+
+    Returns the summary rows (also written to ``outdir/summary.csv``).
+    """
+    start = time.perf_counter()
+    model = MacroModel(scene, rectangle_mesh(scene, comm), comm)
+    log.info("set-up: %.2f s", time.perf_counter() - start)
+    return run_model(model, scene, outdir, comm)

@@ -36,21 +36,25 @@ class SolveReport:
     residual: float
 
 
+def rectangle_mesh(scene: Scene, comm: MPI.Comm) -> mesh.Mesh:
+    """The stand-alone macro domain ``[0, width] x [0, height]`` with edges about ``h``."""
+    t = scene.tissue
+    nx, ny = max(1, round(t.width / t.h)), max(1, round(t.height / t.h))
+    corners = [np.zeros(2), np.array([t.width, t.height])]
+    return mesh.create_rectangle(comm, corners, [nx, ny], mesh.CellType.triangle)
+
+
 class MacroProblem:
     """Fine mesh, pruned forms, boundary conditions and LU solver of the macro problem.
 
     Args:
-        scene: the scene (tissue size, mesh sizes, pressure field, loads).
-        comm: communicator the fine mesh is distributed on.
+        scene: the scene (pressure field, loads).
+        msh: the fine mesh, with its bottom edge on x2 = 0 and a vertex at the origin.
     """
 
-    def __init__(self, scene: Scene, comm: MPI.Comm) -> None:
-        t = scene.tissue
-        nx, ny = max(1, round(t.width / t.h)), max(1, round(t.height / t.h))
-        self.mesh = mesh.create_rectangle(
-            comm, [np.zeros(2), np.array([t.width, t.height])], [nx, ny], mesh.CellType.triangle
-        )
-        msh = self.mesh
+    def __init__(self, scene: Scene, msh: mesh.Mesh) -> None:
+        self.mesh = msh
+        comm = msh.comm
         self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 1))
         self.Q0 = fem.FunctionSpace(msh, ("DG", 0))
         self.T0 = fem.TensorFunctionSpace(msh, ("DG", 0))
@@ -67,6 +71,10 @@ class MacroProblem:
         areas = fem.petsc.assemble_vector(area_form)
         self.areas = areas.array[self.Q0.dofmap.list.array[: self.n_owned]].copy()
         self.total_area = comm.allreduce(self.areas.sum(), op=MPI.SUM)
+        x = msh.geometry.x
+        self.bounding_box = tuple(
+            comm.allreduce(float(x[:, i].max()) if len(x) else 0.0, op=MPI.MAX) for i in range(2)
+        )
 
         u, psi = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
         dx = ufl.dx
