@@ -12,11 +12,6 @@ import ufl
 from .elasticity import growth_weighted_work, sym_grad_g, wall_stress
 
 
-def cell_bilinear_form(z, phi, Fg, E, nu, dx) -> ufl.Form:
-    """``a(z, phi) = int_{Y_w} Jg E[d[z]] : grad_g(phi) dy``, shared by [UC_weak] and [UCw_weak]."""
-    return growth_weighted_work(wall_stress(sym_grad_g(z, Fg), E, nu), phi, Fg, dx)
-
-
 def cell_strain_rhs(b, phi, Fg, E, nu, dx) -> ufl.Form:
     """Right-hand side of [UC_weak] for the unit strain ``b = b_ij`` (a 2x2 ``Constant``)."""
     return -growth_weighted_work(wall_stress(b, E, nu), phi, Fg, dx)

@@ -52,3 +52,9 @@ def growth_strain(Fg):
 def elastic_strain(u, Fg):
     """``eps_el(u, Fg) = sym(grad(u) Fg^{-1}) + sym(Fg^{-1}) - I`` (MODEL.md section 4)."""
     return sym_grad_g(u, Fg) + growth_strain(Fg)
+
+
+def wall_bilinear_form(z, psi, Fg, E, nu, dx) -> ufl.Form:
+    """``int Jg E[sym(grad(z) Fg^{-1})] : grad(psi) Fg^{-1} dx``: the walls' stiffness, shared by
+    the cell problems [UC_weak], [UCw_weak] and the micro model [var_inequal]."""
+    return growth_weighted_work(wall_stress(sym_grad_g(z, Fg), E, nu), psi, Fg, dx)

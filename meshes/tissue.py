@@ -141,9 +141,10 @@ def _build_outline_model(layout: TissueLayout, h: float) -> None:
     gmsh.model.add("outline")
     occ = gmsh.model.occ
     hexagons = [(2, _add_polygon(layout.hexagon(i))) for i in range(layout.n_cells)]
-    union, _ = occ.fuse(hexagons[:1], hexagons[1:])
+    # fragment (not fuse) keeps the mesh conforming across the hexagons' shared sides
+    pieces, _ = occ.fragment(hexagons[:1], hexagons[1:])
     occ.synchronize()
-    gmsh.model.addPhysicalGroup(2, [t for d, t in union if d == 2], OUTLINE_TAG)
+    gmsh.model.addPhysicalGroup(2, [t for d, t in pieces if d == 2], OUTLINE_TAG)
     gmsh.option.setNumber("Mesh.MeshSizeMax", h)
     gmsh.option.setNumber("Mesh.MeshSizeMin", 0.1 * h)
     gmsh.model.mesh.generate(2)

@@ -19,6 +19,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth.forms import cell_problems
+from plantgrowth.forms.elasticity import wall_bilinear_form
+from plantgrowth.linear import lu_solver
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.meshes.unit_cell import CELL_TAGS, FACET_TAGS, build_unit_cell_mesh
 from plantgrowth.periodic import periodic_constraint
@@ -79,17 +81,6 @@ class CellResult:
         return {k: (float(v) if k != "ndofs" else int(v)) for k, v in out.items()}
 
 
-def _lu_solver(A: PETSc.Mat, comm: MPI.Comm) -> PETSc.KSP:
-    """PREONLY + LU: PETSc's own LU in serial (fast for small cells), MUMPS in parallel."""
-    ksp = PETSc.KSP().create(comm)
-    ksp.setOperators(A)
-    ksp.setType("preonly")
-    pc = ksp.getPC()
-    pc.setType("lu")
-    pc.setFactorSolverType("petsc" if comm.size == 1 else "mumps")
-    return ksp
-
-
 class CellSolver:
     """Periodic unit-cell solver, reusable for many (Fg, E, nu) on one geometry.
 
@@ -137,7 +128,7 @@ class CellSolver:
         z, phi = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
         self._z = fem.Function(self.mpc.function_space)
         Fg, E, nu = self._Fg, self._E, self._nu
-        self.bilinear_form = fem.form(cell_problems.cell_bilinear_form(z, phi, Fg, E, nu, dx))
+        self.bilinear_form = fem.form(wall_bilinear_form(z, phi, Fg, E, nu, dx))
         self._L_strain = fem.form(cell_problems.cell_strain_rhs(self._b, phi, Fg, E, nu, dx))
         self._L_pressure = fem.form(cell_problems.cell_pressure_rhs(phi, Fg, dx))
         self._stress_avg = fem.form(
@@ -164,7 +155,7 @@ class CellSolver:
             self.P2_matrix = -M / self.area
 
         self.A = dolfinx_mpc.assemble_matrix(self.bilinear_form, self.mpc, bcs=self.bcs)
-        self.ksp = _lu_solver(self.A, comm)
+        self.ksp = lu_solver(self.A, comm, "plantgrowth_cell_", serial="petsc")
         self._rhs = dolfinx_mpc.assemble_vector(self._L_pressure, self.mpc)
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
 

@@ -85,6 +85,35 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.set_defaults(handler=_run_command)
 
+    compare = sub.add_parser(
+        "compare",
+        help="compare the micro and macro models for several Nx",
+        description="Runs, for each Nx, the macro model on the region the micro tissue covers "
+        "and the micro model; writes DIR/compare.csv (nx, delta, err_u1, err_u2 at the first "
+        "step, mean growth rates at t = 0 and t_max, run times) and DIR/nx<N>/{macro,micro}.",
+    )
+    compare.add_argument("scene", type=Path, help="scene TOML file")
+    compare.add_argument("--nx", type=int, nargs="+", required=True, help="even cell counts")
+    compare.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="output directory (default: results/compare_<scene name>)",
+    )
+    compare.add_argument(
+        "--resolution",
+        type=int,
+        default=None,
+        help="micro: P2 elements across a wall (default: micro.resolution)",
+    )
+    compare.add_argument(
+        "--first-step-only",
+        action="store_true",
+        help="stop both models after the first step (errors only)",
+    )
+    compare.set_defaults(handler=_compare_command)
+
     validate = sub.add_parser("validate", help="check a scene without running it")
     validate.add_argument("scene", type=Path, help="scene TOML file")
     validate.set_defaults(handler=_validate_command)
@@ -127,15 +156,30 @@ def _validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     return 0
 
 
-def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from plantgrowth.coupled import run_macro
-    from plantgrowth.output import prepare_directory
+def _compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from plantgrowth.compare import run_compare
+    from plantgrowth.meshes.tissue import TissueLayout
+    from plantgrowth.micro import scene_cell
     from plantgrowth.scene import load_scene
 
     scene = load_scene(args.scene)
-    if scene.model != "macro":
-        raise InputError(f"model = {scene.model!r} is not available yet: use model = 'macro'")
-    outdir = args.output if args.output is not None else Path("results") / args.scene.stem
+    scene.check_micro()
+    for nx in args.nx:
+        TissueLayout(scene_cell(scene), nx)  # validates Nx before anything runs
+    outdir = args.output or Path("results") / f"compare_{args.scene.stem}"
+    _start_run(outdir, scene, comm)
+    try:
+        run_compare(scene, args.nx, outdir, comm, args.resolution, args.first_step_only)
+    except RunError as err:
+        return _run_failed(err, comm)
+    log.info("done: %s", outdir / "compare.csv")
+    return 0
+
+
+def _start_run(outdir: Path, scene, comm: MPI.Comm) -> None:
+    """Prepare the output directory, write the resolved scene, log into run.log."""
+    from plantgrowth.output import prepare_directory
+
     try:
         prepare_directory(outdir, comm)
     except OSError as err:
@@ -145,14 +189,34 @@ def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         handler = logging.FileHandler(outdir / "run.log")
         handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
         log.addHandler(handler)
+
+
+def _run_failed(err: RunError, comm: MPI.Comm) -> int:
+    log.error("run failed: %s", err)
+    if comm.rank == 0:
+        print(f"plantgrowth: run failed: {err}", file=sys.stderr)
+    return 3
+
+
+def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from plantgrowth.coupled import run_macro
+    from plantgrowth.micro import run_micro
+    from plantgrowth.output import prepare_directory
+    from plantgrowth.scene import load_scene
+
+    scene = load_scene(args.scene)
+    outdir = args.output if args.output is not None else Path("results") / args.scene.stem
+    _start_run(outdir, scene, comm)
     log.info("plantgrowth run %s -> %s on %d rank(s)", args.scene, outdir, comm.size)
+    runs = {"macro": [(run_macro, outdir)], "micro": [(run_micro, outdir)],
+            "both": [(run_macro, outdir / "macro"), (run_micro, outdir / "micro")]}  # fmt: skip
     try:
-        run_macro(scene, outdir, comm)
+        for run, directory in runs[scene.model]:
+            if directory != outdir:
+                prepare_directory(directory, comm)
+            run(scene, directory, comm)
     except RunError as err:
-        log.error("run failed: %s", err)
-        if comm.rank == 0:
-            print(f"plantgrowth: run failed: {err}", file=sys.stderr)
-        return 3
+        return _run_failed(err, comm)
     log.info("done: %s", outdir)
     return 0
 

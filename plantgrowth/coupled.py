@@ -21,7 +21,7 @@ from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.scene import Scene
 from plantgrowth.tensors import VOIGT_NAMES, VOIGT_POSITIONS
-from plantgrowth.timeloop import StepResult, run_model
+from plantgrowth.timeloop import StepResult, max_abs_components, run_model
 
 log = logging.getLogger("plantgrowth")
 
@@ -174,13 +174,6 @@ class MacroModel:
             "u2_max": u2_max,
             "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
         }
-
-
-def max_abs_components(u: fem.Function, comm: MPI.Comm) -> tuple[float, float]:
-    """max |u_1|, max |u_2| over the owned dofs of all ranks."""
-    owned = u.x.array.reshape(-1, 2)[: u.function_space.dofmap.index_map.size_local]
-    local = np.abs(owned).max(axis=0) if len(owned) else np.zeros(2)
-    return tuple(comm.allreduce(float(v), op=MPI.MAX) for v in local)
 
 
 def run_macro(scene: Scene, outdir: Path, comm: MPI.Comm) -> list[dict[str, float]]:

@@ -10,7 +10,6 @@ rigid translation); the other edges carry the scene's tractions or none.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 import ufl
@@ -20,20 +19,13 @@ from petsc4py import PETSc
 
 from plantgrowth.forms import macro
 from plantgrowth.forms.elasticity import boundary_traction
+from plantgrowth.linear import SolveReport, assemble_and_solve, lu_solver
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
 
 EDGES = {"left": (0, 0.0), "right": (0, None), "top": (1, None)}
 """Loadable edges: (coordinate index, position; None = the far side of the rectangle)."""
-
-
-@dataclass(frozen=True)
-class SolveReport:
-    """Linear solve diagnostics: PETSc converged reason and true relative residual."""
-
-    reason: int
-    residual: float
 
 
 def rectangle_mesh(scene: Scene, comm: MPI.Comm) -> mesh.Mesh:
@@ -102,13 +94,7 @@ class MacroProblem:
         self.bcs = self._boundary_conditions()
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
-        self.ksp = PETSc.KSP().create(comm)
-        self.ksp.setOptionsPrefix("plantgrowth_macro_")
-        self.ksp.setOperators(self.A)
-        self.ksp.setType("preonly")
-        self.ksp.getPC().setType("lu")
-        self.ksp.getPC().setFactorSolverType("mumps")
-        self.ksp.setFromOptions()
+        self.ksp = lu_solver(self.A, comm, "plantgrowth_macro_")
         self._grad_u = fem.Function(self.T0)
         self._grad_u_expr = fem.Expression(ufl.grad(self.u), self.T0.element.interpolation_points())
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
@@ -169,24 +155,7 @@ class MacroProblem:
 
     def solve(self) -> SolveReport:
         """Assemble the active terms and solve for u; returns the solver diagnostics."""
-        self.A.zeroEntries()
-        fem.petsc.assemble_matrix(self.A, self.a, bcs=self.bcs)
-        self.A.assemble()
-        with self.b.localForm() as local:
-            local.set(0.0)
-        fem.petsc.assemble_vector(self.b, self.L)
-        fem.petsc.apply_lifting(self.b, [self.a], bcs=[self.bcs])
-        self.b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem.petsc.set_bc(self.b, self.bcs)
-        self.ksp.solve(self.b, self.u.vector)
-        self.u.x.scatter_forward()
-        residual = self.b.duplicate()
-        self.A.mult(self.u.vector, residual)
-        residual.axpy(-1.0, self.b)
-        scale = self.b.norm()
-        relative = residual.norm() / scale if scale > 0.0 else residual.norm()
-        residual.destroy()
-        return SolveReport(self.ksp.getConvergedReason(), relative)
+        return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
 
     def grad_u(self) -> np.ndarray:
         """(n_cells, 2, 2) displacement gradient per cell."""

@@ -41,6 +41,7 @@ inclined wall length l2 = 1)::
     key_tolerance = 1e-6       # cell-problem inputs are rounded to this before caching, (0, 1e-2]
     [micro]
     nx = 16                    # cells per row of the micro model, even integer in [2, 1024]
+    resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
 
 The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta`` and ``growth.tau`` are
 *fields*: a number, or ``{from = a, to = b}`` for a value linear in x1 from a at x1 = 0 to b at
@@ -368,6 +369,7 @@ class Scene:
     output: Output = Output()
     accuracy: Accuracy = Accuracy()
     micro_nx: int = 16
+    micro_resolution: int = 2
 
     def __post_init__(self) -> None:
         _choice("model", self.model, MODELS)
@@ -387,6 +389,24 @@ class Scene:
         _set(self, loads=loads)
         if _integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
             raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
+        _integer("micro.resolution", self.micro_resolution, 1, MAX_RESOLUTION)
+        if self.model != "macro":
+            self.check_micro()
+
+    def check_micro(self) -> None:
+        """The micro model needs a constant cell geometry (a gradient of w, l1, l2 or theta has no
+        well-defined cellular tissue: MODEL.md section 7, paper section 5.3) and has no loads."""
+        for key in ("l1", "l2", "theta", "w"):
+            if not getattr(self.cell, key).is_constant:
+                raise SceneError(
+                    f"cell.{key} is a field, but model = {self.model!r} needs a constant cell "
+                    "geometry: geometric gradients are defined for the macro model only"
+                )
+        if self.loads:
+            raise SceneError(
+                f"loads are not supported by model = {self.model!r}: the cellular tissue has no "
+                "straight left/right/top edges; use model = 'macro'"
+            )
 
     def parameter_fields(self) -> dict[str, Field]:
         """All spatially varying parameters by dotted key."""
@@ -413,7 +433,7 @@ class Scene:
         out["loads"] = dict(self.loads)
         out["output"] = {"fields": self.output.fields}
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
-        out["micro"] = {"nx": self.micro_nx}
+        out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
         return out
 
     def to_toml(self) -> str:
@@ -449,7 +469,7 @@ _TABLES = {
     "loads": EDGES,
     "output": ("fields",),
     "accuracy": ("cell_resolution", "key_tolerance"),
-    "micro": ("nx",),
+    "micro": ("nx", "resolution"),
 }
 _FIELD_DEFAULTS = {
     "cell": {"l1": 1.0, "l2": 1.0, "theta": 30.0, "w": 0.05},
@@ -536,6 +556,7 @@ def _parse(data: dict) -> Scene:
         output=Output(**t["output"]),
         accuracy=Accuracy(**t["accuracy"]),
         micro_nx=t["micro"].get("nx", 16),
+        micro_resolution=t["micro"].get("resolution", 2),
     )
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -76,15 +77,28 @@ def check_step(step: int, t: float, result: StepResult, fields: dict, comm: MPI.
         raise RunError(f"step {step}, t = {t:g}: " + "; ".join(problems))
 
 
-def run_model(model: GrowthModel, scene: Scene, outdir: Path, comm: MPI.Comm) -> list[dict]:
+def run_model(
+    model: GrowthModel,
+    scene: Scene,
+    outdir: Path,
+    comm: MPI.Comm,
+    n_steps: int | None = None,
+    on_step: Callable[[int, GrowthModel], None] | None = None,
+) -> list[dict]:
     """Run the growth loop of a scene; write fields.xdmf and summary.csv into ``outdir``.
 
     Under growth law ``none`` there is no growth: a single static solve at t = 0.
+    Args:
+        n_steps: stop after this many steps (default: the scene's t_max / dt).
+        on_step: called after each step's solve as ``on_step(step, model)``.
     """
     writer = FieldWriter(outdir / "fields.xdmf", model.mesh, model.outputs)
     summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm)
     Fg = model.initial_growth()
-    n_steps = 0 if scene.growth.law == "none" else scene.time.n_steps
+    if n_steps is None:
+        n_steps = scene.time.n_steps
+    if scene.growth.law == "none":
+        n_steps = 0
     dt = scene.time.dt
     rows = []
     start = time.perf_counter()
@@ -93,6 +107,8 @@ def run_model(model: GrowthModel, scene: Scene, outdir: Path, comm: MPI.Comm) ->
         t0 = time.perf_counter()
         result = model.step(Fg)
         check_step(step, t, result, {"G": result.G, "Fg": Fg}, comm)
+        if on_step is not None:
+            on_step(step, model)
         t1 = time.perf_counter()
         writer.write(t)
         t2 = time.perf_counter()
@@ -111,3 +127,10 @@ def run_model(model: GrowthModel, scene: Scene, outdir: Path, comm: MPI.Comm) ->
         if step < n_steps:
             Fg = growth.advance(Fg, result.G, dt, scene.time.integrator)
     return rows
+
+
+def max_abs_components(u: fem.Function, comm: MPI.Comm) -> tuple[float, float]:
+    """max |u_1|, max |u_2| over the owned dofs of all ranks."""
+    owned = u.x.array.reshape(-1, 2)[: u.function_space.dofmap.index_map.size_local]
+    local = np.abs(owned).max(axis=0) if len(owned) else np.zeros(2)
+    return tuple(comm.allreduce(float(v), op=MPI.MAX) for v in local)

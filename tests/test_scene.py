@@ -142,7 +142,7 @@ def test_models_and_eps_hom_under_any_law(model):
 
 
 ROUND_TRIP = """
-model = "both"
+model = "macro"
 [tissue]
 width = 5
 height = 2.5
@@ -178,6 +178,7 @@ cell_resolution = 3
 key_tolerance = 1e-4
 [micro]
 nx = 8
+resolution = 3
 """
 
 
@@ -377,3 +378,19 @@ def test_errors_in_a_file_name_the_key_and_the_file(tmp_path):
     assert str(info.value).endswith(f"(in {path})")
     path.write_text('[growth]\nlaw = "stress"\n')
     assert load_scene(str(path)) == load_scene(path)  # str or PathLike
+
+
+@pytest.mark.parametrize("model", ["micro", "both"])
+@pytest.mark.parametrize(
+    "extra, key",
+    [
+        ("[cell]\nw = {from = 0.03, to = 0.06}", "cell.w"),
+        ("[cell]\nl1 = {from = 1, to = 2}", "cell.l1"),
+        ("[loads]\nright = [0.001, 0.0]", "loads"),
+    ],
+)
+def test_micro_rejects_geometric_fields_and_loads(model, extra, key):
+    """MODEL.md 7: geometric fields are not defined for the cellular tissue; it has no edges
+    to load."""
+    with pytest.raises(SceneError, match=key):
+        parse(f'model = "{model}"\n[growth]\nlaw = "stress"\n{extra}')

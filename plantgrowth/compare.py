@@ -1,0 +1,167 @@
+"""Micro-macro comparison in delta = 1/Nx (MODEL.md sections 7-8, paper Fig. 2 d-j).
+
+For each Nx the macro model runs on the region the micro tissue covers (the union of its cells'
+mid-line hexagons, cut at x2 = 0) and the micro model on the walls. At the first time step the
+macro displacement is evaluated on the micro walls and compared with [error]:
+``e = sqrt( int (a - A)^2 / int A^2 )`` for u1 and u2.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from matplotlib.tri import TrapezoidMapTriFinder, Triangulation
+from mpi4py import MPI
+from scipy.spatial import cKDTree
+
+from plantgrowth.coupled import MacroModel
+from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
+from plantgrowth.micro import MicroModel, scene_cell
+from plantgrowth.output import prepare_directory
+from plantgrowth.scene import Scene
+from plantgrowth.timeloop import run_model
+
+log = logging.getLogger("plantgrowth")
+
+COLUMNS = [
+    "nx", "delta", "err_u1", "err_u2",
+    "rate_macro_t0", "rate_micro_t0", "rate_macro_tmax", "rate_micro_tmax",
+    "seconds_macro", "seconds_micro", "dofs_macro", "dofs_micro",
+]  # fmt: skip
+
+
+@dataclass(frozen=True)
+class P1Snapshot:
+    """A P1 vector field gathered on every rank: node coordinates, triangles, nodal values."""
+
+    points: np.ndarray  # (n, 2)
+    triangles: np.ndarray  # (m, 3)
+    values: np.ndarray  # (n, 2)
+
+    @classmethod
+    def gather(cls, u: fem.Function) -> P1Snapshot:
+        """Collect a (distributed) P1 vector function on all ranks."""
+        V = u.function_space
+        imap = V.dofmap.index_map
+        n_owned = imap.size_local
+        local_to_global = imap.local_to_global(np.arange(n_owned + imap.num_ghosts, dtype=np.int32))
+        coords = V.tabulate_dof_coordinates()[:n_owned, :2]
+        values = u.x.array.reshape(-1, 2)[:n_owned]
+        n_cells = V.mesh.topology.index_map(2).size_local
+        cells = local_to_global[V.dofmap.list.array.reshape(-1, 3)[:n_cells]]
+        comm = V.mesh.comm
+        owners = comm.allgather(local_to_global[:n_owned])
+        points = np.zeros((imap.size_global, 2))
+        nodal = np.zeros((imap.size_global, 2))
+        for idx, c, v in zip(owners, comm.allgather(coords), comm.allgather(values), strict=True):
+            points[idx], nodal[idx] = c, v
+        return cls(points, np.vstack(comm.allgather(cells)), nodal)
+
+    def evaluate(self, x: np.ndarray) -> np.ndarray:
+        """Values at points x (k, 2); points outside (round-off at the boundary) extrapolate
+        linearly from a triangle at their nearest node."""
+        tri = Triangulation(self.points[:, 0], self.points[:, 1], self.triangles)
+        found = TrapezoidMapTriFinder(tri)(x[:, 0], x[:, 1])
+        missing = found < 0
+        if np.any(missing):
+            nearest = cKDTree(self.points).query(x[missing])[1]
+            first_triangle = np.full(len(self.points), -1)
+            first_triangle[self.triangles[::-1].ravel()] = np.repeat(
+                np.arange(len(self.triangles))[::-1], 3
+            )
+            found[missing] = first_triangle[nearest]
+        corners = self.points[self.triangles[found]]  # (k, 3, 2)
+        T = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=2)
+        lam = np.linalg.solve(T, (x - corners[:, 0])[..., None])[..., 0]
+        weights = np.column_stack([1.0 - lam.sum(axis=1), lam])
+        return np.einsum("kj,kjd->kd", weights, self.values[self.triangles[found]])
+
+
+def relative_errors(u_micro: fem.Function, macro: P1Snapshot) -> tuple[float, float]:
+    """[error] for u1 and u2: the macro field interpolated on the micro walls' P2 nodes."""
+    V = u_micro.function_space
+    A = fem.Function(V)
+    x = V.tabulate_dof_coordinates()[:, :2]
+    A.x.array[:] = macro.evaluate(x).ravel()
+    comm = V.mesh.comm
+    errors = []
+    for i in range(2):
+        num = fem.form((u_micro[i] - A[i]) ** 2 * ufl.dx)
+        den = fem.form(A[i] ** 2 * ufl.dx)
+        total = [comm.allreduce(fem.assemble_scalar(f), op=MPI.SUM) for f in (num, den)]
+        errors.append(float(np.sqrt(total[0] / total[1])))
+    return errors[0], errors[1]
+
+
+def compare_one(
+    scene: Scene, nx: int, outdir: Path, comm: MPI.Comm, resolution: int | None,
+    n_steps: int | None,
+) -> dict[str, float]:  # fmt: skip
+    """Macro on the outline of the Nx tissue, then micro; errors at the first step."""
+    layout = TissueLayout(scene_cell(scene), nx)
+    snapshot: dict[str, P1Snapshot] = {}
+    errors: dict[str, tuple[float, float]] = {}
+
+    def keep_macro(step: int, model) -> None:
+        if step == 0:
+            snapshot["u"] = P1Snapshot.gather(model.problem.u)
+
+    def measure_micro(step: int, model) -> None:
+        if step == 0:
+            errors["u"] = relative_errors(model.u, snapshot["u"])
+
+    start = time.perf_counter()
+    prepare_directory(outdir / "macro", comm)
+    outline, _, _ = build_outline_mesh(layout, scene.tissue.h, comm)
+    macro = MacroModel(scene, outline, comm)
+    macro_rows = run_model(macro, scene, outdir / "macro", comm, n_steps, keep_macro)
+    seconds_macro = time.perf_counter() - start
+    start = time.perf_counter()
+    prepare_directory(outdir / "micro", comm)
+    micro = MicroModel(scene, comm, nx, resolution)
+    micro_rows = run_model(micro, scene, outdir / "micro", comm, n_steps, measure_micro)
+    seconds_micro = time.perf_counter() - start
+    err_u1, err_u2 = errors["u"]
+    log.info("Nx = %d: err_u1 = %.4g, err_u2 = %.4g", nx, err_u1, err_u2)
+    return {
+        "nx": nx, "delta": 1.0 / nx, "err_u1": err_u1, "err_u2": err_u2,
+        "rate_macro_t0": macro_rows[0]["growth_rate_area"],
+        "rate_micro_t0": micro_rows[0]["growth_rate_area"],
+        "rate_macro_tmax": macro_rows[-1]["growth_rate_area"],
+        "rate_micro_tmax": micro_rows[-1]["growth_rate_area"],
+        "seconds_macro": seconds_macro, "seconds_micro": seconds_micro,
+        "dofs_macro": macro.problem.ndofs, "dofs_micro": micro.ndofs,
+    }  # fmt: skip
+
+
+def fitted_rate(nx: list[int], errors: list[float]) -> float:
+    """Least-squares slope p of ``log e = log C - p log Nx`` (e ~ delta^p)."""
+    return float(-np.polyfit(np.log(nx), np.log(errors), 1)[0])
+
+
+def run_compare(
+    scene: Scene, nxs: list[int], outdir: Path, comm: MPI.Comm,
+    resolution: int | None = None, first_step_only: bool = False,
+) -> list[dict[str, float]]:  # fmt: skip
+    """Compare macro and micro for each Nx; writes ``outdir/compare.csv`` and per-Nx runs."""
+    n_steps = 0 if first_step_only else None
+    rows = []
+    for nx in nxs:
+        rows.append(compare_one(scene, nx, outdir / f"nx{nx}", comm, resolution, n_steps))
+        if comm.rank == 0:
+            with open(outdir / "compare.csv", "w", newline="") as f:
+                writer = csv.writer(f)
+                writer.writerow(COLUMNS)
+                writer.writerows([[f"{r[c]:.10g}" for c in COLUMNS] for r in rows])
+    if len(rows) > 1:
+        for key in ("err_u1", "err_u2"):
+            rate = fitted_rate([r["nx"] for r in rows], [r[key] for r in rows])
+            log.info("%s ~ delta^%.2f (least-squares fit over Nx = %s)", key, rate, nxs)
+    return rows

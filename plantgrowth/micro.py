@@ -1,0 +1,200 @@
+"""The cell-resolved microscopic model (MODEL.md section 7, paper [var_inequal], [growth_micro_1]).
+
+P2 displacement on the walls of all cells; Fg, E, nu and the turgor pressure are constant per
+cell (pressure P1 at the cell's centre). Growth is driven by the stress or elastic strain
+averaged over each cell's own walls, with the macro model's law, clamp and integrators:
+``G~ = eta [ mean_cell(X) - tau I ]_+`` (no 1/phi_w: the mean is over walls already).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from plantgrowth import growth
+from plantgrowth.forms import micro as micro_forms
+from plantgrowth.forms.elasticity import wall_bilinear_form
+from plantgrowth.linear import assemble_and_solve, lu_solver
+from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
+from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
+from plantgrowth.scene import Scene
+from plantgrowth.timeloop import StepResult, max_abs_components, run_model
+
+log = logging.getLogger("plantgrowth")
+
+
+def scene_cell(scene: Scene) -> HoneycombCell:
+    """The (constant) unit cell of a micro scene."""
+    c = scene.cell
+    return HoneycombCell(c.l1.start, c.l2.start, c.theta.start, c.w.start)
+
+
+class MicroModel:
+    """The walls problem of an ``Nx`` cellular tissue and its per-cell growth.
+
+    Args:
+        scene: the scene (cell geometry, material and growth fields, pressure).
+        comm: communicator the walls mesh is distributed on.
+        nx: cells per row (default: the scene's ``micro.nx``).
+        resolution: P2 elements across one cell's wall (default: ``micro.resolution``).
+    """
+
+    def __init__(
+        self, scene: Scene, comm: MPI.Comm, nx: int | None = None, resolution: int | None = None
+    ) -> None:
+        self.scene = scene
+        self.comm = comm
+        self.layout = layout = TissueLayout(scene_cell(scene), nx or scene.micro_nx)
+        msh, cell_tags, facet_tags = build_walls_mesh(
+            layout, resolution or scene.micro_resolution, comm
+        )
+        self.mesh = msh
+        self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 2))
+        Q0 = fem.FunctionSpace(msh, ("DG", 0))
+        T0 = fem.TensorFunctionSpace(msh, ("DG", 0))
+        n_owned = msh.topology.index_map(2).size_local
+        self.n_owned = n_owned
+        self.cell_id = np.full(n_owned, -1, dtype=np.int64)
+        owned = cell_tags.indices < n_owned
+        self.cell_id[cell_tags.indices[owned]] = cell_tags.values[owned] - 1
+
+        x1 = layout.centres[:, 0]
+        self.eta, self.tau = scene.growth.eta(x1), scene.growth.tau(x1)
+        self.pressure = scene.P1(x1)
+        self.u = fem.Function(self.V, name="u")
+        self.Fg = fem.Function(T0, name="Fg")
+        E, nu, P = (fem.Function(Q0) for _ in range(3))
+        self._set(E, scene.material.E(x1))
+        self._set(nu, scene.material.nu(x1))
+        self._set(P, self.pressure)
+
+        dx = ufl.dx(domain=msh)
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
+        n = ufl.FacetNormal(msh)
+        u, psi, tau_test = ufl.TrialFunction(self.V), ufl.TestFunction(self.V), ufl.TestFunction(T0)
+        rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx)
+        if np.any(self.pressure != 0.0):
+            rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, ds(FACET_TAGS["membrane"]))
+        self.a = fem.form(wall_bilinear_form(u, psi, self.Fg, E, nu, dx))
+        self.L = fem.form(rhs)
+        driving = (
+            micro_forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx)
+            if scene.growth.law == "stress"
+            else micro_forms.elastic_strain_average_form(self.u, tau_test, self.Fg, dx)
+        )
+        self.driving = fem.form(driving)
+        self.enclosed_area = fem.form(
+            micro_forms.enclosed_area_form(self.u, n, ds(FACET_TAGS["outer"]))
+        )
+        areas = fem.petsc.assemble_vector(fem.form(ufl.TestFunction(Q0) * dx))
+        self.wall_area = self._per_cell(areas.array.reshape(-1, 1), Q0)[:, 0]
+        self.hexagon_area = np.array(
+            [polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]
+        )
+        self.bcs = self._boundary_conditions(facet_tags)
+        self.A = fem.petsc.create_matrix(self.a)
+        self.b = fem.petsc.create_vector(self.L)
+        self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
+
+        self.G_out = fem.Function(T0, name="G")
+        ids = fem.Function(Q0, name="cell_id")
+        self._set(ids, np.arange(layout.n_cells, dtype=float))
+        self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
+        self.outputs = [self.u_out, self.Fg, self.G_out, ids]
+        self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
+        log.info(
+            "micro: Nx = %d, %d cells, %d dofs (P2), pressure %s",
+            layout.nx, layout.n_cells, self.ndofs, "on" if np.any(self.pressure) else "off",
+        )  # fmt: skip
+
+    def _set(self, function: fem.Function, per_cell: np.ndarray) -> None:
+        """DG0 function from values per biological cell (any trailing shape)."""
+        dofmap = function.function_space.dofmap
+        array = function.x.array.reshape(-1, dofmap.index_map_bs)
+        values = np.asarray(per_cell, dtype=float).reshape(self.layout.n_cells, -1)
+        array[dofmap.list.array[: self.n_owned]] = values[self.cell_id]
+        function.x.scatter_forward()
+
+    def _per_cell(self, integrals: np.ndarray, space: fem.FunctionSpace) -> np.ndarray:
+        """Sum per-mesh-cell integrals (owned dofs of a DG0 space) per biological cell."""
+        rows = integrals[space.dofmap.list.array[: self.n_owned]]
+        sums = np.stack(
+            [
+                np.bincount(self.cell_id, rows[:, k], self.layout.n_cells)
+                for k in range(rows.shape[1])
+            ],
+            axis=1,
+        )
+        return self.comm.allreduce(sums, op=MPI.SUM)
+
+    def _boundary_conditions(self, facet_tags) -> list:
+        """u2 = 0 on the cut bottom walls (symmetry plane); u1 = 0 at the origin."""
+        bottom = facet_tags.indices[facet_tags.values == FACET_TAGS["bottom"]]
+        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, bottom)
+        origin = mesh.locate_entities_boundary(
+            self.mesh, 0, lambda x: np.isclose(x[0], 0.0) & np.isclose(x[1], 0.0)
+        )
+        origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
+        zero = PETSc.ScalarType(0.0)
+        return [
+            fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),
+            fem.dirichletbc(zero, origin_dofs, self.V.sub(0)),
+        ]
+
+    def initial_growth(self) -> np.ndarray:
+        return np.tile(np.array(self.scene.growth.Fg0, dtype=float), (self.layout.n_cells, 1, 1))
+
+    def step(self, Fg: np.ndarray) -> StepResult:
+        t0 = time.perf_counter()
+        self._set(self.Fg, Fg)
+        report = assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+        t1 = time.perf_counter()
+        integrals = fem.petsc.assemble_vector(self.driving)
+        T0 = self.Fg.function_space
+        means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]
+        ones = np.ones(self.layout.n_cells)
+        if self.scene.growth.law == "none":
+            G = np.zeros_like(Fg)
+        else:
+            G = growth.growth_rate(
+                means.reshape(-1, 2, 2), ones, self.eta, self.tau, self.scene.growth.clamp
+            )
+        self._set(self.G_out, G)
+        self.u_out.interpolate(self.u)
+        t2 = time.perf_counter()
+        return StepResult(
+            G, report.reason, report.residual, 0,
+            {"seconds_cells": 0.0, "seconds_solve": t1 - t0, "seconds_growth": t2 - t1},
+        )  # fmt: skip
+
+    def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
+        """Area enclosed by the deformed outer boundary; means of G weighted by the cells'
+        reference (hexagon) areas; max |u_i|; min det Fg."""
+        weights = self.hexagon_area / self.hexagon_area.sum()
+        g11, g22 = float(weights @ G[:, 0, 0]), float(weights @ G[:, 1, 1])
+        u1_max, u2_max = max_abs_components(self.u, self.comm)
+        area = self.comm.allreduce(fem.assemble_scalar(self.enclosed_area), op=MPI.SUM)
+        return {
+            "area": area,
+            "growth_rate_11": g11,
+            "growth_rate_22": g22,
+            "growth_rate_area": g11 + g22,
+            "u1_max": u1_max,
+            "u2_max": u2_max,
+            "det_Fg_min": float(np.linalg.det(Fg).min()),
+        }
+
+
+def run_micro(scene: Scene, outdir: Path, comm: MPI.Comm) -> list[dict[str, float]]:
+    """Run the microscopic model of a scene, writing into ``outdir``."""
+    start = time.perf_counter()
+    model = MicroModel(scene, comm)
+    log.info("set-up: %.2f s", time.perf_counter() - start)
+    return run_model(model, scene, outdir, comm)

@@ -1,0 +1,183 @@
+"""Read a run's ``fields.xdmf`` + ``fields.h5`` back (serial, h5py only; no dolfinx).
+
+The XDMF file maps every (function, time) to its HDF5 dataset, so it is the index read here;
+the HDF5 paths (``/Function/<name>/<time string>``) are never guessed from the time value.
+Layout written by dolfinx 0.5 (:mod:`plantgrowth.output`):
+
+- ``/Mesh/mesh/geometry`` (N x 2) and ``/Mesh/mesh/topology`` (triangles, M x 3);
+- ``u``: point data at the N geometry nodes, padded to 3 components;
+- DG0 fields (``Fg``, ``G``, ``sigma_hom``, ``E1111``, ...): cell data in topology order, tensors
+  as 9 row-major components of a 3 x 3 (the 2D tensor is components 0, 1, 3, 4).
+
+Typical use::
+
+    series = read_series("results/reference_stress")
+    t = series.times[-1]
+    x = series.points + series.displacement(t)
+    trG = series.cell_field("G", t, "tr")
+    loops = boundary_outline(series.points, series.triangles)
+"""
+
+from __future__ import annotations
+
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+COMPONENTS = ("11", "12", "21", "22", "tr", "det")
+"""Reductions of a 2D tensor field accepted by :meth:`ResultSeries.cell_field`."""
+_INDEX = {"11": 0, "12": 1, "21": 3, "22": 4}  # row-major positions in the padded 3 x 3
+
+
+@dataclass
+class ResultSeries:
+    """The mesh and the time series of one run directory.
+
+    Attributes:
+        directory: the run directory.
+        points: reference node coordinates, (N, 2).
+        triangles: node indices of each cell, (M, 3).
+        times: the output times of ``u`` (sorted).
+        datasets: ``{function name: {time: HDF5 dataset path}}`` from the XDMF file.
+    """
+
+    directory: Path
+    points: np.ndarray
+    triangles: np.ndarray
+    times: list[float]
+    datasets: dict[str, dict[float, str]] = field(default_factory=dict)
+
+    @property
+    def names(self) -> list[str]:
+        """The functions written in this run."""
+        return sorted(self.datasets)
+
+    def _read(self, name: str, t: float) -> np.ndarray:
+        try:
+            series = self.datasets[name]
+        except KeyError:
+            raise KeyError(f"no field {name!r} in {self.directory} (has {self.names})") from None
+        key = min(series, key=lambda s: abs(s - t))
+        if abs(key - t) > 1e-9 * max(1.0, abs(t)):
+            raise KeyError(f"{name} has no output at t = {t!r} (nearest {key!r})")
+        with h5py.File(self.directory / "fields.h5", "r") as f:
+            return np.asarray(f[series[key]][...])
+
+    def displacement(self, t: float) -> np.ndarray:
+        """The displacement u at the nodes at time t, (N, 2)."""
+        return self._read("u", t)[:, :2]
+
+    def cell_field(self, name: str, t: float, component: str | None = None) -> np.ndarray:
+        """A DG0 field at time t, one value (or row) per triangle.
+
+        Args:
+            name: the function's name, e.g. "G", "Fg", "sigma_hom", "E1111".
+            t: an output time.
+            component: for a tensor field, one of :data:`COMPONENTS`; None returns the raw data
+                (M, 9) for tensors, (M,) for scalars.
+        """
+        data = self._read(name, t)
+        if data.ndim == 2 and data.shape[1] == 1:
+            data = data[:, 0]
+        if component is None:
+            return data
+        if data.ndim != 2 or data.shape[1] != 9:
+            raise ValueError(f"{name} is not a 2D tensor field; component {component!r} is invalid")
+        if component in _INDEX:
+            return data[:, _INDEX[component]]
+        if component == "tr":
+            return data[:, 0] + data[:, 4]
+        if component == "det":
+            return data[:, 0] * data[:, 4] - data[:, 1] * data[:, 3]
+        raise ValueError(f"component {component!r} is not one of {COMPONENTS}")
+
+
+def _datasets(xdmf: Path) -> dict[str, dict[float, str]]:
+    """``{name: {time: HDF5 path}}`` of every temporal collection in the XDMF file."""
+    out: dict[str, dict[float, str]] = {}
+    for grid in ET.parse(xdmf).getroot().iter("Grid"):
+        if grid.get("GridType") != "Uniform":
+            continue
+        time = grid.find("Time")
+        if time is None:
+            continue
+        for attribute in grid.findall("Attribute"):
+            item = attribute.find("DataItem")
+            if item is None or item.text is None:
+                continue
+            path = item.text.strip().split(":", 1)[1]
+            out.setdefault(attribute.get("Name", ""), {})[float(time.get("Value"))] = path
+    return out
+
+
+def read_series(directory: str | os.PathLike) -> ResultSeries:
+    """Open the run directory written by ``plantgrowth run SCENE -o DIR``.
+
+    Raises:
+        FileNotFoundError: if ``fields.xdmf`` or ``fields.h5`` is missing.
+    """
+    directory = Path(directory)
+    for name in ("fields.xdmf", "fields.h5"):
+        if not (directory / name).is_file():
+            raise FileNotFoundError(
+                f"{directory / name} not found: is {directory} a run directory?"
+            )
+    datasets = _datasets(directory / "fields.xdmf")
+    with h5py.File(directory / "fields.h5", "r") as f:
+        points = np.asarray(f["/Mesh/mesh/geometry"][...])[:, :2]
+        triangles = np.asarray(f["/Mesh/mesh/topology"][...], dtype=np.int64)
+    times = sorted(datasets.get("u", {}) or {t for s in datasets.values() for t in s})
+    return ResultSeries(directory, points, triangles, times, datasets)
+
+
+def boundary_outline(points: np.ndarray, triangles: np.ndarray) -> list[np.ndarray]:
+    """The boundary of a triangulation as closed loops of node indices.
+
+    Boundary edges are the edges used by exactly one triangle; they are chained into loops.
+    Each loop is an index array (first node not repeated), oriented counter-clockwise in
+    ``points``; loops are sorted by enclosed area, largest (the outer boundary) first. Apply the
+    indices to ``points + u`` to get the deformed outline.
+
+    Args:
+        points: node coordinates, (N, 2).
+        triangles: node indices, (M, 3).
+    """
+    tri = np.asarray(triangles, dtype=np.int64)
+    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    boundary = unique[counts == 1]
+    neighbours: dict[int, list[int]] = {}
+    for a, b in boundary.tolist():
+        neighbours.setdefault(a, []).append(b)
+        neighbours.setdefault(b, []).append(a)
+    unused = {tuple(e) for e in boundary.tolist()}
+    loops = []
+    while unused:
+        start, nxt = unused.pop()
+        loop = [start]
+        previous, current = start, nxt
+        while current != start:
+            loop.append(current)
+            # take any unused edge at this node (more than one only at pinch nodes)
+            for candidate in neighbours[current]:
+                edge = (min(current, candidate), max(current, candidate))
+                if edge in unused:
+                    unused.remove(edge)
+                    previous, current = current, candidate
+                    break
+            else:  # open chain: cannot happen for a triangulation, stop rather than loop
+                break
+        del previous
+        loops.append(np.array(loop, dtype=np.int64))
+    pts = np.asarray(points)[:, :2]
+
+    def signed_area(loop: np.ndarray) -> float:
+        x, y = pts[loop, 0], pts[loop, 1]
+        return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+    oriented = [loop if signed_area(loop) >= 0 else loop[::-1] for loop in loops]
+    return sorted(oriented, key=lambda loop: -abs(signed_area(loop)))
