@@ -166,6 +166,7 @@ class MicroModel:
             G = growth.growth_rate(
                 means.reshape(-1, 2, 2), ones, self.eta, self.tau, self.scene.growth.clamp
             )
+        self.last_G = G
         self._set(self.G_out, G)
         self.u_out.interpolate(self.u)
         t2 = time.perf_counter()
