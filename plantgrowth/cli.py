@@ -177,7 +177,8 @@ def _compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 
 def _start_run(outdir: Path, scene, comm: MPI.Comm) -> None:
-    """Prepare the output directory, write the resolved scene, log into run.log."""
+    """Prepare the output directory, write the resolved scene, log into run.log (until
+    ``main`` returns)."""
     from plantgrowth.output import prepare_directory
 
     try:
@@ -230,11 +231,12 @@ def _configure_logging(comm: MPI.Comm) -> None:
     root_handler = logging.StreamHandler()
     root_handler.setLevel(logging.WARNING)
     logging.basicConfig(handlers=[root_handler], format="%(name)s: %(message)s")
-    if not any(getattr(h, "plantgrowth_console", False) for h in log.handlers):
-        console = logging.StreamHandler(sys.stdout)
-        console.plantgrowth_console = True
-        console.setFormatter(logging.Formatter("%(message)s"))
-        log.addHandler(console)
+    for handler in list(log.handlers):
+        log.removeHandler(handler)
+        handler.close()
+    console = logging.StreamHandler(sys.stdout)  # the stdout of this call
+    console.setFormatter(logging.Formatter("%(message)s"))
+    log.addHandler(console)
     log.propagate = False
     log.setLevel(logging.INFO if comm.rank == 0 else logging.WARNING)
 
@@ -250,6 +252,10 @@ def main(argv: list[str] | None = None) -> int:
         if comm.rank == 0:
             print(f"plantgrowth: error: {err}", file=sys.stderr)
         return 2
+    finally:
+        for handler in [h for h in log.handlers if isinstance(h, logging.FileHandler)]:
+            log.removeHandler(handler)
+            handler.close()
 
 
 if __name__ == "__main__":
