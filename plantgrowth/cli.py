@@ -83,6 +83,10 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="output directory (default: results/<scene name>)",
     )
+    run.add_argument(
+        "--resume", type=Path, default=None, metavar="DIR",
+        help="continue the interrupted run in DIR from its last completed step",
+    )  # fmt: skip
     run.set_defaults(handler=_run_command)
 
     compare = sub.add_parser(
@@ -176,16 +180,16 @@ def _compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     return 0
 
 
-def _start_run(outdir: Path, scene, comm: MPI.Comm) -> None:
+def _start_run(outdir: Path, scene, comm: MPI.Comm, resume: bool = False) -> None:
     """Prepare the output directory, write the resolved scene, log into run.log (until
     ``main`` returns)."""
     from plantgrowth.output import prepare_directory
 
     try:
-        prepare_directory(outdir, comm)
+        prepare_directory(outdir, comm, keep=resume)
     except OSError as err:
         raise InputError(str(err)) from None
-    if comm.rank == 0:
+    if comm.rank == 0 and not resume:
         (outdir / "scene.toml").write_text(scene.to_toml())
         handler = logging.FileHandler(outdir / "run.log")
         handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
@@ -204,22 +208,46 @@ def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.micro import run_micro
     from plantgrowth.output import prepare_directory
     from plantgrowth.scene import load_scene
+    from plantgrowth.timeloop import Interrupted
 
     scene = load_scene(args.scene)
-    outdir = args.output if args.output is not None else Path("results") / args.scene.stem
-    _start_run(outdir, scene, comm)
+    resume = args.resume is not None
+    if resume:
+        if args.output is not None and args.output != args.resume:
+            raise InputError("give either -o DIR or --resume DIR, not two different directories")
+        outdir = args.resume
+        _check_resumable(outdir, scene)
+    else:
+        outdir = args.output if args.output is not None else Path("results") / args.scene.stem
+    _start_run(outdir, scene, comm, resume)
     log.info("plantgrowth run %s -> %s on %d rank(s)", args.scene, outdir, comm.size)
     runs = {"macro": [(run_macro, outdir)], "micro": [(run_micro, outdir)],
             "both": [(run_macro, outdir / "macro"), (run_micro, outdir / "micro")]}  # fmt: skip
     try:
         for run, directory in runs[scene.model]:
             if directory != outdir:
-                prepare_directory(directory, comm)
-            run(scene, directory, comm)
+                prepare_directory(directory, comm, keep=resume)
+            run(scene, directory, comm, resume=resume)
     except RunError as err:
         return _run_failed(err, comm)
+    except Interrupted as stop:
+        if comm.rank == 0:
+            print(f"plantgrowth: {stop}; continue with: plantgrowth run {args.scene} "
+                  f"--resume {outdir}", file=sys.stderr)  # fmt: skip
+        return 130
     log.info("done: %s", outdir)
     return 0
+
+
+def _check_resumable(outdir: Path, scene) -> None:
+    """A run can be resumed only with the scene it was started with."""
+    from plantgrowth.scene import load_scene
+
+    saved = outdir / "scene.toml"
+    if not saved.is_file():
+        raise InputError(f"--resume {outdir}: no scene.toml there, so no run to resume")
+    if load_scene(saved) != scene:
+        raise InputError(f"--resume {outdir}: the scene differs from the one the run started with")
 
 
 def _configure_logging(comm: MPI.Comm) -> None:

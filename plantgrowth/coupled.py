@@ -14,9 +14,11 @@ from pathlib import Path
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
+from scipy.spatial import cKDTree
 
 from plantgrowth import growth
 from plantgrowth.coarse import CoarseGrid, project_to_nodes
+from plantgrowth.errors import RunError
 from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.scene import Scene
@@ -89,6 +91,7 @@ class MacroModel:
         )  # fmt: skip
         self.out = _Outputs(problem, scene.output.fields)
         self.outputs = self.out.functions
+        self.output_space = problem.V
         log.info(
             "macro: %d fine dofs, %d coarse nodes, terms: %s",
             problem.ndofs, len(nodes), ", ".join(problem.active_terms),
@@ -98,6 +101,23 @@ class MacroModel:
 
     def initial_growth(self) -> np.ndarray:
         return np.tile(np.array(self.scene.growth.Fg0, dtype=float), (self.problem.n_cells, 1, 1))
+
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
+        """Fg and G of the owned fine cells with their midpoints, gathered on rank 0."""
+        n = self.problem.n_owned
+        parts = [self.problem.midpoints[:n, :2], Fg[:n].reshape(n, 4), G[:n].reshape(n, 4)]
+        gathered = [self.comm.gather(p, root=0) for p in parts]
+        if self.comm.rank != 0:
+            return None
+        midpoints, Fg_all, G_all = (np.concatenate(g) for g in gathered)
+        return {"midpoints": midpoints, "Fg": Fg_all, "G": G_all}
+
+    def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint."""
+        distance, index = cKDTree(state["midpoints"]).query(self.problem.midpoints[:, :2])
+        if np.max(distance, initial=0.0) > 1e-9 * max(self.problem.bounding_box):
+            raise RunError("the saved state does not match this mesh: was the scene changed?")
+        return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def _to_cells(self, node_values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
         """P1 interpolation of coarse-node values to the fine cells' midpoints."""
@@ -176,12 +196,14 @@ class MacroModel:
         }
 
 
-def run_macro(scene: Scene, outdir: Path, comm: MPI.Comm) -> list[dict[str, float]]:
+def run_macro(
+    scene: Scene, outdir: Path, comm: MPI.Comm, resume: bool = False
+) -> list[dict[str, float]]:
     """Run the coupled macroscopic model of a scene on its rectangle, writing into ``outdir``.
 
-    Returns the summary rows (also written to ``outdir/summary.csv``).
+    Returns the summary rows of the steps run (all rows are in ``outdir/summary.csv``).
     """
     start = time.perf_counter()
     model = MacroModel(scene, rectangle_mesh(scene, comm), comm)
     log.info("set-up: %.2f s", time.perf_counter() - start)
-    return run_model(model, scene, outdir, comm)
+    return run_model(model, scene, outdir, comm, resume=resume)

@@ -19,6 +19,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth import growth
+from plantgrowth.errors import RunError
 from plantgrowth.forms import micro as micro_forms
 from plantgrowth.forms.elasticity import wall_bilinear_form
 from plantgrowth.linear import assemble_and_solve, lu_solver
@@ -108,6 +109,7 @@ class MicroModel:
         self._set(ids, np.arange(layout.n_cells, dtype=float))
         self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
         self.outputs = [self.u_out, self.Fg, self.G_out, ids]
+        self.output_space = self.u_out.function_space
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         log.info(
             "micro: Nx = %d, %d cells, %d dofs (P2), pressure %s",
@@ -175,6 +177,15 @@ class MicroModel:
             {"seconds_cells": 0.0, "seconds_solve": t1 - t0, "seconds_growth": t2 - t1},
         )  # fmt: skip
 
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
+        """Fg and G per biological cell (replicated on all ranks; rank 0 saves them)."""
+        return {"Fg": Fg, "G": G} if self.comm.rank == 0 else None
+
+    def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        if state["Fg"].shape != (self.layout.n_cells, 2, 2):
+            raise RunError("the saved state does not match this tissue: was the scene changed?")
+        return state["Fg"], state["G"]
+
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
         """Area enclosed by the deformed outer boundary; means of G weighted by the cells'
         reference (hexagon) areas; max |u_i|; min det Fg."""
@@ -193,9 +204,11 @@ class MicroModel:
         }
 
 
-def run_micro(scene: Scene, outdir: Path, comm: MPI.Comm) -> list[dict[str, float]]:
+def run_micro(
+    scene: Scene, outdir: Path, comm: MPI.Comm, resume: bool = False
+) -> list[dict[str, float]]:
     """Run the microscopic model of a scene, writing into ``outdir``."""
     start = time.perf_counter()
     model = MicroModel(scene, comm)
     log.info("set-up: %.2f s", time.perf_counter() - start)
-    return run_model(model, scene, outdir, comm)
+    return run_model(model, scene, outdir, comm, resume=resume)

@@ -8,8 +8,10 @@ the current Fg, checks the step, writes it, and advances ``dFg/dt = G Fg``.
 from __future__ import annotations
 
 import logging
+import signal
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -20,7 +22,7 @@ from mpi4py import MPI
 
 from plantgrowth import growth
 from plantgrowth.errors import RunError
-from plantgrowth.output import FieldWriter, SummaryWriter
+from plantgrowth.output import FieldSeries, SummaryWriter, read_state
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -49,7 +51,7 @@ class StepResult:
 class GrowthModel(Protocol):
     """A tissue model the loop can drive."""
 
-    mesh: object
+    output_space: fem.FunctionSpace  # P1 vector space numbering the written mesh
     outputs: list[fem.Function]
 
     def initial_growth(self) -> np.ndarray:
@@ -60,6 +62,41 @@ class GrowthModel(Protocol):
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
         """Tissue measures: area, growth_rate_11/22/area, u1_max, u2_max, det_Fg_min."""
+
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
+        """What --resume needs to continue after this step (global arrays, on rank 0)."""
+
+    def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """(Fg, G) of this rank's growth units from a saved state."""
+
+
+class Interrupted(Exception):
+    """SIGINT stopped a run cleanly after a completed step."""
+
+    def __init__(self, step: int, t: float) -> None:
+        super().__init__(
+            f"interrupted after step {step} (t = {t:g}); every completed step is saved"
+        )
+        self.step, self.t = step, t
+
+
+@contextmanager
+def interrupt_at_step_end():
+    """While active, SIGINT only sets a flag that the loop reads at the end of a step."""
+    flag = {"set": False}
+
+    def handler(signum, frame):
+        flag["set"] = True
+
+    try:
+        previous = signal.signal(signal.SIGINT, handler)
+    except ValueError:  # not the main thread: leave SIGINT alone
+        previous = None
+    try:
+        yield flag
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 def check_step(step: int, t: float, result: StepResult, fields: dict, comm: MPI.Comm) -> None:
@@ -84,6 +121,7 @@ def run_model(
     comm: MPI.Comm,
     n_steps: int | None = None,
     on_step: Callable[[int, GrowthModel], None] | None = None,
+    resume: bool = False,
 ) -> list[dict]:
     """Run the growth loop of a scene; write fields.xdmf and summary.csv into ``outdir``.
 
@@ -91,41 +129,55 @@ def run_model(
     Args:
         n_steps: stop after this many steps (default: the scene's t_max / dt).
         on_step: called after each step's solve as ``on_step(step, model)``.
+        resume: continue from the last completed step saved in ``outdir``.
+    Raises:
+        RunError: a step failed (message names step, time, place, cause).
+        Interrupted: SIGINT arrived; the loop stopped after the step it was in.
     """
-    writer = FieldWriter(outdir / "fields.xdmf", model.mesh, model.outputs)
-    summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm)
-    Fg = model.initial_growth()
     if n_steps is None:
         n_steps = scene.time.n_steps
     if scene.growth.law == "none":
         n_steps = 0
     dt = scene.time.dt
+    series = FieldSeries(outdir, model.output_space, model.outputs, resume)
+    last = series.last_step if resume else None
+    summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm, keep_until=last)
+    if last is None:
+        Fg, first = model.initial_growth(), 0
+    else:
+        Fg, G = model.restore(read_state(outdir, last))
+        Fg, first = growth.advance(Fg, G, dt, scene.time.integrator), last + 1
+        log.info("resuming after step %d (t = %g)", last, last * dt)
     rows = []
     start = time.perf_counter()
-    for step in range(n_steps + 1):
-        t = step * dt
-        t0 = time.perf_counter()
-        result = model.step(Fg)
-        check_step(step, t, result, {"G": result.G, "Fg": Fg}, comm)
-        if on_step is not None:
-            on_step(step, model)
-        t1 = time.perf_counter()
-        writer.write(t)
-        t2 = time.perf_counter()
-        row = model.measures(Fg, result.G)
-        row.update(step=step, t=t, n_cell_solves=result.n_cell_solves, residual=result.residual,
-                   seconds=t2 - t0, seconds_io=t2 - t1, **result.seconds)  # fmt: skip
-        row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
-               for k, v in row.items()}  # fmt: skip
-        summary.write(row)
-        rows.append(row)
-        left = (time.perf_counter() - start) / (step + 1) * (n_steps - step)
-        log.info(
-            "step %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d  (%.1f s left)",
-            step, n_steps, t, row["growth_rate_area"], row["n_cell_solves"], left,
-        )  # fmt: skip
-        if step < n_steps:
-            Fg = growth.advance(Fg, result.G, dt, scene.time.integrator)
+    with interrupt_at_step_end() as interrupt:
+        for step in range(first, n_steps + 1):
+            t = step * dt
+            t0 = time.perf_counter()
+            result = model.step(Fg)
+            check_step(step, t, result, {"G": result.G, "Fg": Fg}, comm)
+            if on_step is not None:
+                on_step(step, model)
+            t1 = time.perf_counter()
+            series.write(step, t, model.state(Fg, result.G))
+            t2 = time.perf_counter()
+            row = model.measures(Fg, result.G)
+            row.update(step=step, t=t, n_cell_solves=result.n_cell_solves,
+                       residual=result.residual, seconds=t2 - t0, seconds_io=t2 - t1,
+                       **result.seconds)  # fmt: skip
+            row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
+                   for k, v in row.items()}  # fmt: skip
+            summary.write(row)
+            rows.append(row)
+            left = (time.perf_counter() - start) / (step + 1 - first) * (n_steps - step)
+            log.info(
+                "step %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d  (%.1f s left)",
+                step, n_steps, t, row["growth_rate_area"], row["n_cell_solves"], left,
+            )  # fmt: skip
+            if step < n_steps:
+                if comm.allreduce(interrupt["set"], op=MPI.LOR):
+                    raise Interrupted(step, t)
+                Fg = growth.advance(Fg, result.G, dt, scene.time.integrator)
     return rows
 
 

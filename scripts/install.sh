@@ -15,6 +15,9 @@ REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$REPO"
 
 RUFF_VERSION="0.6.9"
+# meshio: an independent XDMF reader the tests check our time series with (pure Python;
+# its numpy requirement is met by Debian's numpy, so pip installs no numpy wheel).
+MESHIO_VERSION="5.3.5"
 
 APT_PACKAGES=(
     python3-dolfinx
@@ -74,16 +77,16 @@ fi
 # (or the console script / ruff are missing).
 export PIP_DISABLE_PIP_VERSION_CHECK=1
 STAMP="$VENV/.plantgrowth-install-stamp"
-want_stamp="$(sha256sum pyproject.toml | cut -d' ' -f1) ruff==$RUFF_VERSION"
+want_stamp="$(sha256sum pyproject.toml | cut -d' ' -f1) ruff==$RUFF_VERSION meshio==$MESHIO_VERSION"
 if [[ -f "$STAMP" && "$(cat "$STAMP")" == "$want_stamp" && -x "$VENV/bin/plantgrowth" \
     && -x "$VENV/bin/ruff" ]]; then
     log "plantgrowth (editable) and ruff already installed in .venv"
 else
-    log "pip install -e . and ruff==$RUFF_VERSION into .venv"
+    log "pip install -e ., ruff==$RUFF_VERSION and meshio==$MESHIO_VERSION into .venv"
     # --no-build-isolation: build with Debian's setuptools (>= 64, PEP 660 editable)
     # instead of downloading one.
     "$VENV/bin/python" -m pip install --quiet --no-build-isolation --no-deps -e .
-    "$VENV/bin/python" -m pip install --quiet "ruff==$RUFF_VERSION"
+    "$VENV/bin/python" -m pip install --quiet "ruff==$RUFF_VERSION" "meshio==$MESHIO_VERSION"
     echo "$want_stamp" >"$STAMP"
 fi
 

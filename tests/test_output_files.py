@@ -96,7 +96,7 @@ def read_summary(path: Path) -> tuple[list[str], list[dict[str, float]]]:
 def test_output_directory_holds_the_five_files(good_run):
     _, outdir = good_run
     names = {p.name for p in outdir.iterdir()}
-    assert {"fields.xdmf", "fields.h5", "summary.csv", "scene.toml", "run.log"} <= names
+    assert {"fields.xdmf", "fields.h5", "fields", "summary.csv", "scene.toml", "run.log"} <= names
     assert not [n for n in names if n.startswith(".")]  # the write probe is gone
 
 
@@ -135,19 +135,19 @@ def test_xdmf_has_a_mesh_and_one_time_series_per_field(good_run):
     assert topology.get("TopologyType") == "Triangle"
     assert topology.find("DataItem") is not None and geometry.find("DataItem") is not None
 
-    collections = {g.get("Name"): g for g in grids if g.get("GridType") == "Collection"}
+    # one temporal collection; each step is a grid holding every written field
+    collections = [g for g in grids if g.get("GridType") == "Collection"]
+    assert len(collections) == 1 and collections[0].get("CollectionType") == "Temporal"
+    steps = collections[0].findall("Grid")
+    assert len(steps) == len(rows)
+    values = [float(step.find("Time").get("Value")) for step in steps]
+    assert values == pytest.approx(times, rel=1e-12, abs=1e-12)
+    assert all(a < b for a, b in zip(values, values[1:], strict=False))
     expected = [n for f in scene.output.fields for n in (E_NAMES if f == "E_hom" else [f])]
-    assert sorted(collections) == sorted(expected)
-    for name, collection in collections.items():
-        assert collection.get("CollectionType") == "Temporal"
-        steps = collection.findall("Grid")
-        assert len(steps) == len(rows), name
-        values = [float(step.find("Time").get("Value")) for step in steps]
-        assert values == pytest.approx(times, rel=1e-12, abs=1e-12), name
-        assert all(a < b for a, b in zip(values, values[1:], strict=False)), name
-        for step in steps:
-            attribute = step.find("Attribute")
-            assert attribute.get("Name") == name
+    for step in steps:
+        attributes = {a.get("Name"): a for a in step.findall("Attribute")}
+        assert sorted(attributes) == sorted(expected)
+        for name, attribute in attributes.items():
             assert attribute.get("Center") == ("Node" if name == "u" else "Cell")
 
 
@@ -160,7 +160,9 @@ def test_every_dataitem_exists_in_the_h5_file_with_its_dimensions(good_run):
         for item in items:
             assert item.get("Format") == "HDF"
             filename, _, path = item.text.strip().partition(":")
-            assert filename == "fields.h5" and path.startswith("/")  # relative to the .xdmf
+            # relative to the .xdmf: the mesh in fields.h5, each step in fields/step_NNNNNN.h5
+            assert filename == "fields.h5" or filename.startswith("fields/step_"), filename
+            assert path.startswith("/")
             if filename not in opened:
                 opened[filename] = h5py.File(outdir / filename, "r")
             f = opened[filename]
@@ -177,16 +179,18 @@ def test_h5_fields_hold_the_run(good_run):
     _, outdir = good_run
     _, rows = read_summary(outdir / "summary.csv")
     with h5py.File(outdir / "fields.h5", "r") as f:
-        n_cells = f["Mesh/mesh/topology"].shape[0]
-        Fg0 = f["Function/Fg/0"][...]
-        assert Fg0.shape == (n_cells, 9)  # 2x2 tensors padded to 3x3 by XDMF
+        n_cells = f["Mesh/topology"].shape[0]
+    with h5py.File(outdir / "fields" / "step_000000.h5", "r") as f:
+        Fg0 = f["Fg"][...]
+        assert Fg0.shape == (n_cells, 9)  # 2x2 tensors padded to 3x3 for XDMF
         assert np.allclose(Fg0[:, [0, 4]], 1.0, rtol=0, atol=0)
         assert np.all(Fg0[:, [1, 2, 3, 5, 6, 7, 8]] == 0.0)
-        assert np.abs(f["Function/u/0"][...]).max() > 0.0
-        for step, row in enumerate(rows):
-            G = f[f"Function/G/{step}"][...]
-            # uniform structured mesh: cell mean = area mean; values O(1e-2), round-off only
-            assert G[:, 0].mean() == pytest.approx(row["growth_rate_11"], rel=1e-10)
+        assert np.abs(f["u"][...]).max() > 0.0
+    for step, row in enumerate(rows):
+        with h5py.File(outdir / "fields" / f"step_{step:06d}.h5", "r") as f:
+            G = f["G"][...]
+        # uniform structured mesh: cell mean = area mean; values O(1e-2), round-off only
+        assert G[:, 0].mean() == pytest.approx(row["growth_rate_11"], rel=1e-10)
 
 
 def test_scene_toml_loads_back_to_the_run_scene(good_run):
@@ -243,6 +247,8 @@ def test_meshio_reads_the_fields(good_run):
         assert len(points) > 0 and cells[0].type == "triangle"
         t, point_data, cell_data = reader.read_data(0)
         assert t == 0.0
+        assert point_data["u"].shape == (len(points), 3)
+        assert cell_data["G"][0].shape == (len(cells[0].data), 9)
 
 
 # --- bad scenes and bad output paths ------------------------------------------------------------
@@ -292,10 +298,16 @@ def test_bad_scene_leaves_a_previous_run_untouched(good_run, mpi_tmp_path, capsy
     if RANK0:
         shutil.copytree(original, outdir)
     MPI.COMM_WORLD.Barrier()
-    before = {p.name: p.read_bytes() for p in sorted(outdir.iterdir())}
+
+    def contents() -> dict[str, bytes]:
+        return {
+            str(p.relative_to(outdir)): p.read_bytes() for p in outdir.rglob("*") if p.is_file()
+        }
+
+    before = contents()
     for name in ("unknown_key", "nu_one_half", "binary", "missing"):
         assert run(_bad_scene(mpi_tmp_path, name), outdir) == 2, name
-    after = {p.name: p.read_bytes() for p in sorted(outdir.iterdir())}
+    after = contents()
     assert after.keys() == before.keys()
     for filename, content in before.items():
         assert after[filename] == content, f"{filename} changed"

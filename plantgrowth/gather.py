@@ -1,0 +1,73 @@
+"""Collect distributed P1 / DG0 data into global arrays (for output and comparisons).
+
+Nodes are numbered by the global P1 dof index, cells rank by rank in local order; the same
+:class:`MeshGather` numbers the triangles and the cell data consistently.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+
+class MeshGather:
+    """Global node/cell numbering of a triangle mesh through a P1 vector space.
+
+    Args:
+        V1: a P1 vector function space on the mesh.
+        root: the rank that receives the data, or None for all ranks.
+    """
+
+    def __init__(self, V1: fem.FunctionSpace, root: int | None = 0) -> None:
+        self.V1 = V1
+        self.comm: MPI.Comm = V1.mesh.comm
+        self.root = root
+        imap = V1.dofmap.index_map
+        self.n_owned_nodes = imap.size_local
+        self.n_nodes = imap.size_global
+        local = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+        self.global_index = imap.local_to_global(local)
+        self.n_owned_cells = V1.mesh.topology.index_map(2).size_local
+        self.n_cells = V1.mesh.topology.index_map(2).size_global
+        self._node_owner = self._collect(self.global_index[: self.n_owned_nodes])
+
+    def _collect(self, values: np.ndarray):
+        if self.root is None:
+            return self.comm.allgather(values)
+        return self.comm.gather(values, root=self.root)
+
+    def _receives(self) -> bool:
+        return self.root is None or self.comm.rank == self.root
+
+    def node_values(self, local: np.ndarray) -> np.ndarray | None:
+        """Global (n_nodes, k) array from per-local-node values (n_local_nodes, k)."""
+        parts = self._collect(np.asarray(local)[: self.n_owned_nodes])
+        if not self._receives():
+            return None
+        out = np.zeros((self.n_nodes, *parts[0].shape[1:]))
+        for index, part in zip(self._node_owner, parts, strict=True):
+            out[index] = part
+        return out
+
+    def cell_values(self, local: np.ndarray) -> np.ndarray | None:
+        """Global (n_cells, k) array from per-local-cell values (owned cells first)."""
+        parts = self._collect(np.asarray(local)[: self.n_owned_cells])
+        return np.concatenate(parts) if self._receives() else None
+
+    def points(self) -> np.ndarray | None:
+        """(n_nodes, 2) node coordinates."""
+        return self.node_values(self.V1.tabulate_dof_coordinates()[:, :2])
+
+    def triangles(self) -> np.ndarray | None:
+        """(n_cells, 3) global node indices of the cells."""
+        cells = self.V1.dofmap.list.array.reshape(-1, 3)[: self.n_owned_cells]
+        return self.cell_values(self.global_index[cells])
+
+    def function(self, u: fem.Function) -> np.ndarray | None:
+        """Global values of a P1 (nodes) or DG0 (cells) function, shape (n, block size)."""
+        dofmap = u.function_space.dofmap
+        values = u.x.array.reshape(-1, dofmap.index_map_bs)
+        if u.function_space.ufl_element().degree() == 0:
+            return self.cell_values(values[dofmap.list.array[: self.n_owned_cells]])
+        return self.node_values(values)
