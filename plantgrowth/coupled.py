@@ -16,7 +16,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
-from plantgrowth import growth
+from plantgrowth import diagnostics, growth
 from plantgrowth.coarse import CoarseGrid, project_to_nodes
 from plantgrowth.errors import RunError
 from plantgrowth.homogenization import Homogenizer
@@ -102,6 +102,10 @@ class MacroModel:
     def initial_growth(self) -> np.ndarray:
         return np.tile(np.array(self.scene.growth.Fg0, dtype=float), (self.problem.n_cells, 1, 1))
 
+    def check_growth(self, Fg: np.ndarray) -> None:
+        points = self.problem.midpoints[:, :2]
+        diagnostics.stop_if(diagnostics.growth_problems(Fg, points), self.comm)
+
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
         """Fg and G of the owned fine cells with their midpoints, gathered on rank 0."""
         n = self.problem.n_owned
@@ -134,6 +138,7 @@ class MacroModel:
         nt = self.homogenizer.homogenize(
             self.geometry, self.E_nodes, self.nu_nodes, Fg_nodes.reshape(-1, 2, 2)
         )
+        diagnostics.stop_if(diagnostics.stiffness_problems(nt.C, self.grid.nodes), self.comm)
         C = self._to_cells(nt.C, (3, 3))
         phi_w = self._to_cells(nt.phi_w, ())
         K = None if nt.K is None else self._to_cells(nt.K, (2, 2))
@@ -149,8 +154,16 @@ class MacroModel:
         t1 = time.perf_counter()
         report = problem.solve()
         t2 = time.perf_counter()
-
-        eps_el = growth.elastic_strain(problem.grad_u(), Fg)
+        dof_points = problem.V.tabulate_dof_coordinates()[:, :2]
+        diagnostics.stop_if(
+            diagnostics.solve_problems(report.reason, report.residual)
+            + diagnostics.nonfinite_problems(
+                "u", problem.u.x.array.reshape(-1, 2), dof_points, "the solve broke down"
+            ),
+            self.comm,
+        )
+        grad_u = problem.grad_u()
+        eps_el = growth.elastic_strain(grad_u, Fg)
         sigma = growth.homogenized_stress(C, eps_el, K, self.P1)
         eps_hom = None
         if self.strain_averages:
@@ -162,6 +175,12 @@ class MacroModel:
         else:
             driving = sigma if law == "stress" else eps_hom
             G = growth.growth_rate(driving, phi_w, self.eta, self.tau, self.scene.growth.clamp)
+        midpoints = problem.midpoints[:, :2]
+        diagnostics.stop_if(
+            diagnostics.growth_problems(Fg, midpoints, G)
+            + diagnostics.inversion_problems(np.linalg.det(np.eye(2) + grad_u), midpoints),
+            self.comm,
+        )
         problem.set_cell_values(self.out.G, G)
         problem.set_cell_values(self.out.sigma, sigma)
         if eps_hom is not None:

@@ -18,7 +18,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from plantgrowth import growth
+from plantgrowth import diagnostics, growth
 from plantgrowth.errors import RunError
 from plantgrowth.forms import micro as micro_forms
 from plantgrowth.forms.elasticity import wall_bilinear_form
@@ -109,6 +109,12 @@ class MicroModel:
         self._set(ids, np.arange(layout.n_cells, dtype=float))
         self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
         self.outputs = [self.u_out, self.Fg, self.G_out, ids]
+        self._deformation_det = fem.Function(Q0)
+        self._deformation_det_expr = fem.Expression(
+            ufl.det(ufl.Identity(2) + ufl.grad(self.u)), Q0.element.interpolation_points()
+        )
+        self._cell_dofs = Q0.dofmap.list.array[:n_owned]
+        self._midpoints = mesh.compute_midpoints(msh, 2, np.arange(n_owned, dtype=np.int32))[:, :2]
         self.output_space = self.u_out.function_space
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         log.info(
@@ -158,6 +164,14 @@ class MicroModel:
         self._set(self.Fg, Fg)
         report = assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
         t1 = time.perf_counter()
+        dof_points = self.V.tabulate_dof_coordinates()[:, :2]
+        diagnostics.stop_if(
+            diagnostics.solve_problems(report.reason, report.residual)
+            + diagnostics.nonfinite_problems(
+                "u", self.u.x.array.reshape(-1, 2), dof_points, "the solve broke down"
+            ),
+            self.comm,
+        )
         integrals = fem.petsc.assemble_vector(self.driving)
         T0 = self.Fg.function_space
         means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]
@@ -168,6 +182,14 @@ class MicroModel:
             G = growth.growth_rate(
                 means.reshape(-1, 2, 2), ones, self.eta, self.tau, self.scene.growth.clamp
             )
+        self._deformation_det.interpolate(self._deformation_det_expr)
+        diagnostics.stop_if(
+            diagnostics.growth_problems(Fg, self.layout.centres, G)
+            + diagnostics.inversion_problems(
+                self._deformation_det.x.array[self._cell_dofs], self._midpoints
+            ),
+            self.comm,
+        )
         self.last_G = G
         self._set(self.G_out, G)
         self.u_out.interpolate(self.u)
@@ -176,6 +198,9 @@ class MicroModel:
             G, report.reason, report.residual, 0,
             {"seconds_cells": 0.0, "seconds_solve": t1 - t0, "seconds_growth": t2 - t1},
         )  # fmt: skip
+
+    def check_growth(self, Fg: np.ndarray) -> None:
+        diagnostics.stop_if(diagnostics.growth_problems(Fg, self.layout.centres), self.comm)
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
         """Fg and G per biological cell (replicated on all ranks; rank 0 saves them)."""
