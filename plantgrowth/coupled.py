@@ -154,14 +154,7 @@ class MacroModel:
         t1 = time.perf_counter()
         report = problem.solve()
         t2 = time.perf_counter()
-        dof_points = problem.V.tabulate_dof_coordinates()[:, :2]
-        diagnostics.stop_if(
-            diagnostics.solve_problems(report.reason, report.residual)
-            + diagnostics.nonfinite_problems(
-                "u", problem.u.x.array.reshape(-1, 2), dof_points, "the solve broke down"
-            ),
-            self.comm,
-        )
+        diagnostics.check_solution(report, problem.u, self.comm)
         grad_u = problem.grad_u()
         eps_el = growth.elastic_strain(grad_u, Fg)
         sigma = growth.homogenized_stress(C, eps_el, K, self.P1)

@@ -91,3 +91,15 @@ def stop_if(problems: list[str], comm: MPI.Comm) -> None:
     everything = sorted({p for part in comm.allgather(problems) for p in part})
     if everything:
         raise RunError("; ".join(everything))
+
+
+def check_solution(report, u, comm: MPI.Comm) -> None:
+    """Collective: the solve converged to the residual bound and the 2D vector field u is
+    finite (``report`` is a :class:`plantgrowth.linear.SolveReport`)."""
+    points = u.function_space.tabulate_dof_coordinates()[:, :2]
+    values = u.x.array.reshape(-1, 2)
+    stop_if(
+        solve_problems(report.reason, report.residual)
+        + nonfinite_problems("u", values, points, "the solve broke down"),
+        comm,
+    )

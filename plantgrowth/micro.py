@@ -164,14 +164,7 @@ class MicroModel:
         self._set(self.Fg, Fg)
         report = assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
         t1 = time.perf_counter()
-        dof_points = self.V.tabulate_dof_coordinates()[:, :2]
-        diagnostics.stop_if(
-            diagnostics.solve_problems(report.reason, report.residual)
-            + diagnostics.nonfinite_problems(
-                "u", self.u.x.array.reshape(-1, 2), dof_points, "the solve broke down"
-            ),
-            self.comm,
-        )
+        diagnostics.check_solution(report, self.u, self.comm)
         integrals = fem.petsc.assemble_vector(self.driving)
         T0 = self.Fg.function_space
         means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]
