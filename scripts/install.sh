@@ -35,6 +35,12 @@ APT_PACKAGES=(
     openmpi-bin
 )
 
+# Optional: PLANTGROWTH_WITH_PARAVIEW=1 also installs ParaView (pvbatch), whose own XDMF reader
+# tests/test_paraview_reader.py then uses on a run's output (large; not needed otherwise).
+if [[ "${PLANTGROWTH_WITH_PARAVIEW:-0}" == "1" ]]; then
+    APT_PACKAGES+=(paraview python3-paraview)
+fi
+
 log() { echo "[install.sh] $*"; }
 
 # --- 1. Debian packages -------------------------------------------------------
