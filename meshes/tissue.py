@@ -17,12 +17,28 @@ from dolfinx.io import gmshio
 from mpi4py import MPI
 
 from .honeycomb import GeometryError, HoneycombCell
-from .unit_cell import ensure_gmsh
+from .unit_cell import check_resolution, check_triangles, ensure_gmsh
 
 FACET_TAGS = {"membrane": 1, "bottom": 2, "outer": 3}
 """Facet tags of the walls mesh; cell tags are ``cell id + 1``."""
 OUTLINE_TAG = 1
 """Cell tag of the outline (macro) mesh."""
+
+
+MAX_NX = 256
+"""Largest Nx accepted (32768 cells)."""
+MAX_TRIANGLES = 2e6
+"""Largest walls mesh built (about 8e6 P2 dofs)."""
+
+
+def check_nx(name: str, nx: object) -> int:
+    """An even integer in [2, MAX_NX], or a GeometryError naming ``name``."""
+    if isinstance(nx, bool) or not isinstance(nx, int) or not 2 <= nx <= MAX_NX or nx % 2:
+        raise GeometryError(
+            f"{name} = {nx!r} is invalid: it must be an even integer in [2, {MAX_NX}] "
+            "(Nx/2 rows of Nx cells)"
+        )
+    return nx
 
 
 def clip_below(polygon: np.ndarray) -> np.ndarray:
@@ -52,12 +68,7 @@ class TissueLayout:
     nx: int
 
     def __post_init__(self) -> None:
-        if isinstance(self.nx, bool) or not isinstance(self.nx, int) or self.nx < 2:
-            raise GeometryError(
-                f"micro.nx = {self.nx!r} is invalid: it must be an even integer >= 2"
-            )
-        if self.nx % 2:
-            raise GeometryError(f"micro.nx = {self.nx} is invalid: it must be even (Nx/2 rows)")
+        check_nx("micro.nx", self.nx)
 
     @property
     def delta_s(self) -> float:
@@ -161,13 +172,15 @@ def _to_dolfinx(build, comm: MPI.Comm, model_rank: int):
             gmsh.model.remove()
 
 
-def wall_mesh_size(layout: TissueLayout, resolution: int) -> float:
+def wall_mesh_size(layout: TissueLayout, resolution: int, name: str = "micro.resolution") -> float:
     """``resolution`` elements across one cell's own wall ``w delta_s`` (capped by the walls'
-    length as in the unit cell)."""
-    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 1:
-        raise GeometryError(f"resolution = {resolution!r} is invalid: an integer >= 1")
+    length as in the unit cell); a mesh above :data:`MAX_TRIANGLES` is refused."""
+    check_resolution(name, resolution)
     cell = layout.cell
-    return layout.delta_s * min(cell.w, 0.25 * min(cell.l1, cell.l2)) / resolution
+    h = layout.delta_s * min(cell.w, 0.25 * min(cell.l1, cell.l2)) / resolution
+    walls = cell.phi_w * cell.area * layout.delta_s**2 * layout.n_cells
+    check_triangles(f"{name} (with Nx = {layout.nx})", resolution, walls, h, MAX_TRIANGLES)
+    return h
 
 
 def build_walls_mesh(

@@ -145,14 +145,38 @@ def _inside_convex(polygon: np.ndarray, x: np.ndarray, margin: float) -> bool:
     return True
 
 
-def mesh_size(cell: HoneycombCell, resolution: int) -> float:
+MAX_TRIANGLES = 4e5
+"""Largest unit-cell mesh built (about 1.6e6 P2 dofs): beyond it a typo, not a study."""
+
+
+def check_resolution(name: str, resolution: object) -> int:
+    """An integer >= 1, or a GeometryError naming ``name``."""
+    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 1:
+        raise GeometryError(f"{name} = {resolution!r} is invalid: it must be an integer >= 1")
+    return resolution
+
+
+def check_triangles(name: str, resolution: int, area: float, h: float, limit: float) -> None:
+    """Refuse a mesh of about ``area / (sqrt(3)/4 h^2)`` triangles above ``limit``."""
+    estimate = area / (0.25 * np.sqrt(3.0) * h * h)
+    if estimate > limit:
+        largest = max(1, int(resolution * np.sqrt(limit / estimate)))
+        raise GeometryError(
+            f"{name} = {resolution} would mesh about {estimate:.3g} triangles (limit {limit:g}): "
+            f"use {name} <= {largest}"
+        )
+
+
+def mesh_size(cell: HoneycombCell, resolution: int, name: str = "resolution") -> float:
     """Target element size: ``resolution`` elements across the wall thickness w.
 
-    Capped by a quarter of the shortest wall so thick walls still resolve their length.
+    Capped by a quarter of the shortest wall so thick walls still resolve their length;
+    a mesh above :data:`MAX_TRIANGLES` is refused with an error naming ``name``.
     """
-    if not isinstance(resolution, int) or resolution < 1:
-        raise GeometryError(f"resolution = {resolution!r} is invalid: it must be an integer >= 1")
-    return min(cell.w, 0.25 * min(cell.l1, cell.l2)) / resolution
+    check_resolution(name, resolution)
+    h = min(cell.w, 0.25 * min(cell.l1, cell.l2)) / resolution
+    check_triangles(name, resolution, cell.phi_w * cell.area, h, MAX_TRIANGLES)
+    return h
 
 
 def _on_segment(x: np.ndarray, p: np.ndarray, q: np.ndarray, tol: float) -> bool:

@@ -129,6 +129,7 @@ def _cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
     from plantgrowth.cell_solver import DEFAULT_RESOLUTION, CellSolver
     from plantgrowth.meshes.honeycomb import HoneycombCell
+    from plantgrowth.meshes.unit_cell import mesh_size
 
     E, nu = check_wall_material(args.E, args.nu)
     if len(args.Fg) != 4:
@@ -136,6 +137,7 @@ def _cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     Fg = np.array(check_growth_tensor("Fg", [args.Fg[:2], args.Fg[2:]]))
     resolution = DEFAULT_RESOLUTION if args.resolution is None else args.resolution
     cell = HoneycombCell(args.l1, args.l2, args.theta, args.w)
+    mesh_size(cell, resolution, "--resolution")
     result = CellSolver(cell, resolution, comm).solve(Fg, E, nu).summary()
     if comm.rank == 0:
         if args.json:
@@ -162,14 +164,16 @@ def _validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 def _compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.compare import run_compare
-    from plantgrowth.meshes.tissue import TissueLayout
+    from plantgrowth.meshes.tissue import TissueLayout, check_nx, wall_mesh_size
     from plantgrowth.micro import scene_cell
     from plantgrowth.scene import load_scene
 
     scene = load_scene(args.scene)
     scene.check_micro()
-    for nx in args.nx:
-        TissueLayout(scene_cell(scene), nx)  # validates Nx before anything runs
+    for nx in args.nx:  # everything is checked before anything runs
+        layout = TissueLayout(scene_cell(scene), check_nx("--nx", nx))
+        if args.resolution is not None:
+            wall_mesh_size(layout, args.resolution, "--resolution")
     outdir = args.output or Path("results") / f"compare_{args.scene.stem}"
     _start_run(outdir, scene, comm)
     try:

@@ -52,9 +52,9 @@ class MicroModel:
     ) -> None:
         self.scene = scene
         self.comm = comm
-        self.layout = layout = TissueLayout(scene_cell(scene), nx or scene.micro_nx)
+        self.layout = layout = TissueLayout(scene_cell(scene), scene.micro_nx if nx is None else nx)
         msh, cell_tags, facet_tags = build_walls_mesh(
-            layout, resolution or scene.micro_resolution, comm
+            layout, scene.micro_resolution if resolution is None else resolution, comm
         )
         self.mesh = msh
         self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 2))

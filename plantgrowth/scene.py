@@ -40,7 +40,7 @@ inclined wall length l2 = 1)::
     cell_resolution = 2        # P2 elements across a cell wall, integer in [1, 64]
     key_tolerance = 1e-6       # cell-problem inputs are rounded to this before caching, (0, 1e-2]
     [micro]
-    nx = 16                    # cells per row of the micro model, even integer in [2, 1024]
+    nx = 16                    # cells per row of the micro model, even integer in [2, 256]
     resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
 
 The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta`` and ``growth.tau`` are
@@ -68,6 +68,9 @@ import numpy as np
 
 from plantgrowth.errors import InputError, check_growth_tensor, check_number
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
+from plantgrowth.meshes.tissue import MAX_NX as TISSUE_MAX_NX
+from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
+from plantgrowth.meshes.unit_cell import mesh_size
 
 BIG = 1e12
 """Largest magnitude accepted for a non-dimensional parameter without a natural bound."""
@@ -75,7 +78,7 @@ MAX_LENGTH = 1e6  # tissue and cell lengths, |Fg0 entries|
 MAX_CELLS = 4e6  # triangles of the fine mesh
 MAX_STEPS = 1e6  # t_max / dt
 MAX_RESOLUTION = 64  # accuracy.cell_resolution
-MAX_NX = 1024  # micro.nx
+MAX_NX = TISSUE_MAX_NX  # micro.nx
 LAWS = ("stress", "strain", "none")
 INTEGRATORS = ("euler", "exp")
 MODELS = ("macro", "micro", "both")
@@ -390,6 +393,13 @@ class Scene:
         if _integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
             raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
         _integer("micro.resolution", self.micro_resolution, 1, MAX_RESOLUTION)
+        try:  # the unit-cell meshes at the cell geometry's ends must be affordable
+            for x1 in (0.0, self.tissue.width):
+                mesh_size(
+                    self.cell.at(x1), self.accuracy.cell_resolution, "accuracy.cell_resolution"
+                )
+        except GeometryError as e:
+            raise SceneError(str(e)) from None
         if self.model != "macro":
             self.check_micro()
 
@@ -407,6 +417,10 @@ class Scene:
                 f"loads are not supported by model = {self.model!r}: the cellular tissue has no "
                 "straight left/right/top edges; use model = 'macro'"
             )
+        try:  # the walls mesh must be affordable
+            wall_mesh_size(TissueLayout(self.cell.at(0.0), self.micro_nx), self.micro_resolution)
+        except GeometryError as e:
+            raise SceneError(str(e)) from None
 
     def parameter_fields(self) -> dict[str, Field]:
         """All spatially varying parameters by dotted key."""
