@@ -64,7 +64,8 @@ def project_to_nodes(
 ) -> np.ndarray:
     """Lumped L2 projection of cell values onto coarse nodes (paper Algorithm 1, last step).
 
-    ``F_n = sum_c W_cn |c| F_c / sum_c W_cn |c|`` over the owned fine cells of all ranks.
+    ``F_n = sum_c W_cn |c| F_c / sum_c W_cn |c|`` over the owned fine cells of all ranks; a node
+    with no fine cell in its support (its value is never interpolated back) gets the mean.
     Args:
         W: interpolation weights at the owned fine cells' midpoints.
         areas: owned fine cells' areas.
@@ -74,6 +75,8 @@ def project_to_nodes(
     mass = W.T @ areas
     weighted = comm.allreduce(weighted, op=MPI.SUM)
     mass = comm.allreduce(mass, op=MPI.SUM)
-    if np.any(mass <= 0.0):
-        raise ValueError("a coarse node has no fine cell around it: is the fine mesh too coarse?")
-    return weighted / mass[:, None]
+    # a node whose triangles hold no fine cell midpoint (outside a non-rectangular tissue, or
+    # a fine mesh coarser than the coarse one) weighs no fine cell: give it the tissue mean
+    empty = mass <= 0.0
+    mean = weighted.sum(axis=0) / mass.sum()
+    return np.where(empty[:, None], mean, weighted / np.where(empty, 1.0, mass)[:, None])

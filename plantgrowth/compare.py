@@ -22,6 +22,7 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from plantgrowth.coupled import MacroModel
+from plantgrowth.gather import MeshGather
 from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
 from plantgrowth.micro import MicroModel, scene_cell
 from plantgrowth.output import prepare_directory
@@ -48,21 +49,8 @@ class P1Snapshot:
     @classmethod
     def gather(cls, u: fem.Function) -> P1Snapshot:
         """Collect a (distributed) P1 vector function on all ranks."""
-        V = u.function_space
-        imap = V.dofmap.index_map
-        n_owned = imap.size_local
-        local_to_global = imap.local_to_global(np.arange(n_owned + imap.num_ghosts, dtype=np.int32))
-        coords = V.tabulate_dof_coordinates()[:n_owned, :2]
-        values = u.x.array.reshape(-1, 2)[:n_owned]
-        n_cells = V.mesh.topology.index_map(2).size_local
-        cells = local_to_global[V.dofmap.list.array.reshape(-1, 3)[:n_cells]]
-        comm = V.mesh.comm
-        owners = comm.allgather(local_to_global[:n_owned])
-        points = np.zeros((imap.size_global, 2))
-        nodal = np.zeros((imap.size_global, 2))
-        for idx, c, v in zip(owners, comm.allgather(coords), comm.allgather(values), strict=True):
-            points[idx], nodal[idx] = c, v
-        return cls(points, np.vstack(comm.allgather(cells)), nodal)
+        everywhere = MeshGather(u.function_space, root=None)
+        return cls(everywhere.points(), everywhere.triangles(), everywhere.function(u))
 
     def evaluate(self, x: np.ndarray) -> np.ndarray:
         """Values at points x (k, 2); points outside (round-off at the boundary) extrapolate

@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 from plantgrowth import diagnostics, growth
 from plantgrowth.coarse import CoarseGrid, project_to_nodes
 from plantgrowth.errors import RunError
+from plantgrowth.gather import MeshGather
 from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.scene import Scene
@@ -92,6 +93,7 @@ class MacroModel:
         self.out = _Outputs(problem, scene.output.fields)
         self.outputs = self.out.functions
         self.output_space = problem.V
+        self._gather = MeshGather(problem.V)
         log.info(
             "macro: %d fine dofs, %d coarse nodes, terms: %s",
             problem.ndofs, len(nodes), ", ".join(problem.active_terms),
@@ -107,13 +109,13 @@ class MacroModel:
         diagnostics.stop_if(diagnostics.growth_problems(Fg, points), self.comm)
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
-        """Fg and G of the owned fine cells with their midpoints, gathered on rank 0."""
+        """Fg and G of the fine cells with their midpoints, gathered on rank 0 in the written
+        mesh's cell order."""
         n = self.problem.n_owned
         parts = [self.problem.midpoints[:n, :2], Fg[:n].reshape(n, 4), G[:n].reshape(n, 4)]
-        gathered = [self.comm.gather(p, root=0) for p in parts]
+        midpoints, Fg_all, G_all = (self._gather.cell_values(p) for p in parts)
         if self.comm.rank != 0:
             return None
-        midpoints, Fg_all, G_all = (np.concatenate(g) for g in gathered)
         return {"midpoints": midpoints, "Fg": Fg_all, "G": G_all}
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:

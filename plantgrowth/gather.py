@@ -1,7 +1,8 @@
 """Collect distributed P1 / DG0 data into global arrays (for output and comparisons).
 
-Nodes are numbered by the global P1 dof index, cells rank by rank in local order; the same
-:class:`MeshGather` numbers the triangles and the cell data consistently.
+The global numbering is canonical, independent of how the mesh is partitioned: nodes sorted by
+their coordinates, cells by their sorted node numbers. Serial and parallel runs, and a run
+resumed on a different partition, therefore write identical arrays.
 """
 
 from __future__ import annotations
@@ -31,6 +32,20 @@ class MeshGather:
         self.n_owned_cells = V1.mesh.topology.index_map(2).size_local
         self.n_cells = V1.mesh.topology.index_map(2).size_global
         self._node_owner = self._collect(self.global_index[: self.n_owned_nodes])
+        # canonical order: computed where the data are received
+        coords = self._raw_nodes(V1.tabulate_dof_coordinates()[:, :2])
+        cells = V1.dofmap.list.array.reshape(-1, 3)[: self.n_owned_cells]
+        triangles = self._collect(self.global_index[cells])
+        self._node_order = self._cell_order = self._renumber = None
+        if self._receives():
+            # dof coordinates carry partition-dependent round-off: sort on rounded values
+            key = np.round(coords / (1e-9 * max(np.abs(coords).max(), 1e-300)))
+            self._node_order = np.lexsort((key[:, 1], key[:, 0]))
+            self._renumber = np.empty_like(self._node_order)
+            self._renumber[self._node_order] = np.arange(len(self._node_order))
+            renumbered = np.sort(self._renumber[np.concatenate(triangles)], axis=1)
+            self._cell_order = np.lexsort(renumbered.T[::-1])
+            self._triangles = self._renumber[np.concatenate(triangles)][self._cell_order]
 
     def _collect(self, values: np.ndarray):
         if self.root is None:
@@ -40,8 +55,8 @@ class MeshGather:
     def _receives(self) -> bool:
         return self.root is None or self.comm.rank == self.root
 
-    def node_values(self, local: np.ndarray) -> np.ndarray | None:
-        """Global (n_nodes, k) array from per-local-node values (n_local_nodes, k)."""
+    def _raw_nodes(self, local: np.ndarray) -> np.ndarray | None:
+        """Per-node values in global dof order."""
         parts = self._collect(np.asarray(local)[: self.n_owned_nodes])
         if not self._receives():
             return None
@@ -50,19 +65,23 @@ class MeshGather:
             out[index] = part
         return out
 
+    def node_values(self, local: np.ndarray) -> np.ndarray | None:
+        """Global (n_nodes, k) array, canonical order, from per-local-node values."""
+        out = self._raw_nodes(local)
+        return None if out is None else out[self._node_order]
+
     def cell_values(self, local: np.ndarray) -> np.ndarray | None:
-        """Global (n_cells, k) array from per-local-cell values (owned cells first)."""
+        """Global (n_cells, k) array, canonical order, from per-local-cell values."""
         parts = self._collect(np.asarray(local)[: self.n_owned_cells])
-        return np.concatenate(parts) if self._receives() else None
+        return np.concatenate(parts)[self._cell_order] if self._receives() else None
 
     def points(self) -> np.ndarray | None:
         """(n_nodes, 2) node coordinates."""
         return self.node_values(self.V1.tabulate_dof_coordinates()[:, :2])
 
     def triangles(self) -> np.ndarray | None:
-        """(n_cells, 3) global node indices of the cells."""
-        cells = self.V1.dofmap.list.array.reshape(-1, 3)[: self.n_owned_cells]
-        return self.cell_values(self.global_index[cells])
+        """(n_cells, 3) node numbers of the cells (canonical numbering)."""
+        return self._triangles if self._receives() else None
 
     def function(self, u: fem.Function) -> np.ndarray | None:
         """Global values of a P1 (nodes) or DG0 (cells) function, shape (n, block size)."""

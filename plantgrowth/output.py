@@ -76,6 +76,15 @@ def completed_steps(outdir: Path) -> list[tuple[int, float]]:
     return steps
 
 
+def last_summary_step(path: Path) -> int | None:
+    """The step of the last row of a summary.csv (None if it has no row)."""
+    if not path.exists():
+        return None
+    with open(path, newline="") as f:
+        steps = [int(float(row["step"])) for row in csv.DictReader(f) if row.get("step")]
+    return steps[-1] if steps else None
+
+
 def read_state(outdir: Path, step: int) -> dict[str, np.ndarray]:
     """The model state saved with a step (for --resume)."""
     with h5py.File(step_file(outdir, step), "r") as f:
@@ -131,6 +140,10 @@ class FieldSeries:
     @property
     def last_step(self) -> int | None:
         return self.steps[-1][0] if self.steps else None
+
+    def forget_after(self, step: int | None) -> None:
+        """Drop the steps after ``step`` from the index (their files get rewritten)."""
+        self.steps = [(s, t) for s, t in self.steps if step is not None and s <= step]
 
     def write(self, step: int, t: float, state: dict[str, np.ndarray] | None) -> None:
         """Write all functions at (step, t) with the model state (given on rank 0)."""

@@ -22,7 +22,7 @@ from mpi4py import MPI
 
 from plantgrowth import growth
 from plantgrowth.errors import RunError
-from plantgrowth.output import FieldSeries, SummaryWriter, read_state
+from plantgrowth.output import FieldSeries, SummaryWriter, last_summary_step, read_state
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -125,7 +125,12 @@ def run_model(
         n_steps = 0
     dt = scene.time.dt
     series = FieldSeries(outdir, model.output_space, model.outputs, resume)
-    last = series.last_step if resume else None
+    last = None
+    if resume:  # a step is complete when both its field file and its summary row exist
+        rows_done = comm.bcast(last_summary_step(outdir / "summary.csv"), root=0)
+        done = [s for s in (series.last_step, rows_done) if s is not None]
+        last = min(done) if len(done) == 2 else None
+        series.forget_after(last)
     summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm, keep_until=last)
     if last is None:
         Fg, first = model.initial_growth(), 0

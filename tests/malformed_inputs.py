@@ -1,0 +1,816 @@
+"""Seeded generator of malformed inputs for the ``plantgrowth`` CLI (not a test module).
+
+``generate(seed, n)`` returns ``n`` :class:`Case` objects mixing the classes of :data:`CLASSES` at
+random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, sizes <= 0, nu out of
+(-1, 0.5), walls too thick for the cell, bad angles and time steps, empty/binary/invalid TOML, huge
+numbers, bad {from, to} fields and loads, bad micro scenes), bad command lines and output paths
+that cannot be written. Every case must end with exit code 2 and a one-line
+``plantgrowth: error: ...`` naming the field (``Case.expect``), before anything is written.
+
+A case is materialized in its own empty directory: ``files`` are written there and ``{dir}`` in
+``argv`` and ``expect`` stands for that directory. Cases with ``isolate = True`` could run for
+minutes if the input is not rejected (huge mesh resolutions): run those in a subprocess with a
+time limit, never in-process.
+"""
+
+from __future__ import annotations
+
+import random
+import string
+from dataclasses import dataclass
+from pathlib import Path
+
+from plantgrowth.meshes.honeycomb import HoneycombCell
+
+SCENE = "scene.toml"  # the scene file of scene cases, in {dir}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One malformed input and what the CLI must answer.
+
+    Attributes:
+        name: unique, readable id (class, index, short description).
+        cls: the class of error (a key of :data:`CLASSES`).
+        kind: "scene" (a scene file), "argv" (a command line) or "setup" (an output path that
+            cannot be written).
+        argv: the command line, ``{dir}`` standing for the case's directory.
+        expect: fragments the one-line error message must all contain (``{dir}`` likewise).
+        files: (relative path, content) written into the case's directory before the call.
+        code: the expected exit code.
+        isolate: run only in a subprocess with a time limit (a bug could mean minutes of work).
+    """
+
+    name: str
+    cls: str
+    kind: str
+    argv: tuple[str, ...]
+    expect: tuple[str, ...]
+    files: tuple[tuple[str, str | bytes], ...] = ()
+    code: int = 2
+    isolate: bool = False
+
+    def materialize(self, directory: Path) -> list[str]:
+        """Write the case's files into ``directory``; return the argv to call ``main`` with."""
+        for rel, content in self.files:
+            path = directory / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if isinstance(content, bytes):
+                path.write_bytes(content)
+            else:
+                path.write_text(content)
+        return [a.replace("{dir}", str(directory)) for a in self.argv]
+
+    def fragments(self, directory: Path) -> list[str]:
+        return [e.replace("{dir}", str(directory)) for e in self.expect]
+
+
+# --- scene schema and a random valid base scene -----------------------------------------------
+
+
+class Raw(str):
+    """A TOML value written verbatim (nan, 10**400 digits, dates, broken arrays...)."""
+
+
+FLOAT_KEYS = {  # plain numbers
+    "tissue": ("width", "height", "h", "H"),
+    "growth": ("clamp",),
+    "time": ("t_max", "dt"),
+    "accuracy": ("key_tolerance",),
+}
+FIELD_KEYS = {  # number or {from, to}
+    "cell": ("l1", "l2", "theta", "w"),
+    "material": ("E", "nu"),
+    "pressure": ("P1",),
+    "growth": ("eta", "tau"),
+}
+INT_KEYS = {"accuracy": ("cell_resolution",), "micro": ("nx", "resolution")}
+CHOICE_KEYS = {("", "model"), ("growth", "law"), ("time", "integrator")}
+TABLES = ("tissue", "cell", "material", "pressure", "growth", "time", "loads", "output",
+          "accuracy", "micro")  # fmt: skip
+SCHEMA = {
+    "tissue": ("width", "height", "h", "H"),
+    "cell": ("l1", "l2", "theta", "w"),
+    "material": ("E", "nu"),
+    "pressure": ("P1",),
+    "growth": ("law", "eta", "tau", "clamp", "Fg0"),
+    "time": ("t_max", "dt", "integrator"),
+    "loads": ("left", "right", "top"),
+    "output": ("fields",),
+    "accuracy": ("cell_resolution", "key_tolerance"),
+    "micro": ("nx", "resolution"),
+}
+OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
+
+
+def _pairs(table: dict[str, tuple[str, ...]]) -> list[tuple[str, str]]:
+    return [(t, k) for t, keys in table.items() for k in keys]
+
+
+def _toml(value: object) -> str:
+    if isinstance(value, Raw):
+        return str(value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value + '"'
+    if isinstance(value, float):
+        return repr(value)  # round-trips; nan/inf are valid TOML
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    raise TypeError(value)
+
+
+def to_toml(scene: dict) -> str:
+    """TOML text of a scene dict (top-level scalars first, then one [table] each)."""
+    lines = [f"{k} = {_toml(v)}" for k, v in scene.items() if not isinstance(v, dict)]
+    for name, table in scene.items():
+        if isinstance(table, dict):
+            lines += ["", f"[{name}]"] + [f"{k} = {_toml(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _w_max(l1: float, l2: float, theta: float) -> float:
+    return HoneycombCell(l1, l2, theta, 1e-12).w_max
+
+
+def base_scene(rng: random.Random, micro: bool = False) -> dict:
+    """A random *valid* scene dict; macro with optional loads unless ``micro``."""
+    width, height = rng.uniform(2.0, 10.0), rng.uniform(1.0, 5.0)
+    h = rng.choice([0.1, 0.2, 0.25, 0.5])
+    l1, l2, theta = rng.uniform(0.5, 2.0), rng.uniform(0.5, 2.0), rng.uniform(15.0, 60.0)
+    w = rng.uniform(0.05, 0.5) * _w_max(l1, l2, theta)
+    dt = rng.choice([0.5, 1.0, 2.0])
+    scene: dict = {"model": rng.choice(["micro", "both"]) if micro else "macro"}
+    options = {
+        "tissue": {"width": width, "height": height, "h": h, "H": rng.uniform(h, 2.0)},
+        "cell": {"l1": l1, "l2": l2, "theta": theta, "w": w},
+        "material": {"E": rng.uniform(0.1, 10.0), "nu": rng.uniform(-0.5, 0.45)},
+        "pressure": {"P1": rng.uniform(0.0, 0.01)},
+        "growth": {"eta": rng.uniform(0.0, 2.0), "tau": rng.uniform(0.0, 0.01),
+                   "clamp": rng.uniform(0.1, 2.0), "Fg0": [[1.0, 0.0], [0.0, 1.0]]},
+        "time": {"t_max": dt * rng.randint(1, 80), "dt": dt,
+                 "integrator": rng.choice(["exp", "euler"])},
+        "loads": {} if micro else {rng.choice(["left", "right", "top"]): [0.001, 0.0]},
+        "output": {"fields": rng.sample(OUTPUT_FIELDS, rng.randint(1, 6))},
+        "accuracy": {"cell_resolution": rng.randint(1, 4), "key_tolerance": 1e-6},
+        "micro": {"nx": 2 * rng.randint(1, 16), "resolution": rng.randint(1, 4)},
+    }  # fmt: skip
+    for name in TABLES:  # a random subset of the keys (cell, time: all or none), growth.law
+        whole = name in ("cell", "time")  # a default w or t_max may not fit the others
+        keep = rng.random() < 0.5
+        chosen = {k: v for k, v in options[name].items() if (keep if whole else rng.random() < 0.5)}
+        if name == "growth":
+            chosen = {"law": rng.choice(["stress", "strain", "none"]), **chosen}
+        if chosen or rng.random() < 0.3:
+            scene[name] = chosen
+    return scene
+
+
+def _set(scene: dict, table: str, key: str, value: object) -> None:
+    if table:
+        scene.setdefault(table, {})[key] = value
+    else:
+        scene[key] = value
+
+
+def _magnitude(rng: random.Random, low: float = -6.0, high: float = 6.0) -> float:
+    return 10.0 ** rng.uniform(low, high)
+
+
+def _name(rng: random.Random, valid: tuple[str, ...] = ()) -> str:
+    while True:
+        first = rng.choice(string.ascii_letters)
+        rest = "".join(
+            rng.choices(string.ascii_letters + string.digits + "_-", k=rng.randint(0, 9))
+        )
+        if first + rest not in valid:
+            return first + rest
+
+
+# --- the classes --------------------------------------------------------------------------------
+# Each maker returns (kind, files, argv, expect) or, for scene classes, (scene dict or text, key).
+
+WRONG_FOR_NUMBER = ['"abc"', '"1.0"', "true", "false", "[1, 2]", "[]", "1979-05-27",
+                    "12:30:00", '""']  # fmt: skip
+
+
+def _wrong_type(rng: random.Random, scene: dict):
+    what = rng.choice(["float", "field", "int", "choice", "table", "fields", "Fg0", "field_tbl"])
+    if what == "float":
+        table, key = rng.choice(_pairs(FLOAT_KEYS))
+        value = Raw(rng.choice(WRONG_FOR_NUMBER + ["{ a = 1 }", "{ from = 1, to = 2 }"]))
+    elif what in ("field", "field_tbl"):
+        table, key = rng.choice(_pairs(FIELD_KEYS))
+        value = Raw(rng.choice(WRONG_FOR_NUMBER) if what == "field" else f"{{ {_name(rng)} = 1 }}")
+    elif what == "int":
+        table, key = rng.choice(_pairs(INT_KEYS))
+        value = Raw(rng.choice(WRONG_FOR_NUMBER + ["2.0", "4.5", "1e1", "{ a = 1 }"]))
+    elif what == "choice":
+        table, key = rng.choice(sorted(CHOICE_KEYS))
+        value = Raw(rng.choice(["1", "0.5", "true", '["stress"]', "{ a = 1 }", "1979-05-27"]))
+    elif what == "table":
+        table, key = "", rng.choice(TABLES)
+        scene.pop(key, None)
+        value = Raw(rng.choice(["3", '"x"', "[1, 2]", "true", "1.5"]))
+        _set(scene, table, key, value)
+        return scene, key
+    elif what == "fields":
+        table, key = "output", "fields"
+        value = Raw(rng.choice(['"u"', "3", "{ u = 1 }", "[1]", '["u", 2]', '[["u"]]']))
+    else:
+        table, key = "growth", "Fg0"
+        value = Raw(rng.choice(["1.0", '"I"', "[1, 0, 0, 1]", "[[1, 0], [0]]", '[["a", 0], [0, 1]]',
+                                "[[1, 0], [0, 1], [0, 0]]", "[[true, 0], [0, 1]]"]))  # fmt: skip
+    _set(scene, table, key, value)
+    return scene, f"{table}.{key}" if table else key
+
+
+def _missing_required(rng: random.Random, scene: dict):
+    if rng.random() < 0.5:
+        scene.pop("growth", None)
+    else:
+        scene.setdefault("growth", {}).pop("law", None)
+    return scene, "growth.law"
+
+
+def _unknown_key(rng: random.Random, scene: dict):
+    level = rng.choice(["top", "top_table", "table", "field", "loads"])
+    if level in ("top", "top_table"):
+        name = _name(rng, ("model", *TABLES))
+        value = rng.choice([1, "x", 0.5]) if level == "top" else {"a": 1}
+        scene[name] = value
+        return scene, f"'{name}'"
+    if level == "loads":
+        name = _name(rng, SCHEMA["loads"] + ("bottom",))
+        scene.setdefault("loads", {})[name] = [0.0, 0.0]
+        return scene, f"'loads.{name}'"
+    if level == "table":
+        table = rng.choice(TABLES)
+        name = _name(rng, SCHEMA[table])
+        scene.setdefault(table, {})[name] = rng.choice([1, 1.5, "x", True])
+        return scene, f"'{table}.{name}'"
+    table, key = rng.choice(_pairs(FIELD_KEYS))
+    name = _name(rng, ("from", "to"))
+    _set(scene, table, key, {"from": 0.01, "to": 0.02, name: 1.0})
+    return scene, f"'{table}.{key}.{name}'"
+
+
+NONFINITE = ["nan", "+nan", "-nan", "inf", "+inf", "-inf"]
+
+
+def _nonfinite(rng: random.Random, scene: dict):
+    bad = Raw(rng.choice(NONFINITE))
+    where = rng.choice(["float", "field", "field_end", "int", "loads", "Fg0"])
+    if where == "float":
+        table, key = rng.choice(_pairs(FLOAT_KEYS))
+        value = bad
+    elif where in ("field", "field_end"):
+        table, key = rng.choice(_pairs(FIELD_KEYS))
+        ok = _valid_value(table, key, scene)
+        value = bad if where == "field" else _one_end(rng, ok, bad)
+    elif where == "int":
+        table, key = rng.choice(_pairs(INT_KEYS))
+        value = bad
+    elif where == "loads":
+        scene.pop("model", None)
+        table, key = "loads", rng.choice(SCHEMA["loads"])
+        value = Raw(f"[{bad}, 0.0]" if rng.random() < 0.5 else f"[0.0, {bad}]")
+    else:
+        table, key = "growth", "Fg0"
+        value = Raw(f"[[{bad}, 0.0], [0.0, 1.0]]")
+    _set(scene, table, key, value)
+    return scene, f"{table}.{key}"
+
+
+def _valid_value(table: str, key: str, scene: dict) -> float:
+    """A value of a field key that is valid with the scene's cell (used for the good end)."""
+    current = scene.get(table, {}).get(key)
+    if isinstance(current, float) and not isinstance(current, Raw):
+        return current
+    return {"l1": 1.0, "l2": 1.0, "theta": 30.0, "w": 0.05, "E": 1.0, "nu": 0.3, "P1": 0.001,
+            "eta": 1.0, "tau": 0.0}[key]  # fmt: skip
+
+
+def _one_end(rng: random.Random, good: object, bad: object) -> dict:
+    return {"from": good, "to": bad} if rng.random() < 0.5 else {"from": bad, "to": good}
+
+
+def _nonpositive_size(rng: random.Random, scene: dict):
+    bad = rng.choice([0, 0.0, -0.0, -1, -_magnitude(rng), -_magnitude(rng, -12, -6)])
+    choices = [("tissue", k) for k in SCHEMA["tissue"]] + [("cell", k) for k in ("l1", "l2", "w")]
+    table, key = rng.choice(choices + [("time", "dt")])
+    if table == "cell" and rng.random() < 0.3:
+        _set(scene, table, key, _one_end(rng, _valid_value(table, key, scene), bad))
+    else:
+        _set(scene, table, key, bad)
+    return scene, f"{table}.{key}"
+
+
+def _poisson_ratio(rng: random.Random, scene: dict):
+    bad = rng.choice([0.5, 1, 0.5 + _magnitude(rng, -9, 0), 0.5 + _magnitude(rng), -1, -1.0,
+                      -1 - _magnitude(rng, -9, 0), -_magnitude(rng, 0.01, 6)])  # fmt: skip
+    if rng.random() < 0.3:
+        _set(scene, "material", "nu", _one_end(rng, 0.3, bad))
+    else:
+        _set(scene, "material", "nu", bad)
+    return scene, "material.nu"
+
+
+def _wall_too_thick(rng: random.Random, scene: dict):
+    l1, l2 = _magnitude(rng, -1, 0.7), _magnitude(rng, -1, 0.7)
+    theta = rng.uniform(2.0, 88.0)
+    w_max = _w_max(l1, l2, theta)
+    w = w_max * rng.choice([1.0, 1.0 + _magnitude(rng, -9, -1), 1.0 + rng.random(), 3.0])
+    scene["cell"] = {"l1": l1, "l2": l2, "theta": theta, "w": w}
+    if rng.random() < 0.3 and w_max > 0.02:  # a w field, thick enough at one end only
+        scene["cell"]["w"] = _one_end(rng, 0.5 * w_max, w)
+    return scene, "cell.w"
+
+
+def _angle(rng: random.Random, scene: dict):
+    bad = rng.choice([0, 0.0, -_magnitude(rng, -6, 3), 90, 90.0, 90 + _magnitude(rng, -6, 3),
+                      180, 360.0, -90])  # fmt: skip
+    value = bad if rng.random() < 0.7 else _one_end(rng, 30.0, bad)
+    _set(scene, "cell", "theta", value)
+    return scene, "cell.theta"
+
+
+def _time_steps(rng: random.Random, scene: dict):
+    dt = rng.choice([_magnitude(rng, -3, 2), rng.choice([0.1, 0.25, 0.5, 1, 2, 3])])
+    what = rng.choice(["short", "fraction", "zero", "too_many"])
+    if what == "short":
+        t_max = dt * rng.uniform(0.01, 0.99)
+    elif what == "fraction":
+        t_max = dt * (rng.randint(1, 100) + rng.uniform(0.05, 0.95))
+    elif what == "zero":
+        t_max = rng.choice([0, 0.0, -dt])
+    else:
+        t_max = dt * rng.uniform(1.01e6, 1e9)
+    scene["time"] = {"t_max": t_max, "dt": dt}
+    return scene, "time.t_max"
+
+
+def _out_of_range(rng: random.Random, scene: dict):
+    what = rng.choice(["E", "P1", "eta", "tau", "clamp", "key_tolerance", "cell_resolution",
+                       "Fg0", "h_big", "H_small", "h_tiny", "micro_resolution"])  # fmt: skip
+    table, key, value = {
+        "E": ("material", "E", rng.choice([0, -_magnitude(rng), 1e13])),
+        "P1": ("pressure", "P1", -_magnitude(rng)),
+        "eta": ("growth", "eta", -_magnitude(rng)),
+        "tau": ("growth", "tau", -_magnitude(rng)),
+        "clamp": ("growth", "clamp", rng.choice([0, -_magnitude(rng), 2e12])),
+        "key_tolerance": ("accuracy", "key_tolerance", rng.choice([0, 0.5, -1e-6, 1.0])),
+        "cell_resolution": ("accuracy", "cell_resolution", rng.choice([0, -1, 65, 1000])),
+        "Fg0": ("growth", "Fg0", rng.choice([[[0, 0], [0, 0]], [[1, 0], [0, -1]],
+                                             [[1, 2], [1, 2]], [[2e6, 0], [0, 1]]])),
+        "h_big": ("tissue", "h", 20.0),  # > min(width, height) / 2 with the fixed tissue below
+        "H_small": ("tissue", "H", 0.05),  # < h
+        "h_tiny": ("tissue", "h", 1e-4),  # far more than 4e6 triangles
+        "micro_resolution": ("micro", "resolution", rng.choice([0, -2, 65])),
+    }[what]  # fmt: skip
+    if table == "tissue":
+        scene["tissue"] = {"width": 8.0, "height": 4.0, "h": 0.1, "H": 1.0}
+    _set(scene, table, key, value)
+    return scene, f"{table}.{key}"
+
+
+def _huge(rng: random.Random, scene: dict):
+    big = rng.choice([Raw("1e300"), Raw("-1e300"), Raw("1.7976931348623157e308"),
+                      Raw("1" + "0" * 400), Raw("-1" + "0" * 400), Raw("1e309"),
+                      Raw(str(rng.randint(10**20, 10**30)))])  # fmt: skip
+    where = rng.choice(["float", "field", "int", "loads", "Fg0"])
+    if where == "float":
+        table, key = rng.choice(_pairs(FLOAT_KEYS))
+        value = big
+    elif where == "field":
+        table, key = rng.choice(_pairs(FIELD_KEYS))
+        value = big if rng.random() < 0.7 else Raw(f"{{from = {big}, to = 1}}")
+    elif where == "int":
+        table, key = rng.choice(_pairs(INT_KEYS))
+        value = big
+    elif where == "loads":
+        scene.pop("model", None)
+        table, key = "loads", rng.choice(SCHEMA["loads"])
+        value = Raw(f"[{big}, 0]")
+    else:
+        table, key = "growth", "Fg0"
+        value = Raw(f"[[{big}, 0], [0, 1]]")
+    _set(scene, table, key, value)
+    return scene, f"{table}.{key}"
+
+
+def _bad_field(rng: random.Random, scene: dict):
+    table, key = rng.choice(_pairs(FIELD_KEYS))
+    good = _valid_value(table, key, scene)
+    value = rng.choice([
+        Raw("{}"), Raw(f"{{from = {good!r}}}"), Raw(f"{{to = {good!r}}}"),
+        Raw(f'{{from = "a", to = {good!r}}}'), Raw(f"{{from = {good!r}, to = [1]}}"),
+        Raw(f"{{from = {good!r}, to = true}}"), Raw(f"{{from = {good!r}, to = {{x = 1}}}}"),
+        Raw("{from = 1, to = 2, by = 3}"), Raw(f"{{start = {good!r}, end = {good!r}}}"),
+    ])  # fmt: skip
+    if rng.random() < 0.2:  # a field where only numbers are allowed
+        table, key = rng.choice(_pairs(FLOAT_KEYS))
+        value = Raw("{from = 1, to = 2}")
+    _set(scene, table, key, value)
+    return scene, f"{table}.{key}"
+
+
+def _bad_loads(rng: random.Random, scene: dict):
+    scene["model"] = "macro"
+    what = rng.choice(["bottom", "unknown", "shape", "type"])
+    loads = scene.setdefault("loads", {})
+    if not isinstance(loads, dict):
+        loads = scene["loads"] = {}
+    if what == "bottom":
+        loads["bottom"] = [rng.uniform(-1, 1), rng.uniform(-1, 1)]
+        return scene, "loads.bottom"
+    if what == "unknown":
+        name = _name(rng, SCHEMA["loads"] + ("bottom",))
+        loads[name] = [0.0, 0.001]
+        return scene, f"loads.{name}"
+    edge = rng.choice(SCHEMA["loads"])
+    loads[edge] = Raw(rng.choice(["[1.0]", "[1, 2, 3]", "[]"]) if what == "shape" else
+                      rng.choice(["1.0", '"up"', '["a", 1]', "{x = 1}", "[true, 0]"]))  # fmt: skip
+    return scene, f"loads.{edge}"
+
+
+def _micro_scene(rng: random.Random, scene: dict):
+    scene = base_scene(rng, micro=True)
+    what = rng.choice(["field", "field", "loads", "nx_odd", "nx_range", "resolution"])
+    if what == "field":
+        key = rng.choice(["l1", "l2", "theta", "w"])
+        scene["cell"] = {"l1": 1.0, "l2": 1.0, "theta": 30.0, "w": 0.05}
+        ends = {"l1": (0.8, 1.5), "l2": (0.8, 1.5), "theta": (20.0, 40.0), "w": (0.03, 0.08)}
+        lo, hi = ends[key]
+        scene["cell"][key] = {"from": rng.uniform(lo, hi), "to": rng.uniform(lo, hi) + 1e-3}
+        return scene, f"cell.{key}"
+    if what == "loads":
+        scene["loads"] = {rng.choice(SCHEMA["loads"]): [0.001, rng.uniform(-1, 1)]}
+        return scene, "loads"
+    scene.setdefault("micro", {})
+    if what == "nx_odd":
+        scene["micro"]["nx"] = 2 * rng.randint(0, 500) + 1
+        return scene, "micro.nx"
+    if what == "nx_range":
+        scene["micro"]["nx"] = rng.choice([0, -2, 1026, 2048, 10**6])
+        return scene, "micro.nx"
+    scene["micro"]["resolution"] = rng.choice([0, -1, 65, 2.0])
+    return scene, "micro.resolution"
+
+
+def _bad_choice(rng: random.Random, scene: dict):
+    what = rng.choice(["model", "law", "integrator", "fields", "fields_dup"])
+    if what == "model":
+        scene["model"] = rng.choice(["mezzo", "Macro", "", _name(rng, ("macro", "micro", "both"))])
+        return scene, "model ="
+    if what == "law":
+        scene.setdefault("growth", {})["law"] = rng.choice(["Stress", "", "linear", _name(rng)])
+        return scene, "growth.law"
+    if what == "integrator":
+        scene.setdefault("time", {})["integrator"] = rng.choice(["rk4", "Exp", "", _name(rng)])
+        return scene, "time.integrator"
+    name = rng.choice(OUTPUT_FIELDS)
+    bad = [name, name] if what == "fields_dup" else [name, rng.choice(["p", "U", "sigma", "E"])]
+    scene["output"] = {"fields": bad}
+    return scene, "output.fields"
+
+
+SCENE_MAKERS = {
+    "wrong_type": _wrong_type,
+    "missing_required": _missing_required,
+    "unknown_key": _unknown_key,
+    "nonfinite": _nonfinite,
+    "nonpositive_size": _nonpositive_size,
+    "poisson_ratio": _poisson_ratio,
+    "wall_too_thick": _wall_too_thick,
+    "angle": _angle,
+    "time_steps": _time_steps,
+    "out_of_range": _out_of_range,
+    "huge_number": _huge,
+    "bad_field": _bad_field,
+    "bad_loads": _bad_loads,
+    "micro_scene": _micro_scene,
+    "bad_choice": _bad_choice,
+}
+
+TOML_ERRORS = [
+    "[tissue\nh = 0.1\n", '[growth]\nlaw = "stress\n', "[growth]\nlaw = \n",
+    "[growth]\nlaw = 'stress'\nlaw = 'strain'\n", "[growth]\nlaw = 'stress'\n[growth]\neta = 1\n",
+    "[growth]\nlaw = stress\n", "[cell]\nw = {from = 0.1, to = }\n", "[cell]\nw = 0.05.1\n",
+    "= 3\n", "[time]\ndt = 1,\n", "[[growth]\n", "[growth]\nlaw = 'stress'\neta = 1 2\n",
+    "[growth]\nlaw = 'stress'\n[cell]\nw = {from = 0.1,\nto = 0.2}\n", "[tissue]]\n",
+    "[growth]\nlaw = 'none'\n[micro]\nnx = " + "1" * 5000 + "\n", "model = 'macro\n",
+    "[growth]\nlaw = 'stress'\neta = 01\n", "[growth]\nlaw = 'stress'\ntau = .5\n",
+    "[growth]\nlaw = 'stress'\n[time]\ndt = 1e\n", "[growth]\nlaw = 'stress'\n[time]\ndt = 0x\n",
+]  # fmt: skip
+
+
+def _file_case(rng: random.Random, cls: str) -> tuple[str | bytes, tuple[str, ...]]:
+    if cls == "empty_file":
+        content = rng.choice(["", "".join(rng.choices(" \t\n\r", k=rng.randint(1, 200)))])
+        return content, (SCENE, "empty")
+    if cls == "binary_garbage":
+        data = bytearray(rng.randbytes(rng.randint(1, 2000)))
+        data.insert(rng.randint(0, len(data)), rng.choice([0x00, 0xFF, 0xC3, 0x80]))
+        if rng.random() < 0.3:  # garbage after a valid start
+            data = bytearray(b'[growth]\nlaw = "stress"\n') + data
+        return bytes(data), (SCENE,)
+    # toml_syntax: a fixed broken snippet, or a valid random scene with one line broken
+    if rng.random() < 0.5:
+        return rng.choice(TOML_ERRORS), (SCENE, "invalid TOML")
+    lines = to_toml(base_scene(rng)).splitlines()
+    i = rng.choice([k for k, line in enumerate(lines) if "=" in line])
+    lines[i] = rng.choice([
+        lines[i].replace("=", ""), lines[i] + " }", lines[i] + " = 1", lines[i] + ",",
+        "[" + lines[i], lines[i].replace("=", "= = "), lines[i] + ' "', "= " + lines[i],
+    ])  # fmt: skip
+    return "\n".join(lines) + "\n", (SCENE, "invalid TOML")
+
+
+TINY = '[growth]\nlaw = "none"\n[tissue]\nh = 0.5\n[accuracy]\ncell_resolution = 1\n'
+"""A valid scene that would run in a second: the run behind a bad output path or command line."""
+COMPARE = (
+    '[tissue]\nh = 0.1\n[growth]\nlaw = "stress"\n[time]\nt_max = 1\ndt = 1\n'
+    "[accuracy]\ncell_resolution = 1\n[micro]\nnx = 4\nresolution = 1\n"
+)
+"""A valid scene for ``compare`` (constant cell, no loads) that runs in about 2 s."""
+CELL_OPTIONS = ("--l1", "--l2", "--theta", "--w", "--E", "--nu", "--Fg", "--resolution", "--json")
+
+
+def _cli_cell(rng: random.Random):
+    what = rng.choice(["nu", "Fg_count", "Fg_det", "Fg_text", "w", "w_thick", "theta",
+                       "resolution", "E", "l", "nonfinite"])  # fmt: skip
+    if what == "nu":
+        v = rng.choice([0.5, 0.7, 1.0, 0.5 + _magnitude(rng, -6, 2), -1.0, -1 - _magnitude(rng)])
+        return ["--nu", repr(v)], ("nu = ",)
+    if what == "Fg_count":
+        k = rng.choice([1, 2, 3, 5, 6, 9])
+        return ["--Fg", ",".join(repr(round(rng.uniform(-2, 2), 3)) for _ in range(k))], ("--Fg",)
+    if what == "Fg_det":
+        a, b, c = (round(rng.uniform(0.1, 2), 3) for _ in range(3))
+        Fg = rng.choice([[0, 0, 0, 0], [a, b, 2 * a, 2 * b], [a, 0, 0, -c], [-a, 0, 0, c]])
+        return ["--Fg", ",".join(map(repr, Fg))], ("Fg = ",)
+    if what == "Fg_text":
+        return ["--Fg", rng.choice(["a,b,c,d", "1;0;0;1", "", "1,,0,1", "[1,0,0,1]"])], ("--Fg",)
+    if what == "w":
+        return ["--w", repr(rng.choice([0.0, -1.0, -_magnitude(rng)]))], ("w = ",)
+    if what == "w_thick":
+        l1, l2, theta = (round(rng.uniform(*r), 3) for r in ((0.3, 3), (0.3, 3), (5, 85)))
+        w = _w_max(l1, l2, theta) * rng.uniform(1.0, 3.0)
+        argv = ["--l1", repr(l1), "--l2", repr(l2), "--theta", repr(theta), "--w", repr(w)]
+        return argv, ("w = ", "no void")
+    if what == "theta":
+        v = rng.choice([95.0, 90.0, 0.0, -30.0, 90 + _magnitude(rng, -6, 3)])
+        return ["--theta", repr(v)], ("theta = ",)
+    if what == "resolution":
+        return ["--resolution", str(rng.choice([0, -1, -rng.randint(2, 10**6)]))], ("resolution",)
+    if what == "E":
+        return ["--E", repr(rng.choice([0.0, -1.0, -_magnitude(rng)]))], ("E = ",)
+    if what == "l":
+        opt = rng.choice(["--l1", "--l2"])
+        return [opt, repr(rng.choice([0.0, -_magnitude(rng)]))], (opt[2:] + " = ",)
+    opt = rng.choice(["--l1", "--l2", "--w", "--E", "--nu", "--theta"])
+    return [opt, rng.choice(["nan", "inf", "-inf"])], (opt[2:] + " = ",)
+
+
+def _cli_case(rng: random.Random, cls: str):
+    """(files, argv, expect) of a command-line class."""
+    if cls == "cli_cell":
+        pairs, expect = _cli_cell(rng)
+        argv = ["cell"]
+        for opt, value in zip(pairs[::2], pairs[1::2], strict=True):
+            # "--w=-1e-05": argparse takes a lone "-1e-05" for an option
+            split = not value.startswith("-") and rng.random() < 0.7
+            argv += [opt, value] if split else [f"{opt}={value}"]
+        return (), argv, expect
+    if cls == "cli_compare":
+        what = rng.choice(["nx_odd", "nx_odd", "nx_small", "nx_text", "nx_missing", "loads",
+                           "resolution"])  # fmt: skip
+        files = (("compare.toml", COMPARE),)
+        base = ["compare", "{dir}/compare.toml", "--first-step-only", "-o", "{dir}/cmp"]
+        if what == "nx_odd":
+            nx = [str(2 * rng.randint(1, 4))] * rng.randint(0, 2) + [
+                str(2 * rng.randint(0, 50) + 1)
+            ]
+            return files, [*base, "--nx", *nx], ("--nx",)
+        if what == "nx_small":
+            return files, [*base, "--nx", str(rng.choice([0, -2, -4]))], ("--nx",)
+        if what == "nx_text":
+            return files, [*base, "--nx", rng.choice(["4.0", "four", "4,8"])], ("--nx",)
+        if what == "nx_missing":
+            return files, base, ("--nx",)
+        if what == "loads":
+            scene = COMPARE + "[loads]\nright = [0.001, 0.0]\n"
+            return (("compare.toml", scene),), [*base, "--nx", "4"], ("loads",)
+        return (
+            files,
+            [*base, "--nx", "4", "--resolution", str(rng.choice([0, -1]))],
+            ("--resolution",),
+        )
+    if cls == "cli_run":
+        what = rng.choice(["missing", "directory", "resume_empty", "resume_missing", "two_dirs"])
+        files = (("tiny.toml", TINY),)
+        if what == "missing":
+            name = f"{_name(rng)}.toml"
+            return (), [rng.choice(["run", "validate"]), f"{{dir}}/{name}"], (name, "not found")
+        if what == "directory":
+            return (("sub/keep.txt", "x"),), ["run", "{dir}/sub"], ("sub", "directory")
+        if what == "resume_empty":
+            return (
+                (*files, ("old/keep.txt", "x")),
+                ["run", "{dir}/tiny.toml", "--resume", "{dir}/old"],
+                ("--resume", "scene.toml"),
+            )
+        if what == "resume_missing":
+            return files, ["run", "{dir}/tiny.toml", "--resume", "{dir}/none"], ("--resume",)
+        return (
+            files,
+            ["run", "{dir}/tiny.toml", "-o", "{dir}/a", "--resume", "{dir}/b"],
+            ("--resume",),
+        )
+    # cli_parse: unknown sub-commands and flags, missing or malformed option values
+    what = rng.choice(["command", "flag", "value", "int", "none", "positional"])
+    if what == "command":
+        name = rng.choice(["grow", "Run", "simulate", "help", _name(rng).lower()])
+        if name in ("cell", "run", "compare", "validate"):
+            name = "x" + name
+        return (), [name, "x"], (name,)
+    if what == "flag":
+        flag = "--" + _name(rng).lower().strip("-_") + "-" + str(rng.randint(0, 99))
+        command = rng.choice([["cell"], ["run", "{dir}/s.toml"], ["validate", "{dir}/s.toml"],
+                              ["compare", "{dir}/s.toml", "--nx", "4"]])  # fmt: skip
+        return (), [*command, flag, "1"], (flag,)
+    if what == "value":
+        opt = rng.choice(CELL_OPTIONS[:-1])
+        return (), ["cell", opt], (opt,)
+    if what == "int":
+        opt = rng.choice(["--l1", "--nu", "--theta", "--resolution", "--E"])
+        return (), ["cell", opt, rng.choice(["abc", "1,5", "", "0x"])], (opt,)
+    if what == "none":
+        return (), [], ("command",)
+    command = rng.choice(["run", "validate", "compare"])
+    return (), [command], ("scene",)
+
+
+def _setup_case(rng: random.Random):
+    """An output directory that cannot be written: under a regular file, the file itself, /proc."""
+    what = rng.choice(["under_file", "under_file", "is_file", "proc", "compare_under_file"])
+    files = (("tiny.toml", TINY), ("afile", "not a directory\n"))
+    if what == "under_file":
+        out = "{dir}/afile/" + "/".join(_name(rng) for _ in range(rng.randint(1, 3)))
+        return files, ["run", "{dir}/tiny.toml", "-o", out], ("cannot write", "afile")
+    if what == "is_file":
+        return files, ["run", "{dir}/tiny.toml", "-o", "{dir}/afile"], ("cannot write", "afile")
+    if what == "proc":
+        out = f"/proc/plantgrowth_{_name(rng)}/out"
+        return files, ["run", "{dir}/tiny.toml", "-o", out], ("cannot write", out)
+    files = (("compare.toml", COMPARE), ("afile", "x"))
+    argv = ["compare", "{dir}/compare.toml", "--nx", "4", "--first-step-only",
+            "-o", "{dir}/afile/cmp"]  # fmt: skip
+    return files, argv, ("cannot write", "afile")
+
+
+def _unbounded_case(rng: random.Random):
+    """Sizes without an upper bound: they must be refused at once, not tried (``isolate``)."""
+    files = (("compare.toml", COMPARE),)
+    what = rng.choice(["cell", "compare_nx", "compare_resolution"])
+    if what == "cell":
+        return (), ["cell", "--resolution", str(rng.choice([100, 1000, 10**6]))], ("resolution",)
+    base = ["compare", "{dir}/compare.toml", "--first-step-only", "-o", "{dir}/cmp"]
+    if what == "compare_nx":
+        return files, [*base, "--nx", str(rng.choice([2048, 10**5, 10**6]))], ("--nx",)
+    return (
+        files,
+        [*base, "--nx", "4", "--resolution", str(rng.choice([1000, 10**5]))],
+        ("--resolution",),
+    )
+
+
+CLASSES = {  # class -> relative weight
+    **{name: 4.0 for name in SCENE_MAKERS},
+    "empty_file": 1.5,
+    "binary_garbage": 2.0,
+    "toml_syntax": 3.0,
+    "cli_cell": 4.0,
+    "cli_compare": 1.5,
+    "cli_run": 2.0,
+    "cli_parse": 3.0,
+    "output_dir": 2.0,
+    "unbounded_size": 0.25,
+}
+FILE_CLASSES = ("empty_file", "binary_garbage", "toml_syntax")
+CLI_CLASSES = ("cli_cell", "cli_compare", "cli_run", "cli_parse")
+
+
+def _scene_argv(rng: random.Random, files: list) -> list[str]:
+    """Every command that reads a scene; ``run`` with -o, into an existing directory, or with
+    the default (results/<name> in the working directory)."""
+    command = rng.choice(["validate", "run", "run", "run_existing", "run_default", "compare"])
+    if command == "validate":
+        return ["validate", f"{{dir}}/{SCENE}"]
+    if command == "compare":
+        return ["compare", f"{{dir}}/{SCENE}", "--nx", "4", "--first-step-only", "-o", "{dir}/c"]
+    if command == "run_existing":
+        files.append(("out/keep.txt", "an earlier run's file\n"))
+    if command == "run_default":
+        return ["run", f"{{dir}}/{SCENE}"]
+    return ["run", f"{{dir}}/{SCENE}", "-o", "{dir}/out"]
+
+
+def make_case(rng: random.Random, cls: str, index: int) -> Case:
+    """One case of class ``cls``."""
+    name = f"{cls}-{index:04d}"
+    if cls in SCENE_MAKERS:
+        scene, key = SCENE_MAKERS[cls](rng, base_scene(rng))
+        files: list = [(SCENE, to_toml(scene))]
+        argv = _scene_argv(rng, files)
+        label = key.strip("'=. ")
+        return Case(f"{name}-{label}", cls, "scene", tuple(argv), (key,), tuple(files))
+    if cls in FILE_CLASSES:
+        content, expect = _file_case(rng, cls)
+        files = [(SCENE, content)]
+        argv = _scene_argv(rng, files)
+        return Case(name, cls, "scene", tuple(argv), expect, tuple(files))
+    if cls in CLI_CLASSES:
+        files, argv, expect = _cli_case(rng, cls)
+        return Case(f"{name}-{'_'.join(argv[:1]) or 'none'}", cls, "argv", tuple(argv),
+                    tuple(expect), tuple(files))  # fmt: skip
+    if cls == "output_dir":
+        files, argv, expect = _setup_case(rng)
+        return Case(name, cls, "setup", tuple(argv), expect, tuple(files))
+    if cls == "unbounded_size":
+        files, argv, expect = _unbounded_case(rng)
+        return Case(name, cls, "argv", tuple(argv), expect, tuple(files), isolate=True)
+    raise ValueError(f"unknown class {cls!r}")
+
+
+def generate(seed: int, n: int, classes: dict[str, float] | None = None) -> list[Case]:
+    """``n`` malformed inputs of the classes (name -> weight), mixed at random with ``seed``."""
+    rng = random.Random(seed)
+    weights = CLASSES if classes is None else classes
+    names = list(weights)
+    chosen = rng.choices(names, weights=[weights[c] for c in names], k=n)
+    return [make_case(rng, cls, i) for i, cls in enumerate(chosen)]
+
+
+def one_per_class(seed: int, classes: tuple[str, ...] | None = None) -> list[Case]:
+    """One case of each class (default: all classes), e.g. for the subprocess checks."""
+    rng = random.Random(seed)
+    return [make_case(rng, cls, i) for i, cls in enumerate(classes or CLASSES)]
+
+
+def unbounded_cases() -> list[Case]:
+    """The three sizes without an upper bound, one case each (``isolate``)."""
+    files = (("compare.toml", COMPARE),)
+    base = ("compare", "{dir}/compare.toml", "--first-step-only", "-o", "{dir}/cmp")
+    return [
+        Case("cell-resolution-1000", "unbounded_size", "argv",
+             ("cell", "--resolution", "1000"), ("resolution",), isolate=True),
+        Case("compare-nx-100000", "unbounded_size", "argv", (*base, "--nx", "100000"),
+             ("--nx",), files, isolate=True),
+        Case("compare-resolution-100000", "unbounded_size", "argv",
+             (*base, "--nx", "4", "--resolution", "100000"), ("--resolution",), files,
+             isolate=True),
+    ]  # fmt: skip
+
+
+# --- checking an outcome ------------------------------------------------------------------------
+
+
+def snapshot(directory: Path) -> dict[str, bytes | None]:
+    """Every path under ``directory`` with its content (None for a directory)."""
+    return {
+        str(p.relative_to(directory)): p.read_bytes() if p.is_file() else None
+        for p in sorted(directory.rglob("*"))
+    }
+
+
+def problems(
+    case: Case, directory: Path, code: int | None, stdout: str, stderr: str,
+    before: dict[str, bytes | None],
+) -> list[str]:  # fmt: skip
+    """What is wrong with an outcome (empty: exit code, one named message, no traceback, and
+    nothing written or changed in the case's directory)."""
+    found = []
+    if code != case.code:
+        found.append(f"exit code {code}, expected {case.code}")
+    if "Traceback" in stdout + stderr:
+        found.append("a traceback")
+    lines = stderr.splitlines()
+    if len(lines) != 1 or not lines[0].startswith("plantgrowth: error: "):
+        found.append(f"stderr is not one 'plantgrowth: error:' line: {stderr[-400:]!r}")
+    else:
+        missing = [f for f in case.fragments(directory) if f not in lines[0]]
+        if missing:
+            found.append(f"the message does not contain {missing}: {lines[0][:400]!r}")
+    after = snapshot(directory)
+    common = after.keys() & before.keys()
+    changed = sorted((after.keys() ^ before.keys()) | {k for k in common if after[k] != before[k]})
+    if changed:
+        found.append(f"files written or changed: {changed[:8]}")
+    return found

@@ -1,0 +1,420 @@
+"""Runs that are killed, interrupted or fail leave readable outputs, and ``--resume`` finishes
+them exactly as an uninterrupted run would.
+
+The scene is the reference stress scene with an extensibility gradient (so Fg varies in space and
+the cell problems change every step), t_max = 40, cell_resolution = 1: about 0.08 s per step,
+4-5 s a run. Subprocess tests are ``skip_in_parallel``; the parallel ones start ``mpirun -n 2``
+themselves, in a session of their own so that ``os.killpg`` reaches mpirun and its ranks. The
+``--resume`` argument checks and the failing-solve test run in-process (also under mpirun).
+
+Tolerances: a resumed run repeats the uninterrupted run's arithmetic (the cell problems are solved
+at their rounded keys, so an empty cache after the restart changes nothing): 1e-10 relative leaves
+room only for round-off; the parallel run differs from the serial one by the LU factorization
+(MUMPS vs PETSc LU, ~1e-14 relative).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import h5py
+import meshio
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from plantgrowth import macro_problem
+from plantgrowth.cli import main
+from plantgrowth.linear import SolveReport
+
+PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+           OMPI_MCA_rmaps_base_oversubscribe="1",
+           OMPI_MCA_btl_vader_single_copy_mechanism="none")  # fmt: skip
+N_STEPS = 40
+SCENE = """\
+model = "macro"
+[tissue]
+width = 6.928203230275509
+height = 3.0
+h = 0.1
+H = 1.0
+[growth]
+law = "stress"
+eta = {from = 0.5, to = 2.0}
+[time]
+t_max = 40.0
+dt = 1.0
+[accuracy]
+cell_resolution = 1
+"""
+STEP_DATASETS = ("u", "Fg", "G", "sigma_hom", "state/Fg", "state/G", "state/midpoints")
+NOT_COMPARED = ("n_cell_solves", "residual")  # the cache restarts empty; round-off
+RTOL = 1e-10
+RUN_TIMEOUT = 180.0  # s, a run takes ~5 s serial and ~8 s on 2 ranks
+
+
+# --- helpers ------------------------------------------------------------------------------------
+
+
+def start(argv: list[str], cwd: Path, ranks: int = 1) -> subprocess.Popen:
+    """``plantgrowth argv`` (under ``mpirun -n ranks`` if ranks > 1) in its own session; output
+    to cwd/stdout.txt and cwd/stderr.txt (a pipe nobody reads could block the run)."""
+    command = [PLANTGROWTH, *argv]
+    if ranks > 1:
+        command = ["mpirun", "-n", str(ranks), *command]
+    out = open(cwd / "stdout.txt", "w")  # closed by finish()
+    err = open(cwd / "stderr.txt", "w")
+    proc = subprocess.Popen(
+        command, cwd=cwd, stdout=out, stderr=err, env=ENV, start_new_session=True
+    )
+    proc.files = (out, err)  # type: ignore[attr-defined]
+    return proc
+
+
+def finish(proc: subprocess.Popen, cwd: Path, timeout: float = RUN_TIMEOUT) -> tuple[int, str]:
+    """Wait for the process; its exit code and stderr (kill the session if it hangs)."""
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        pytest.fail(f"still running after {timeout:g} s")
+    finally:
+        for f in proc.files:  # type: ignore[attr-defined]
+            f.close()
+    return proc.returncode, (cwd / "stderr.txt").read_text()
+
+
+def run(argv: list[str], cwd: Path, ranks: int = 1) -> tuple[int, str]:
+    return finish(start(argv, cwd, ranks), cwd)
+
+
+def summary_rows(outdir: Path) -> list[dict[str, float]]:
+    path = outdir / "summary.csv"
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def wait_for_rows(proc: subprocess.Popen, outdir: Path, n: int, timeout: float = 120.0) -> None:
+    """Poll summary.csv until it has ``n`` data rows (the run must still be going)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"the run ended (code {proc.returncode}) before {n} steps were written")
+        try:
+            if (outdir / "summary.csv").read_text().count("\n") - 1 >= n:
+                return
+        except FileNotFoundError:
+            pass
+        time.sleep(0.005)
+    pytest.fail(f"no {n} summary rows after {timeout:g} s")
+
+
+def processes_mentioning(text: str) -> list[int]:
+    """Live processes whose command line contains ``text`` (zombies are dead)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if text in cmdline and state != "Z":
+            found.append(int(entry.name))
+    return found
+
+
+def kill_session(proc: subprocess.Popen, cwd: Path, marker: str) -> None:
+    """SIGKILL the whole session; every process of the run (mpirun and its ranks) must be gone."""
+    os.killpg(proc.pid, signal.SIGKILL)
+    finish(proc, cwd)
+    deadline = time.monotonic() + 10.0
+    while processes_mentioning(marker) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert processes_mentioning(marker) == [], "processes of the killed run survive"
+
+
+def step_files(outdir: Path) -> list[int]:
+    return sorted(int(p.stem.split("_")[1]) for p in (outdir / "fields").glob("step_*.h5"))
+
+
+def check_readable(outdir: Path) -> list[int]:
+    """Every visible step file, the XDMF index and summary.csv are consistent and readable;
+    returns the completed steps."""
+    steps = step_files(outdir)
+    assert steps == list(range(len(steps))) and steps, f"steps on disk: {steps}"
+    with h5py.File(outdir / "fields.h5", "r") as f:
+        centroids = f["Mesh/geometry"][...][f["Mesh/topology"][...]].mean(axis=1)
+    for step in steps:
+        with h5py.File(outdir / "fields" / f"step_{step:06d}.h5", "r") as f:
+            assert f.attrs["step"] == step and f.attrs["t"] == step * 1.0
+            for name in STEP_DATASETS:
+                assert name in f, f"step {step}: no {name}"
+                assert np.all(np.isfinite(f[name][...])), f"step {step}: {name} not finite"
+            # the step's cells in the order of the mesh in fields.h5, or ParaView shows nonsense
+            mismatch = np.abs(f["state/midpoints"][...] - centroids).max()
+            assert mismatch < 1e-9, f"step {step}: cells not in fields.h5's order ({mismatch:.3g})"
+    root = ET.parse(outdir / "fields.xdmf").getroot()  # complete XML, or this raises
+    for item in root.iter("DataItem"):
+        file, dataset = item.text.strip().split(":")
+        assert (outdir / file).is_file(), f"fields.xdmf references a missing {file}"
+        with h5py.File(outdir / file, "r") as f:
+            assert dataset.lstrip("/") in f
+    indexed = [int(g.get("Name").split("_")[1]) for g in root.iter("Grid")
+               if g.get("Name", "").startswith("step_")]  # fmt: skip
+    # the index is rewritten right after a step file: a kill in between leaves it one behind
+    assert indexed in (steps, steps[:-1]), f"fields.xdmf indexes {indexed}, files {steps}"
+    reader = meshio.xdmf.TimeSeriesReader(str(outdir / "fields.xdmf"))
+    points, cells = reader.read_points_cells()
+    assert reader.num_steps == len(indexed)
+    for k in range(reader.num_steps):
+        t, point_data, cell_data = reader.read_data(k)
+        assert t == indexed[k]
+        assert point_data["u"].shape[0] == len(points)
+        assert cell_data["Fg"][0].shape[0] == len(cells[0].data)
+    rows = [int(r["step"]) for r in summary_rows(outdir)]
+    # a row is written after its step file: a kill in between leaves it one behind
+    assert rows in (steps, steps[:-1]), f"summary.csv rows {rows}, step files {steps}"
+    return steps
+
+
+def _sorted_by(points: np.ndarray, values: np.ndarray) -> np.ndarray:
+    p = np.round(points[:, :2], 9)
+    return values[np.lexsort((p[:, 1], p[:, 0]))]
+
+
+def final_fields(outdir: Path) -> dict[str, np.ndarray]:
+    """u, Fg and state/Fg of the last step, ordered by node / cell coordinates (the serial and
+    parallel runs number them differently)."""
+    with h5py.File(outdir / "fields.h5", "r") as f:
+        nodes = f["Mesh/geometry"][...]
+    with h5py.File(outdir / "fields" / f"step_{N_STEPS:06d}.h5", "r") as f:
+        midpoints = f["state/midpoints"][...]
+        return {
+            "u": _sorted_by(nodes, f["u"][...]),
+            "Fg": _sorted_by(midpoints, f["Fg"][...]),
+            "state/Fg": _sorted_by(midpoints, f["state/Fg"][...]),
+        }
+
+
+def assert_same_run(outdir: Path, reference: Path) -> None:
+    """Rows 0..N_STEPS once each, equal to the reference's; final fields equal."""
+    rows, ref_rows = summary_rows(outdir), summary_rows(reference)
+    assert [int(r["step"]) for r in rows] == list(range(N_STEPS + 1))
+    for row, ref in zip(rows, ref_rows, strict=True):
+        for key, value in ref.items():
+            if key.startswith("seconds") or key in NOT_COMPARED:
+                continue
+            assert row[key] == pytest.approx(value, rel=RTOL, abs=1e-300), (row["step"], key)
+    got, expected = final_fields(outdir), final_fields(reference)
+    for name, value in expected.items():
+        error = np.abs(got[name] - value).max() / np.abs(value).max()
+        assert error <= RTOL, f"{name}: relative difference {error:.3g}"
+
+
+# --- fixtures -----------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def scene_file(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("interruptions") / "gradient_eta.toml"
+    path.write_text(SCENE)
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(scene_file) -> Path:
+    """The uninterrupted serial run."""
+    outdir = scene_file.parent / "reference"
+    code, err = run(["run", str(scene_file), "-o", str(outdir)], scene_file.parent)
+    assert code == 0, err
+    return outdir
+
+
+def _kill_and_check(scene_file: Path, tmp_path: Path, ranks: int) -> Path:
+    outdir = tmp_path / f"killed_{ranks}"
+    proc = start(["run", str(scene_file), "-o", str(outdir)], tmp_path, ranks)
+    wait_for_rows(proc, outdir, 5)
+    kill_session(proc, tmp_path, str(outdir))
+    steps = check_readable(outdir)
+    assert 5 <= len(steps) <= N_STEPS, "killed too late to test anything"
+    return outdir
+
+
+# --- SIGKILL, then --resume ---------------------------------------------------------------------
+
+
+@pytest.mark.skip_in_parallel
+@pytest.mark.parametrize("ranks", [1, 2], ids=["serial", "mpirun2"])
+def test_sigkill_leaves_readable_steps_and_resume_matches(scene_file, reference, tmp_path, ranks):
+    outdir = _kill_and_check(scene_file, tmp_path, ranks)
+    kept = summary_rows(outdir)
+    code, err = run(["run", str(scene_file), "--resume", str(outdir)], tmp_path, ranks)
+    assert code == 0, err
+    assert "Traceback" not in err
+    assert check_readable(outdir) == list(range(N_STEPS + 1))
+    assert (
+        summary_rows(outdir)[: len(kept)] == kept
+    )  # rows of completed steps are kept as they were
+    assert_same_run(outdir, reference)
+
+
+@pytest.mark.skip_in_parallel
+def test_resume_after_a_kill_between_step_file_and_summary_row(scene_file, reference, tmp_path):
+    """SIGKILL can land after a step's HDF5 file is renamed into place and before its summary
+    row is appended (check_readable allows that state). Simulated deterministically: drop the
+    last row of a killed run. The resumed run must still have one row per step."""
+    outdir = _kill_and_check(scene_file, tmp_path, 1)
+    steps = step_files(outdir)
+    lines = (outdir / "summary.csv").read_text().splitlines(keepends=True)
+    kept = [line for line in lines[1:] if int(float(line.split(",")[0])) < steps[-1]]
+    (outdir / "summary.csv").write_text(lines[0] + "".join(kept))
+    code, err = run(["run", str(scene_file), "--resume", str(outdir)], tmp_path)
+    assert code == 0, err
+    assert_same_run(outdir, reference)
+
+
+# --- SIGINT -------------------------------------------------------------------------------------
+
+
+@pytest.mark.skip_in_parallel
+def test_sigint_stops_at_a_step_end_and_resume_completes(scene_file, reference, tmp_path):
+    outdir = tmp_path / "interrupted"
+    proc = start(["run", str(scene_file), "-o", str(outdir)], tmp_path)
+    wait_for_rows(proc, outdir, 3)
+    os.killpg(proc.pid, signal.SIGINT)
+    code, err = finish(proc, tmp_path)
+    assert code == 130, err
+    assert "Traceback" not in err
+    assert "interrupted after step" in err and f"--resume {outdir}" in err, err
+    steps = check_readable(outdir)
+    rows = summary_rows(outdir)
+    assert [int(r["step"]) for r in rows] == steps  # a clean stop: the last row is complete
+    assert steps[-1] < N_STEPS
+    assert f"interrupted after step {steps[-1]} " in err
+    code, err = run(["run", str(scene_file), "--resume", str(outdir)], tmp_path)
+    assert code == 0, err
+    assert_same_run(outdir, reference)
+
+
+@pytest.mark.skip_in_parallel
+def test_sigint_during_set_up_exits_130_without_traceback(scene_file, tmp_path):
+    """Ctrl-C before the time loop (mesh, forms, first cell problems) is still an interruption:
+    exit code 130 (or death by SIGINT), not a KeyboardInterrupt traceback."""
+    outdir = tmp_path / "early"
+    proc = start(["run", str(scene_file), "-o", str(outdir)], tmp_path)
+    deadline = time.monotonic() + 60.0
+    while not (outdir / "run.log").exists() and time.monotonic() < deadline:
+        time.sleep(0.002)  # run.log appears when the set-up starts
+    os.killpg(proc.pid, signal.SIGINT)
+    code, err = finish(proc, tmp_path)
+    assert not (outdir / "fields" / "step_000001.h5").exists(), "SIGINT came too late"
+    assert "Traceback" not in err, err
+    # 130 from main, or death by SIGINT itself (what a shell also reports as 130)
+    assert code in (130, -signal.SIGINT), err
+
+
+# --- --resume argument checks and a failing run (in-process: serial and under mpirun) ---------
+
+
+def _shared_dir(factory, name: str) -> Path:
+    comm = MPI.COMM_WORLD
+    return comm.bcast(factory.mktemp(name) if comm.rank == 0 else None, root=0)
+
+
+def _write(path: Path, text: str) -> None:
+    if MPI.COMM_WORLD.rank == 0:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    MPI.COMM_WORLD.Barrier()
+
+
+@pytest.mark.parametrize("setup", ["no_directory", "no_scene_toml", "other_scene"])
+def test_resume_needs_the_same_scene(tmp_path_factory, capsys, setup):
+    directory = _shared_dir(tmp_path_factory, f"resume_{setup}")
+    scene, outdir = directory / "scene.toml", directory / "run"
+    _write(scene, SCENE)
+    if setup == "no_scene_toml":
+        _write(outdir / "fields" / "step_000000.h5", "")
+    elif setup == "other_scene":
+        _write(outdir / "scene.toml", SCENE.replace("t_max = 40.0", "t_max = 41.0"))
+    listing = sorted(p.name for p in directory.rglob("*"))
+    capsys.readouterr()
+    code = main(["run", str(scene), "--resume", str(outdir)])
+    MPI.COMM_WORLD.Barrier()
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert "Traceback" not in out + err
+    if MPI.COMM_WORLD.rank == 0:
+        lines = err.splitlines()
+        assert len(lines) == 1 and lines[0].startswith("plantgrowth: error: --resume "), err
+        assert ("differs" in err) if setup == "other_scene" else ("no scene.toml" in err)
+    assert sorted(p.name for p in directory.rglob("*")) == listing  # nothing written
+
+
+SMALL = """\
+[tissue]
+h = 0.5
+[growth]
+law = "stress"
+[time]
+t_max = 4
+dt = 1
+[accuracy]
+cell_resolution = 1
+"""
+
+
+def test_failed_solve_exits_3_naming_step_time_and_cause(tmp_path_factory, monkeypatch, capsys):
+    """The macro solve of step 2 'fails' (PETSc reason -3, residual NaN): exit code 3, one line
+    naming the step, the time and the likely cause, and steps 0-1 on disk intact."""
+    directory = _shared_dir(tmp_path_factory, "failed_solve")
+    scene, outdir = directory / "small.toml", directory / "run"
+    _write(scene, SMALL)
+    calls = []
+    solve = macro_problem.assemble_and_solve
+
+    def failing_at_step_2(*args):
+        calls.append(1)
+        report = solve(*args)
+        return SolveReport(reason=-3, residual=float("nan")) if len(calls) == 3 else report
+
+    monkeypatch.setattr(macro_problem, "assemble_and_solve", failing_at_step_2)
+    capsys.readouterr()
+    code = main(["run", str(scene), "-o", str(outdir)])
+    MPI.COMM_WORLD.Barrier()
+    out, err = capsys.readouterr()
+    assert len(calls) == 3  # steps 0, 1, 2: one macro solve each, the run stopped at step 2
+    assert code == 3
+    assert "Traceback" not in out + err
+    if MPI.COMM_WORLD.rank != 0:
+        assert err == ""
+        return
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("plantgrowth: run failed: "), err
+    message = lines[0]
+    assert "step 2" in message and "t = 2" in message
+    assert "linear solve failed" in message and "likely cause" in message
+    assert step_files(outdir) == [0, 1]
+    for step in (0, 1):
+        with h5py.File(outdir / "fields" / f"step_{step:06d}.h5", "r") as f:
+            assert all(np.all(np.isfinite(f[name][...])) for name in STEP_DATASETS)
+    assert [int(r["step"]) for r in summary_rows(outdir)] == [0, 1]
+    root = ET.parse(outdir / "fields.xdmf").getroot()
+    assert [g.get("Name") for g in root.iter("Grid") if g.get("Name").startswith("step_")] == [
+        "step_0",
+        "step_1",
+    ]
+    assert "run failed" in (outdir / "run.log").read_text()
