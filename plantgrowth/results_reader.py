@@ -1,12 +1,14 @@
 """Read a run's ``fields.xdmf`` + ``fields.h5`` back (serial, h5py only; no dolfinx).
 
-The XDMF file maps every (function, time) to its HDF5 dataset, so it is the index read here;
-the HDF5 paths (``/Function/<name>/<time string>``) are never guessed from the time value.
-Layout written by dolfinx 0.5 (:mod:`plantgrowth.output`):
+The XDMF file maps the mesh and every (function, time) to an HDF5 file and dataset, so it is the
+only index read here: no HDF5 path is guessed. That covers both layouts ``plantgrowth run`` has
+written: dolfinx 0.5's (mesh at ``fields.h5:/Mesh/mesh/geometry``, functions at
+``fields.h5:/Function/<name>/<time string>``) and the per-step one (mesh at
+``fields.h5:/Mesh/geometry``, functions at ``fields/step_NNNNNN.h5:/<name>``). In both:
 
-- ``/Mesh/mesh/geometry`` (N x 2) and ``/Mesh/mesh/topology`` (triangles, M x 3);
+- geometry (N x 2, or padded to 3) and topology (triangles, M x 3);
 - ``u``: point data at the N geometry nodes, padded to 3 components;
-- DG0 fields (``Fg``, ``G``, ``sigma_hom``, ``E1111``, ...): cell data in topology order, tensors
+- cell fields (``Fg``, ``G``, ``sigma_hom``, ``E1111``, ...): DG0 data in topology order, tensors
   as 9 row-major components of a 3 x 3 (the 2D tensor is components 0, 1, 3, 4).
 
 Typical use::
@@ -42,14 +44,14 @@ class ResultSeries:
         points: reference node coordinates, (N, 2).
         triangles: node indices of each cell, (M, 3).
         times: the output times of ``u`` (sorted).
-        datasets: ``{function name: {time: HDF5 dataset path}}`` from the XDMF file.
+        datasets: ``{function name: {time: (HDF5 file, dataset path)}}`` from the XDMF file.
     """
 
     directory: Path
     points: np.ndarray
     triangles: np.ndarray
     times: list[float]
-    datasets: dict[str, dict[float, str]] = field(default_factory=dict)
+    datasets: dict[str, dict[float, tuple[Path, str]]] = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -64,8 +66,7 @@ class ResultSeries:
         key = min(series, key=lambda s: abs(s - t))
         if abs(key - t) > 1e-9 * max(1.0, abs(t)):
             raise KeyError(f"{name} has no output at t = {t!r} (nearest {key!r})")
-        with h5py.File(self.directory / "fields.h5", "r") as f:
-            return np.asarray(f[series[key]][...])
+        return _load(*series[key])
 
     def displacement(self, t: float) -> np.ndarray:
         """The displacement u at the nodes at time t, (N, 2)."""
@@ -96,40 +97,54 @@ class ResultSeries:
         raise ValueError(f"component {component!r} is not one of {COMPONENTS}")
 
 
-def _datasets(xdmf: Path) -> dict[str, dict[float, str]]:
-    """``{name: {time: HDF5 path}}`` of every temporal collection in the XDMF file."""
-    out: dict[str, dict[float, str]] = {}
-    for grid in ET.parse(xdmf).getroot().iter("Grid"):
+def _load(h5file: Path, dataset: str) -> np.ndarray:
+    with h5py.File(h5file, "r") as f:
+        return np.asarray(f[dataset][...])
+
+
+def _reference(directory: Path, item: ET.Element | None) -> tuple[Path, str]:
+    """(HDF5 file, dataset) of an XDMF ``DataItem`` "file.h5:/path" (file relative to the XDMF)."""
+    if item is None or not (item.text or "").strip() or item.get("Format", "HDF") != "HDF":
+        raise ValueError(f"{directory / 'fields.xdmf'}: expected an HDF DataItem")
+    name, _, dataset = item.text.strip().partition(":")
+    return directory / name, dataset
+
+
+def _index(directory: Path) -> tuple[tuple[Path, str], tuple[Path, str], dict]:
+    """Geometry and topology references and ``{name: {time: reference}}`` from the XDMF file."""
+    root = ET.parse(directory / "fields.xdmf").getroot()
+    geometry = topology = None
+    datasets: dict[str, dict[float, tuple[Path, str]]] = {}
+    for grid in root.iter("Grid"):
         if grid.get("GridType") != "Uniform":
             continue
+        if geometry is None and grid.find("Geometry") is not None:
+            geometry = _reference(directory, grid.find("Geometry/DataItem"))
+            topology = _reference(directory, grid.find("Topology/DataItem"))
         time = grid.find("Time")
         if time is None:
             continue
         for attribute in grid.findall("Attribute"):
-            item = attribute.find("DataItem")
-            if item is None or item.text is None:
-                continue
-            path = item.text.strip().split(":", 1)[1]
-            out.setdefault(attribute.get("Name", ""), {})[float(time.get("Value"))] = path
-    return out
+            name = attribute.get("Name", "")
+            reference = _reference(directory, attribute.find("DataItem"))
+            datasets.setdefault(name, {})[float(time.get("Value"))] = reference
+    if geometry is None or topology is None:
+        raise ValueError(f"{directory / 'fields.xdmf'} has no mesh")
+    return geometry, topology, datasets
 
 
 def read_series(directory: str | os.PathLike) -> ResultSeries:
     """Open the run directory written by ``plantgrowth run SCENE -o DIR``.
 
     Raises:
-        FileNotFoundError: if ``fields.xdmf`` or ``fields.h5`` is missing.
+        FileNotFoundError: if ``fields.xdmf`` is missing.
     """
     directory = Path(directory)
-    for name in ("fields.xdmf", "fields.h5"):
-        if not (directory / name).is_file():
-            raise FileNotFoundError(
-                f"{directory / name} not found: is {directory} a run directory?"
-            )
-    datasets = _datasets(directory / "fields.xdmf")
-    with h5py.File(directory / "fields.h5", "r") as f:
-        points = np.asarray(f["/Mesh/mesh/geometry"][...])[:, :2]
-        triangles = np.asarray(f["/Mesh/mesh/topology"][...], dtype=np.int64)
+    if not (directory / "fields.xdmf").is_file():
+        raise FileNotFoundError(f"{directory / 'fields.xdmf'} not found: not a run directory?")
+    geometry, topology, datasets = _index(directory)
+    points = _load(*geometry)[:, :2]
+    triangles = _load(*topology).astype(np.int64)
     times = sorted(datasets.get("u", {}) or {t for s in datasets.values() for t in s})
     return ResultSeries(directory, points, triangles, times, datasets)
 
