@@ -31,7 +31,9 @@ inclined wall length l2 = 1)::
     [time]
     t_max = 60.0               # end time, a whole number (<= 1e6) of steps dt
     dt = 1.0                   # time step, > 0
-    integrator = "exp"         # "exp": Fg <- expm(dt G) Fg (det Fg >= 1, stable); "euler": paper's
+    integrator = "exp"         # "exp": Fg <- expm(dt G) Fg (det Fg >= 1); "euler": the paper's
+                               # Fg <- Fg + dt G Fg; "adaptive": exp with step doubling (below)
+    tolerance = 1e-3           # adaptive: largest relative local error of Fg per step, (0, 0.1]
     [loads]                    # traction f on an edge (default none); "bottom" cannot be loaded
     right = [0.0, 0.0]         # also "left", "top"
     [output]
@@ -80,7 +82,7 @@ MAX_STEPS = 1e6  # t_max / dt
 MAX_RESOLUTION = 64  # accuracy.cell_resolution
 MAX_NX = TISSUE_MAX_NX  # micro.nx
 LAWS = ("stress", "strain", "none")
-INTEGRATORS = ("euler", "exp")
+INTEGRATORS = ("euler", "exp", "adaptive")
 MODELS = ("macro", "micro", "both")
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
@@ -297,16 +299,19 @@ class Growth:
 
 @dataclass(frozen=True)
 class Time:
-    """Time interval [0, t_max] in n_steps steps dt; integrator "euler" or "exp"."""
+    """Time interval [0, t_max] in n_steps steps dt; integrator "euler", "exp" or "adaptive"
+    (exp with step-doubling control of the growth tensor's local error, ``tolerance``)."""
 
     t_max: float = 60.0
     dt: float = 1.0
     integrator: str = "exp"
+    tolerance: float = 1e-3
 
     def __post_init__(self) -> None:
         dt = _range("time.dt", self.dt, 0.0, BIG, hi_open=False)
         t_max = _range("time.t_max", self.t_max, 0.0, BIG, hi_open=False)
         _choice("time.integrator", self.integrator, INTEGRATORS)
+        _range("time.tolerance", self.tolerance, 0.0, 0.1, hi_open=False)
         n = t_max / dt
         if n < 1.0 - 1e-9:
             raise SceneError(f"time.t_max = {t_max!r} is smaller than time.dt = {dt!r}")
@@ -443,7 +448,9 @@ class Scene:
             out.setdefault(section, {})[name] = f.to_toml()
         g, t = self.growth, self.time
         out["growth"] = {"law": g.law, **out["growth"], "clamp": g.clamp, "Fg0": g.Fg0}
-        out["time"] = {"t_max": t.t_max, "dt": t.dt, "integrator": t.integrator}
+        out["time"] = {
+            "t_max": t.t_max, "dt": t.dt, "integrator": t.integrator, "tolerance": t.tolerance
+        }  # fmt: skip
         out["loads"] = dict(self.loads)
         out["output"] = {"fields": self.output.fields}
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
@@ -479,7 +486,7 @@ _TABLES = {
     "material": ("E", "nu"),
     "pressure": ("P1",),
     "growth": ("law", "eta", "tau", "clamp", "Fg0"),
-    "time": ("t_max", "dt", "integrator"),
+    "time": ("t_max", "dt", "integrator", "tolerance"),
     "loads": EDGES,
     "output": ("fields",),
     "accuracy": ("cell_resolution", "key_tolerance"),
