@@ -459,13 +459,17 @@ class Scene:
 
     def to_toml(self) -> str:
         """The fully resolved scene (all defaults filled) as TOML that load_scene reads back."""
-        lines = ["# plantgrowth scene, fully resolved (keys: see plantgrowth/scene.py)"]
-        for key, value in self.to_dict().items():
-            if isinstance(value, dict):
-                lines += ["", f"[{key}]"] + [f"{k} = {_toml_value(v)}" for k, v in value.items()]
-            else:
-                lines.append(f"{key} = {_toml_value(value)}")
-        return "\n".join(lines) + "\n"
+        header = "# plantgrowth scene, fully resolved (keys: see plantgrowth/scene.py)\n"
+        return header + dict_to_toml(self.to_dict())
+
+
+def dict_to_toml(data: dict[str, Any]) -> str:
+    """TOML text of scene-like data: top-level values first, then one ``[table]`` per dict."""
+    lines = [f"{k} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    for key, value in data.items():
+        if isinstance(value, dict):
+            lines += ["", f"[{key}]"] + [f"{k} = {_toml_value(v)}" for k, v in value.items()]
+    return "\n".join(lines) + "\n"
 
 
 def _toml_value(v: Any) -> str:

@@ -17,8 +17,6 @@ import importlib.util
 import io
 import json
 import os
-import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -30,7 +28,6 @@ from plantgrowth.machine import machine_description
 
 REPO = Path(__file__).resolve().parent.parent
 OUTPUT = REPO / "benchmarks" / "results" / "bad_inputs.json"
-PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
 ISOLATED_TIMEOUT = 30.0  # seconds; a refused input takes ~1 s (interpreter and import)
 
 
@@ -54,20 +51,6 @@ def run_in_process(argv: list[str]) -> tuple[int | None, str, str]:
             code = None
             print(f"Traceback (in-process): {type(exc).__name__}: {exc}", file=sys.stderr)
     return code, out.getvalue(), err.getvalue()
-
-
-def run_subprocess(argv: list[str], cwd: Path) -> tuple[int | None, str, str]:
-    proc = subprocess.Popen(
-        [PLANTGROWTH, *argv], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True,
-    )  # fmt: skip
-    try:
-        out, err = proc.communicate(timeout=ISOLATED_TIMEOUT)
-        return proc.returncode, out, err
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        out, err = proc.communicate()
-        return None, out, err + f"\n(killed: still running after {ISOLATED_TIMEOUT:g} s)"
 
 
 def main_fuzz(argv: list[str] | None = None) -> int:
@@ -94,7 +77,7 @@ def main_fuzz(argv: list[str] | None = None) -> int:
             os.chdir(directory)  # a default output directory would land here and be seen
             try:
                 if case.isolate:
-                    code, out, err = run_subprocess(call, directory)
+                    code, out, err = generator.run_cli(call, directory, ISOLATED_TIMEOUT)
                 else:
                     code, out, err = run_in_process(call)
             finally:

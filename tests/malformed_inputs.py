@@ -15,8 +15,12 @@ time limit, never in-process.
 
 from __future__ import annotations
 
+import os
 import random
+import signal
 import string
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -814,3 +818,22 @@ def problems(
     if changed:
         found.append(f"files written or changed: {changed[:8]}")
     return found
+
+
+PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
+
+
+def run_cli(argv: list[str], cwd: Path, timeout: float) -> tuple[int | None, str, str]:
+    """The CLI as a process in its own session (killed with its children after ``timeout``);
+    returns (exit code or None if killed, stdout, stderr)."""
+    proc = subprocess.Popen(
+        [PLANTGROWTH, *argv], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True,
+    )  # fmt: skip
+    try:
+        out, err = proc.communicate(timeout=timeout)
+        return proc.returncode, out, err
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, err = proc.communicate()
+        return None, out, err + f"\n(killed: still running after {timeout:g} s)"

@@ -11,10 +11,6 @@ limit: they must be refused at once, not tried.
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import malformed_inputs as mi
@@ -26,7 +22,6 @@ from plantgrowth.cli import main
 SEED = 20240611
 N_IN_PROCESS = 300
 CASES = [c for c in mi.generate(SEED, N_IN_PROCESS) if not c.isolate]
-PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
 SUBPROCESS_TIMEOUT = 20.0  # s; refusing an input takes ~1-2 s (interpreter, imports)
 
 
@@ -67,21 +62,6 @@ SUBPROCESS_CLASSES = ("wrong_type", "nonfinite", "wall_too_thick", "binary_garba
 SUBPROCESS_CASES = mi.one_per_class(SEED, SUBPROCESS_CLASSES) + mi.unbounded_cases()
 
 
-def run_cli(argv: list[str], cwd: Path, timeout: float) -> tuple[int | None, str, str]:
-    """The CLI as a process in its own session (killed with its children after ``timeout``)."""
-    proc = subprocess.Popen(
-        [PLANTGROWTH, *argv], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True,
-    )  # fmt: skip
-    try:
-        out, err = proc.communicate(timeout=timeout)
-        return proc.returncode, out, err
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        out, err = proc.communicate()
-        return None, out, err + f"\n(killed: still running after {timeout:g} s)"
-
-
 @pytest.mark.skip_in_parallel
 @pytest.mark.parametrize("case", SUBPROCESS_CASES, ids=[c.name for c in SUBPROCESS_CASES])
 def test_bad_input_subprocess(case, tmp_path):
@@ -89,6 +69,6 @@ def test_bad_input_subprocess(case, tmp_path):
     bound (``unbounded_cases``) must be refused within the time limit, not tried."""
     argv = case.materialize(tmp_path)
     before = mi.snapshot(tmp_path)
-    code, out, err = run_cli(argv, tmp_path, SUBPROCESS_TIMEOUT)
+    code, out, err = mi.run_cli(argv, tmp_path, SUBPROCESS_TIMEOUT)
     found = mi.problems(case, tmp_path, code, out, err, before)
     assert not found, f"{case.name}: argv {argv}:\n" + "\n".join(found)

@@ -14,7 +14,6 @@ dt = 1, P2 cell meshes with one element across a wall; the whole module takes se
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import shutil
@@ -38,7 +37,7 @@ from plantgrowth.forms import macro
 from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.scene import Scene, load_scene, parse_scene
+from plantgrowth.scene import Scene, dict_to_toml, load_scene, parse_scene
 
 BIN = Path(sys.executable).parent
 PLANTGROWTH = str(BIN / "plantgrowth")
@@ -78,25 +77,12 @@ COMPARED = [  # summary columns that serial and mpirun runs must reproduce
 ]  # fmt: skip
 
 
-def _toml_value(v) -> str:
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    return repr(v)
-
-
 def scene_toml(tables: dict) -> str:
     """BASE with ``tables`` merged in, as TOML text."""
     merged = {k: dict(v) for k, v in BASE.items()}
     for name, entries in tables.items():
         merged.setdefault(name, {}).update(entries)
-    lines = []
-    for name, entries in merged.items():
-        lines += [f"[{name}]"] + [f"{k} = {_toml_value(v)}" for k, v in entries.items()]
-    return "\n".join(lines) + "\n"
+    return dict_to_toml(merged)
 
 
 def read_summary(path: Path) -> list[dict[str, float]]:

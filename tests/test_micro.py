@@ -20,7 +20,6 @@ not a convergence measure (test_compare.py measures the cell-by-cell difference)
 from __future__ import annotations
 
 import csv
-import json
 import os
 import subprocess
 import sys
@@ -35,7 +34,7 @@ from mpi4py import MPI
 from plantgrowth.cell_solver import CellSolver
 from plantgrowth.cli import main
 from plantgrowth.micro import MicroModel, scene_cell
-from plantgrowth.scene import parse_scene
+from plantgrowth.scene import dict_to_toml, parse_scene
 from plantgrowth.timeloop import SUMMARY_COLUMNS
 
 BIN = Path(sys.executable).parent
@@ -53,25 +52,11 @@ def micro_scene(**tables):
     return parse_scene(data)
 
 
-def _toml_value(v) -> str:
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    return repr(v)
-
-
 def write_scene(path: Path, data: dict) -> Path:
     """Write raw scene data (possibly invalid) as TOML on rank 0; all ranks return the path."""
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
-        lines = [f"model = {_toml_value(data.get('model', 'micro'))}"]
-        for name, entries in data.items():
-            if isinstance(entries, dict):
-                lines += [f"[{name}]"] + [f"{k} = {_toml_value(v)}" for k, v in entries.items()]
-        path.write_text("\n".join(lines) + "\n")
+        path.write_text(dict_to_toml({"model": "micro"} | data))
     comm.Barrier()
     return path
 
