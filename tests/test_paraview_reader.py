@@ -48,5 +48,3 @@ def test_paraview_reads_every_step_and_field(tmp_path):
     with h5py.File(outdir / "fields" / "step_000003.h5") as f:
         u_max = abs(f["u"][:, 0]).max()
     assert seen["u_max_abs_x"] == pytest.approx(u_max, rel=1e-6)  # float32 in VTK arrays
-
-
