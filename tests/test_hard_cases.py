@@ -8,7 +8,7 @@ and the whole large-step study; its results are in ``benchmarks/results/hard_cas
 Four scenes are known limits of the (geometrically linear) macro model, not of the integrator
 (README, "Numerical stability"): two of them stop even on the cheap mesh and must stop cleanly
 with the model's "element inverted" RunError, every other criterion holding up to that step;
-the other two stop only on finer meshes (at t ~ 12 and ~ 17 with h = 0.1) and are checked here up
+the other two stop only on finer meshes (at t ~ 11 and ~ 15 with h = 0.1) and are checked here up
 to shortly before.
 """
 
@@ -42,8 +42,8 @@ PASSING = {
     "long_run": None,  # (600, 5); dt = 10: test_lagged_coupling_needs_the_adaptive_integrator
 }
 LIMITS_ON_FINE_MESHES = {  # name -> (t_max, dt) before the failure time seen at h = 0.1
-    "E_contrast_100_strain": (10.0, 1.0),  # inverted element at t = 13 (h = 0.1)
-    "clamp_shear": (14.0, 1.0),  # inverted element at t = 18 (h = 0.1)
+    "E_contrast_100_strain": (10.0, 1.0),  # h = 0.1: stops at t = 11+ (adaptive), 13 (euler)
+    "clamp_shear": (14.0, 1.0),  # h = 0.1: stops at t = 15+ (adaptive), 18 (euler)
 }
 KNOWN_LIMITS = {  # name -> ((t_max, dt), first failing step at the cheap resolution)
     "anisotropic_Fg0_x1": ((5.0, 1.0), 0),
