@@ -153,9 +153,18 @@ def test_projection_split_over_ranks_equals_the_serial_one():
     assert np.allclose(shared, serial, rtol=1e-13, atol=1e-13)  # summation order only
 
 
-def test_projection_needs_a_fine_cell_near_every_node():
+def test_nodes_without_a_fine_cell_get_the_mean():
+    """A coarse node whose triangles hold no fine cell midpoint (outside the outline of a micro
+    tissue, or a fine mesh coarser than the coarse one) is never interpolated back; it gets the
+    tissue mean so that its cell problem is well posed. Nodes with cells keep their projection."""
     grid = CoarseGrid(WIDTH, HEIGHT, 7, 3)
-    midpoints = np.array([[0.1, 0.1]])
+    midpoints = np.array([[0.1, 0.1], [0.2, 0.05]])
     W = grid.interpolation_matrix(midpoints)
-    with pytest.raises(ValueError, match="no fine cell"):
-        project_to_nodes(W, np.ones(1), np.ones((1, 1)), MPI.COMM_SELF)
+    values = np.array([[1.0], [3.0]])
+    areas = np.array([1.0, 3.0])
+    nodes = project_to_nodes(W, areas, values, MPI.COMM_SELF)[:, 0]
+    supported = np.asarray(W.sum(axis=0)).ravel() > 0.0
+    mean = (1.0 * 1.0 + 3.0 * 3.0) / 4.0  # area-weighted
+    assert np.all(nodes[~supported] == pytest.approx(mean, rel=1e-14))
+    assert supported.sum() == 3  # the corner triangle's nodes
+    assert np.all((nodes[supported] >= 1.0) & (nodes[supported] <= 3.0))
