@@ -179,14 +179,15 @@ def run_model(
         last = min(done) if len(done) == 2 else None
         series.forget_after(last)
     summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm, keep_until=last)
+    substeps = [0, 0]  # sub-steps and extra cell solves of the advance that led to this step
     if last is None:
         Fg, first = model.initial_growth(), 0
     else:
         Fg, G = model.restore(read_state(outdir, last))
-        Fg, first = growth.advance(Fg, G, dt, scene.time.integrator), last + 1
+        Fg, substeps[0], substeps[1] = _advance(model, Fg, G, scene, comm)
+        first = last + 1
         log.info("resuming after step %d (t = %g)", last, last * dt)
     rows = []
-    substeps = [0, 0]  # sub-steps and extra cell solves of the advance that led to this step
     start = time.perf_counter()
     with interrupt_at_step_end() as interrupt:
         for step in range(first, n_steps + 1):

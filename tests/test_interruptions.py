@@ -418,3 +418,32 @@ def test_failed_solve_exits_3_naming_step_time_and_cause(tmp_path_factory, monke
         "step_1",
     ]
     assert "run failed" in (outdir / "run.log").read_text()
+
+
+def test_resume_with_the_adaptive_integrator(mpi_tmp_path):
+    """--resume redoes the last step's advance with the scene's integrator: with 'adaptive'
+    (sub-steps, extra solves) the resumed run equals the uninterrupted one. The interruption is
+    simulated by deleting the last steps' files and summary rows (a kill between steps)."""
+    scene = mpi_tmp_path / "adaptive.toml"
+    if MPI.COMM_WORLD.rank == 0:
+        scene.write_text(
+            "[tissue]\nh = 0.5\nH = 2.0\n[material]\nE = {from = 0.5, to = 2.0}\n"
+            '[growth]\nlaw = "strain"\n[time]\nt_max = 6\ndt = 3\nintegrator = "adaptive"\n'
+            "[accuracy]\ncell_resolution = 1\n"
+        )
+    MPI.COMM_WORLD.Barrier()
+    whole, cut = mpi_tmp_path / "whole", mpi_tmp_path / "cut"
+    assert main(["run", str(scene), "-o", str(whole)]) == 0
+    assert main(["run", str(scene), "-o", str(cut)]) == 0
+    if MPI.COMM_WORLD.rank == 0:
+        (cut / "fields" / "step_000002.h5").unlink()
+        lines = (cut / "summary.csv").read_text().splitlines(keepends=True)
+        (cut / "summary.csv").write_text("".join(lines[:-1]))
+    MPI.COMM_WORLD.Barrier()
+    assert main(["run", str(scene), "--resume", str(cut)]) == 0
+    if MPI.COMM_WORLD.rank == 0:
+        rows, expected = summary_rows(cut), summary_rows(whole)
+        assert len(rows) == len(expected) == 3
+        for row, ref in zip(rows, expected, strict=True):
+            for key in ("area", "growth_rate_11", "u1_max", "det_Fg_min", "substeps"):
+                assert row[key] == pytest.approx(ref[key], rel=1e-10), key
