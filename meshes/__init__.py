@@ -1,0 +1,1 @@
+"""gmsh geometry: the periodic unit cell, the cellular tissue and its outline."""

@@ -1,0 +1,1 @@
+"""plantgrowth: multiscale simulation of plant tissue growth (see README.md)."""

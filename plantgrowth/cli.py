@@ -1,6 +1,8 @@
-"""Command line: ``plantgrowth cell ...`` (more commands join as they are built).
+"""Command line: ``plantgrowth run | validate | cell | compare``.
 
-``main(argv) -> int`` logs on rank 0 only; bad input exits with code 2 and a one-line message.
+``main(argv) -> int`` logs on rank 0 only. Exit codes: 0 done, 2 bad input (one line naming
+the field and its valid range), 3 a run that failed numerically (step, time, place, cause),
+130 interrupted by SIGINT at the end of a step.
 """
 
 from __future__ import annotations
