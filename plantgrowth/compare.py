@@ -21,9 +21,9 @@ from matplotlib.tri import TrapezoidMapTriFinder, Triangulation
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
-from plantgrowth.coupled import MacroModel
+from plantgrowth.coupled import MacroModel, macro_mesh
 from plantgrowth.gather import MeshGather
-from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
+from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.micro import MicroModel, scene_cell
 from plantgrowth.output import prepare_directory
 from plantgrowth.scene import Scene
@@ -153,8 +153,7 @@ def compare_one(
 
     start = time.perf_counter()
     prepare_directory(outdir / "macro", comm)
-    outline, _, _ = build_outline_mesh(layout, scene.tissue.h, comm)
-    macro = MacroModel(scene, outline, comm)
+    macro = MacroModel(scene, macro_mesh(scene, comm, nx), comm)
     macro_rows = run_model(macro, scene, outdir / "macro", comm, n_steps, keep_macro)
     seconds_macro = time.perf_counter() - start
     start = time.perf_counter()

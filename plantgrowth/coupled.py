@@ -22,6 +22,7 @@ from plantgrowth.errors import RunError
 from plantgrowth.gather import MeshGather
 from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
+from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
 from plantgrowth.scene import Scene
 from plantgrowth.tensors import VOIGT_NAMES, VOIGT_POSITIONS
 from plantgrowth.timeloop import StepResult, max_abs_components, run_model
@@ -210,14 +211,25 @@ class MacroModel:
         }
 
 
+def macro_mesh(scene: Scene, comm: MPI.Comm, nx: int | None = None):
+    """The fine macro mesh: the scene's rectangle, or, next to a micro tissue of ``nx`` cells
+    per row (``model = "both"``: the scene's micro.nx), the region its cells cover."""
+    if nx is None and scene.model != "both":
+        return rectangle_mesh(scene, comm)
+    layout = TissueLayout(scene.cell.at(0.0), scene.micro_nx if nx is None else nx)
+    return build_outline_mesh(layout, scene.tissue.h, comm)[0]
+
+
 def run_macro(
     scene: Scene, outdir: Path, comm: MPI.Comm, resume: bool = False
 ) -> list[dict[str, float]]:
-    """Run the coupled macroscopic model of a scene on its rectangle, writing into ``outdir``.
+    """Run the coupled macroscopic model of a scene, writing into ``outdir``.
 
+    The domain is the scene's rectangle, or, for ``model = "both"``, the region the micro
+    tissue's cells cover, so that the two models see the same tissue (MODEL.md section 7).
     Returns the summary rows of the steps run (all rows are in ``outdir/summary.csv``).
     """
     start = time.perf_counter()
-    model = MacroModel(scene, rectangle_mesh(scene, comm), comm)
+    model = MacroModel(scene, macro_mesh(scene, comm), comm)
     log.info("set-up: %.2f s", time.perf_counter() - start)
     return run_model(model, scene, outdir, comm, resume=resume)

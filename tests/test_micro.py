@@ -33,6 +33,8 @@ from mpi4py import MPI
 
 from plantgrowth.cell_solver import CellSolver
 from plantgrowth.cli import main
+from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
+from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.micro import MicroModel, scene_cell
 from plantgrowth.scene import dict_to_toml, parse_scene
 from plantgrowth.timeloop import SUMMARY_COLUMNS
@@ -328,3 +330,24 @@ def test_pressure_gradient_makes_growth_rise_along_x1():
     phi_w = scene_cell(scene).phi_w
     local = 2.0 * (1.0 - phi_w) / phi_w * scene.P1(x1)
     np.testing.assert_allclose(rate[:, 1:-1], local[:, 1:-1], rtol=0.01)
+
+
+def test_model_both_runs_macro_on_the_micro_tissue(mpi_tmp_path):
+    """model = "both": the macro side's domain is the region the micro cells cover (MODEL.md 7),
+    so its mesh area is the sum of the cells' (cut) hexagon areas, not the scene's rectangle."""
+    data = {
+        "model": "both", "tissue": {"h": 0.35}, "growth": {"law": "strain"},
+        "time": {"t_max": 1.0}, "micro": {"nx": 4, "resolution": 1},
+    }  # fmt: skip
+    scene = write_scene(mpi_tmp_path / "both.toml", data)
+    outdir = mpi_tmp_path / "both"
+    assert main(["run", str(scene), "-o", str(outdir)]) == 0
+    if MPI.COMM_WORLD.rank == 0:
+        with h5py.File(outdir / "macro" / "fields.h5") as f:
+            x = f["Mesh/geometry"][...][f["Mesh/topology"][...]]
+        d1, d2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+        area = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]).sum()
+        layout = TissueLayout(HoneycombCell(), 4)
+        expected = sum(polygon_area(layout.hexagon(i)) for i in range(layout.n_cells))
+        assert area == pytest.approx(expected, rel=1e-12)  # straight-sided: meshed exactly
+        assert (outdir / "micro" / "summary.csv").is_file()
