@@ -70,7 +70,6 @@ class MacroProblem:
 
         u, psi = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
         dx = ufl.dx
-        self.P1 = scene.P1
         self.active_terms = ["elasticity", "growth"]
         rhs = macro.macro_growth_rhs(psi, self.Fg, self.C, dx)
         self.K = None

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from plantgrowth.forms.elasticity import lame_parameters
+
 VOIGT_PAIRS = (
     ((0, 0), (0, 0)),
     ((1, 1), (1, 1)),
@@ -40,7 +42,7 @@ def orthotropic_moduli(E6: np.ndarray) -> dict[str, float]:
 
 def isotropic_tensor(E: float, nu: float) -> np.ndarray:
     """(2, 2, 2, 2) plane-stress wall tensor with mu = E/(2(1+nu)), lam = E nu/(1-nu^2)."""
-    mu, lam = E / (2.0 * (1.0 + nu)), E * nu / (1.0 - nu**2)
+    mu, lam = lame_parameters(E, nu)
     I = np.eye(2)
     return lam * np.einsum("ij,kl->ijkl", I, I) + mu * (
         np.einsum("ik,jl->ijkl", I, I) + np.einsum("il,jk->ijkl", I, I)
