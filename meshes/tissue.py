@@ -88,10 +88,15 @@ class TissueLayout:
         x2 = rows * d * (self.cell.l1 + self.cell.s)
         return np.column_stack([x1, x2])
 
+    @property
+    def cut_cells(self) -> slice:
+        """Ids of the bottom row, whose cells are cut at mid-height by the symmetry plane."""
+        return slice(0, self.nx)
+
     def hexagon(self, cell_id: int) -> np.ndarray:
         """Mid-line hexagon of a cell, cut at x2 = 0 for the bottom row."""
         poly = self.delta_s * self.cell.hexagon() + self.centres[cell_id]
-        return clip_below(poly) if cell_id < self.nx else poly
+        return clip_below(poly) if cell_id < self.cut_cells.stop else poly
 
     def void(self, cell_id: int) -> np.ndarray:
         """Void of a cell (not cut: the bottom row's voids are open at x2 = 0)."""

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 from dolfinx import fem
+from dolfinx.mesh import Mesh
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
@@ -211,13 +212,15 @@ class MacroModel:
         }
 
 
-def macro_mesh(scene: Scene, comm: MPI.Comm, nx: int | None = None):
-    """The fine macro mesh: the scene's rectangle, or, next to a micro tissue of ``nx`` cells
-    per row (``model = "both"``: the scene's micro.nx), the region its cells cover."""
+def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> tuple[Scene, Mesh]:
+    """The scene and fine mesh of the macro model: the scene's rectangle, or, next to a micro
+    tissue of ``nx`` cells per row (``model = "both"``: the scene's micro.nx), the region its
+    cells cover, with the scene's fields spanning that region's x1 extent (MODEL.md 7)."""
     if nx is None and scene.model != "both":
-        return rectangle_mesh(scene, comm)
+        return scene, rectangle_mesh(scene, comm)
     layout = TissueLayout(scene.cell.at(0.0), scene.micro_nx if nx is None else nx)
-    return build_outline_mesh(layout, scene.tissue.h, comm)[0]
+    mesh = build_outline_mesh(layout, scene.tissue.h, comm)[0]
+    return scene.over_width(layout.bounding_box[0]), mesh
 
 
 def run_macro(
@@ -230,6 +233,6 @@ def run_macro(
     Returns the summary rows of the steps run (all rows are in ``outdir/summary.csv``).
     """
     start = time.perf_counter()
-    model = MacroModel(scene, macro_mesh(scene, comm), comm)
+    model = MacroModel(*macro_domain(scene, comm), comm)
     log.info("set-up: %.2f s", time.perf_counter() - start)
     return run_model(model, scene, outdir, comm, resume=resume)

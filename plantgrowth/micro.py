@@ -50,9 +50,10 @@ class MicroModel:
     def __init__(
         self, scene: Scene, comm: MPI.Comm, nx: int | None = None, resolution: int | None = None
     ) -> None:
-        self.scene = scene
+        layout = TissueLayout(scene_cell(scene), scene.micro_nx if nx is None else nx)
+        self.layout = layout
+        self.scene = scene = scene.over_width(layout.bounding_box[0])  # fields span this tissue
         self.comm = comm
-        self.layout = layout = TissueLayout(scene_cell(scene), scene.micro_nx if nx is None else nx)
         msh, cell_tags, facet_tags = build_walls_mesh(
             layout, scene.micro_resolution if resolution is None else resolution, comm
         )
@@ -104,6 +105,7 @@ class MicroModel:
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
 
+        self._vector_dg0 = fem.VectorFunctionSpace(msh, ("DG", 0))
         self.G_out = fem.Function(T0, name="G")
         ids = fem.Function(Q0, name="cell_id")
         self._set(ids, np.arange(layout.n_cells, dtype=float))
@@ -142,6 +144,14 @@ class MicroModel:
         )
         return self.comm.allreduce(sums, op=MPI.SUM)
 
+    def cell_means(self, u: fem.Function) -> np.ndarray:
+        """(n_cells, 2) mean of a vector field over each biological cell's own walls."""
+        V0 = self._vector_dg0
+        integrals = fem.petsc.assemble_vector(
+            fem.form(ufl.inner(u, ufl.TestFunction(V0)) * ufl.dx(domain=self.mesh))
+        )
+        return self._per_cell(integrals.array.reshape(-1, 2), V0) / self.wall_area[:, None]
+
     def _boundary_conditions(self, facet_tags) -> list:
         """u2 = 0 on the cut bottom walls (symmetry plane); u1 = 0 at the origin."""
         bottom = facet_tags.indices[facet_tags.values == FACET_TAGS["bottom"]]
@@ -168,6 +178,9 @@ class MicroModel:
         integrals = fem.petsc.assemble_vector(self.driving)
         T0 = self.Fg.function_space
         means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]
+        # a cut bottom cell grows as the full cell mirrored about x2 = 0: its half-cell mean
+        # for 11 and 22, and no shear, which changes sign under the mirror (MODEL.md 7)
+        means[self.layout.cut_cells, 1:3] = 0.0
         ones = np.ones(self.layout.n_cells)
         if self.scene.growth.law == "none":
             G = np.zeros_like(Fg)

@@ -47,8 +47,10 @@ inclined wall length l2 = 1)::
 
 The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta`` and ``growth.tau`` are
 *fields*: a number, or ``{from = a, to = b}`` for a value linear in x1 from a at x1 = 0 to b at
-x1 = width (MODEL.md section 9). A field's range is checked at both ends, and the cell geometry
-is checked at x1 = 0, width/2 and width. Magnitudes above 1e12 (1e6 for lengths and Fg0) are
+the right end of the tissue simulated (MODEL.md sections 7, 9): x1 = width for the macro
+rectangle, the cellular tissue's own x1 extent for micro runs and the macro side of ``both`` and
+``compare``, so a field never leaves [a, b]. A field's range is checked at both ends, and the cell
+geometry at x1 = 0, width/2 and width. Magnitudes above 1e12 (1e6 for lengths and Fg0) are
 rejected as typos: the model is non-dimensional with reference values of order 1.
 
 Load with :func:`load_scene` (a file) or :func:`parse_scene` (a dict); ``Scene.to_toml()``
@@ -62,7 +64,7 @@ import json
 import math
 import os
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -426,6 +428,24 @@ class Scene:
             wall_mesh_size(TissueLayout(self.cell.at(0.0), self.micro_nx), self.micro_resolution)
         except GeometryError as e:
             raise SceneError(str(e)) from None
+
+    def over_width(self, width: float) -> Scene:
+        """This scene on a tissue whose x1 extent is [0, width] (a micro tissue, or the macro
+        side of a micro-macro comparison): every field runs from its ``from`` value at x1 = 0 to
+        its ``to`` value at x1 = width, never extrapolated (MODEL.md section 7). Revalidated."""
+        if width == self.tissue.width:
+            return self
+
+        def over(f: Field) -> Field:
+            return replace(f, width=width)
+
+        cell = CellGeometry(*(over(getattr(self.cell, k)) for k in ("l1", "l2", "theta", "w")))
+        material = Material(over(self.material.E), over(self.material.nu))
+        growth = replace(self.growth, eta=over(self.growth.eta), tau=over(self.growth.tau))
+        return replace(
+            self, tissue=replace(self.tissue, width=width), cell=cell, material=material,
+            P1=over(self.P1), growth=growth,
+        )  # fmt: skip
 
     def parameter_fields(self) -> dict[str, Field]:
         """All spatially varying parameters by dotted key."""

@@ -1,0 +1,42 @@
+"""Print benchmarks/results/mutants.json (written by scripts/mutation_study.py) as Markdown.
+
+python scripts/mutants_table.py [path/to/mutants.json]
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+DEFAULT = Path(__file__).resolve().parent.parent / "benchmarks" / "results" / "mutants.json"
+
+
+def table(data: dict) -> str:
+    lines = [
+        "| mutant | file | kind | killed by | s |",
+        "|---|---|---|---|---:|",
+    ]
+    for m in data["mutants"]:
+        killer = f"`{m['killed_by']}`" if m["killed"] else "**survived**"
+        lines.append(
+            f"| `{m['name']}` | `{m['file']}` | {m['category']} | {killer} | {m['seconds']:.0f} |"
+        )
+    baseline = data.get("baseline") or {}
+    lines += [
+        "",
+        f"{data['n_killed']} of {data['n_mutants']} killed; commit {data['commit'][:10]}; "
+        f"baseline {baseline.get('outcome', '-')} in {baseline.get('seconds', '-')} s; "
+        f"mutant runs {data['mutant_seconds']:.0f} s.",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str]) -> int:
+    path = Path(argv[0]) if argv else DEFAULT
+    print(table(json.loads(path.read_text())))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,444 @@
+"""Mutation study: do the default CI tests notice realistic physics bugs? (issue 8)
+
+Each mutant is one realistic bug (a sign, a factor, a transposition, a wrong configuration, a
+wrong average, a wrong law or integrator, a wrong boundary condition), written as exact text
+replacements in one file of the committed tree. The study never touches the working tree:
+
+1. ``git archive HEAD`` of this repository into ``WORKDIR/tree`` (the commit is recorded);
+2. a venv ``WORKDIR/venv`` (``/usr/bin/python3 -m venv --system-site-packages``) with the copy
+   installed in editable mode, as ``scripts/install.sh`` does, plus meshio (the tests read XDMF
+   with it), so that ``Path(sys.executable).parent / "plantgrowth"`` is the copy's CLI;
+3. a baseline run of the default serial suite on the unmutated copy, which must pass;
+4. per mutant: restore the pristine files, apply the mutant (every replacement must match
+   exactly once, else the study stops: a mutant whose code has moved is an error, never a silent
+   pass), run ``python -m pytest -q -m "not slow" -x -p no:cacheprovider tests`` and record the
+   first failing test (``-x``: the test that killed the mutant) and the wall time.
+
+Results go to ``benchmarks/results/mutants.json`` (``scripts/mutants_table.py`` prints them as a
+Markdown table). The exit code is 1 if a mutant survives or the baseline fails.
+
+    python scripts/mutation_study.py                 # everything (~1 h on 2 cores)
+    python scripts/mutation_study.py --list          # the mutants, nothing run
+    python scripts/mutation_study.py --only cell_pressure_sign --only E_hom_doubled
+    python scripts/mutation_study.py --workdir /scratch/mutants --skip-baseline --only ...
+
+With ``--only`` the named mutants' entries of an existing JSON file are replaced and the others
+kept (each entry records the commit it was measured on).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+OUTPUT = REPO / "benchmarks" / "results" / "mutants.json"
+DEFAULT_WORKDIR = Path("/tmp/plantgrowth-mutation-study")
+PYTEST_ARGS = ["-m", "pytest", "-q", "-m", "not slow", "-x", "-p", "no:cacheprovider", "tests"]
+RUN_TIMEOUT = 3600.0  # seconds per suite run; the whole serial suite takes ~3-5 min
+CATEGORIES = (
+    "sign", "factor", "transposition", "wrong configuration", "wrong average",
+    "wrong law or integrator", "wrong boundary condition",
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Mutant:
+    """One bug: ``replacements`` are (old, new) pairs applied to ``file``, each old text
+    occurring exactly once in the pristine file."""
+
+    name: str
+    file: str
+    category: str
+    description: str
+    replacements: tuple[tuple[str, str], ...]
+
+
+CLAMPED = (
+    "fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),",
+    "fem.dirichletbc(np.zeros(2, dtype=PETSc.ScalarType), "
+    "fem.locate_dofs_topological(self.V, 1, bottom), self.V),",
+)
+
+MUTANTS = (
+    # --- forms/ --------------------------------------------------------------------------------
+    Mutant(
+        "cell_pressure_sign", "forms/cell_problems.py", "sign",
+        "pressure cell problem [UCw_weak] with the unit pressure's sign flipped (v -> -v), "
+        "issue 8",
+        (("return -growth_weighted_work(ufl.Identity(2), phi, Fg, dx)",
+          "return growth_weighted_work(ufl.Identity(2), phi, Fg, dx)"),),
+    ),
+    Mutant(
+        "grad_g_transposed", "forms/elasticity.py", "transposition",
+        "growth-weighted gradient grad(z) Fg^{-T} instead of grad(z) Fg^{-1} (cell, macro and "
+        "micro problems)",
+        (("return ufl.grad(z) * ufl.inv(Fg)", "return ufl.grad(z) * ufl.inv(Fg).T"),),
+    ),
+    Mutant(
+        "micro_elastic_strain_growth_sign", "forms/elasticity.py", "sign",
+        "eps_el = sym(grad u Fg^{-1}) - (sym(Fg^{-1}) - I): growth strain with the wrong sign "
+        "(micro wall averages)",
+        (("return sym_grad_g(u, Fg) + growth_strain(Fg)",
+          "return sym_grad_g(u, Fg) - growth_strain(Fg)"),),
+    ),
+    Mutant(
+        "macro_voigt_shear_factor", "forms/macro.py", "factor",
+        "macro Voigt strain (e11, e22, e12) instead of (e11, e22, 2 e12)",
+        (("ufl.as_vector([e[0, 0], e[1, 1], 2.0 * e[0, 1]])",
+          "ufl.as_vector([e[0, 0], e[1, 1], e[0, 1]])"),),
+    ),
+    Mutant(
+        "macro_turgor_sign", "forms/macro.py", "sign",
+        "macro turgor stress (K_hom + (1 - phi_w) I) P1 instead of (K_hom + (phi_w - 1) I) P1",
+        (("(K + (phi_w - 1.0) * ufl.Identity(2)) * P1",
+          "(K + (1.0 - phi_w) * ufl.Identity(2)) * P1"),),
+    ),
+    Mutant(
+        "micro_traction_transposed", "forms/micro.py", "transposition",
+        "micro membrane traction along Fg^{-1} N instead of Fg^{-T} N",
+        (("ufl.dot(ufl.inv(Fg).T, n)", "ufl.dot(ufl.inv(Fg), n)"),),
+    ),
+    Mutant(
+        "micro_traction_without_Jg", "forms/micro.py", "wrong configuration",
+        "micro membrane traction without Jg: the grown membrane's length is taken as the "
+        "reference length",
+        (("return -ufl.det(Fg) * P * ufl.inner(", "return -P * ufl.inner("),),
+    ),
+    # --- homogenization, cell solver, tensors ---------------------------------------------------
+    Mutant(
+        "E_hom_doubled", "plantgrowth/homogenization.py", "factor",
+        "E_hom doubled on its way from the cell problems to the macro problem, issue 8",
+        (("C = packed[:, :9].reshape(n, 3, 3) * E[:, None, None]",
+          "C = packed[:, :9].reshape(n, 3, 3) * (2.0 * E[:, None, None])"),),
+    ),
+    Mutant(
+        "dbar_v_E_scaling", "plantgrowth/homogenization.py", "factor",
+        "dbar[v] of the reduced (E = 1) cell scaled by E instead of 1/E",
+        (("reshape(n, 2, 2) / E[:, None, None]", "reshape(n, 2, 2) * E[:, None, None]"),),
+    ),
+    Mutant(
+        "cell_average_over_walls", "plantgrowth/cell_solver.py", "wrong average",
+        "cell averages divided by |Y_w| instead of |Y|",
+        (("            / self.area\n        )\n", "            / self.wall_area\n        )\n"),),
+    ),
+    Mutant(
+        "voigt_vector_shear_factor", "plantgrowth/tensors.py", "factor",
+        "numpy Voigt strain (e11, e22, e12) instead of (e11, e22, 2 e12) in sigma_hom",
+        (("np.stack([e[..., 0, 0], e[..., 1, 1], 2.0 * e[..., 0, 1]], axis=-1)",
+          "np.stack([e[..., 0, 0], e[..., 1, 1], e[..., 0, 1]], axis=-1)"),),
+    ),
+    # --- growth law and integrators ---------------------------------------------------------------
+    Mutant(
+        "positive_part_abs", "plantgrowth/growth.py", "wrong law or integrator",
+        "[A]_+ built from |eigenvalues| instead of max(eigenvalues, 0)",
+        (("lambda lam: np.maximum(lam, 0.0)", "lambda lam: np.abs(lam)"),),
+    ),
+    Mutant(
+        "clamp_before_eta", "plantgrowth/growth.py", "wrong law or integrator",
+        "G = eta clip([X/phi_w - tau]_+, -M, M) instead of clip(eta [.]_+, -M, M)",
+        (("np.clip(eta[:, None, None] * positive_part(driving), -clamp, clamp)",
+          "eta[:, None, None] * np.clip(positive_part(driving), -clamp, clamp)"),),
+    ),
+    Mutant(
+        "elastic_strain_transposed", "plantgrowth/growth.py", "transposition",
+        "numpy eps_el from Fg^{-1} grad u instead of grad u Fg^{-1} (sigma_hom, eps_hom)",
+        (("A = grad_u @ Finv + Finv", "A = Finv @ grad_u + Finv"),),
+    ),
+    Mutant(
+        "homogenized_strain_dbar_transposed", "plantgrowth/growth.py", "transposition",
+        "eps_hom with sum_kl eps_el_kl dbar[w^ij]_kl instead of sum_ij eps_el_ij dbar[w^ij]_kl",
+        (('np.einsum("nij,nijkl->nkl", eps_el, dbar_w)',
+          'np.einsum("nkl,nijkl->nij", eps_el, dbar_w)'),),
+    ),
+    Mutant(
+        "exp_integrator_order", "plantgrowth/growth.py", "wrong law or integrator",
+        "exp integrator Fg expm(dt G) instead of expm(dt G) Fg",
+        (("return symmetric_function(G, lambda lam: np.exp(dt * lam)) @ Fg",
+          "return Fg @ symmetric_function(G, lambda lam: np.exp(dt * lam))"),),
+    ),
+    # --- coupled loop -----------------------------------------------------------------------------
+    Mutant(
+        "sigma_without_K", "plantgrowth/coupled.py", "wrong law or integrator",
+        "growth driven by the elastic part E_hom eps_el only, without K_hom P1",
+        (("growth.homogenized_stress(C, eps_el, K, self.P1)",
+          "growth.homogenized_stress(C, eps_el, None, self.P1)"),),
+    ),
+    Mutant(
+        "interpolation_points_swapped", "plantgrowth/coupled.py", "transposition",
+        "coarse-node tensors interpolated at (x2, x1) instead of the fine cells' (x1, x2)",
+        (("interpolation_matrix(problem.midpoints[:, :2])",
+          "interpolation_matrix(problem.midpoints[:, 1::-1])"),),
+    ),
+    Mutant(
+        "Fg_projection_transposed", "plantgrowth/coupled.py", "transposition",
+        "Fg projected to the coarse nodes as Fg^T (cell problems solved for the transpose)",
+        (("Fg[:n_owned].reshape(-1, 4)", "np.swapaxes(Fg[:n_owned], 1, 2).reshape(-1, 4)"),),
+    ),
+    # --- macro problem ----------------------------------------------------------------------------
+    Mutant(
+        "macro_bottom_clamped", "plantgrowth/macro_problem.py", "wrong boundary condition",
+        "macro bottom edge clamped (u = 0) instead of a symmetry plane (u2 = 0)",
+        (CLAMPED,),
+    ),
+    # --- micro model ------------------------------------------------------------------------------
+    Mutant(
+        "micro_bottom_clamped", "plantgrowth/micro.py", "wrong boundary condition",
+        "micro bottom walls clamped (u = 0) instead of a symmetry plane (u2 = 0)",
+        (CLAMPED,),
+    ),
+    Mutant(
+        "micro_mean_weighted_by_walls", "plantgrowth/micro.py", "wrong average",
+        "tissue-mean micro growth rate weighted by wall areas instead of cell (hexagon) areas",
+        (("weights = self.hexagon_area / self.hexagon_area.sum()",
+          "weights = self.wall_area / self.wall_area.sum()"),),
+    ),
+    # --- time loop --------------------------------------------------------------------------------
+    Mutant(
+        "adaptive_midpoint_lagged", "plantgrowth/timeloop.py", "wrong law or integrator",
+        "adaptive integrator's second half-step with the start-of-step G, not the midpoint G",
+        (("growth.advance(half, middle.G, 0.5 * h, \"exp\")",
+          "growth.advance(half, G, 0.5 * h, \"exp\")"),),
+    ),
+    Mutant(
+        "scene_integrator_ignored", "plantgrowth/timeloop.py", "wrong law or integrator",
+        "explicit steps always use exp, whatever the scene's integrator says",
+        (("return growth.advance(Fg, G, t.dt, t.integrator), 1, 0",
+          "return growth.advance(Fg, G, t.dt, \"exp\"), 1, 0"),),
+    ),
+)  # fmt: skip
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--list", action="store_true", help="list the mutants and exit")
+    parser.add_argument(
+        "--only", action="append", metavar="NAME", help="run this mutant (repeatable)"
+    )
+    parser.add_argument(
+        "--workdir", type=Path, default=DEFAULT_WORKDIR,
+        help=f"scratch directory for the tree and its venv (default {DEFAULT_WORKDIR})",
+    )  # fmt: skip
+    parser.add_argument("--output", type=Path, default=OUTPUT, help="the JSON file written")
+    parser.add_argument(
+        "--skip-baseline", action="store_true", help="do not run the unmutated suite first"
+    )
+    parser.add_argument("--timeout", type=float, default=RUN_TIMEOUT, help="seconds per run")
+    args = parser.parse_args(argv)
+    names = [m.name for m in MUTANTS]
+    unknown = sorted(set(args.only or ()) - set(names))
+    if unknown:
+        parser.error(f"unknown mutant(s) {', '.join(unknown)}; --list shows the names")
+    return args
+
+
+def git(*args: str) -> str:
+    return subprocess.run(
+        ["git", "-C", str(REPO), *args], check=True, capture_output=True, text=True
+    ).stdout.strip()
+
+
+def export_tree(tree: Path) -> str:
+    """``git archive HEAD`` into ``tree`` (emptied first); returns the commit hash."""
+    commit = git("rev-parse", "HEAD")
+    if git("status", "--porcelain", "--untracked-files=no"):
+        print("note: the working tree has uncommitted changes; the study tests HEAD " + commit)
+    if tree.exists():
+        shutil.rmtree(tree)
+    tree.mkdir(parents=True)
+    archive = subprocess.run(
+        ["git", "-C", str(REPO), "archive", "--format=tar", commit],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    subprocess.run(["tar", "-x", "-C", str(tree)], input=archive.stdout, check=True)
+    return commit
+
+
+def make_venv(venv: Path, tree: Path) -> Path:
+    """The copy's venv: system site packages, the copy in editable mode, meshio (version from
+    the copy's scripts/install.sh). Returns its python."""
+    python = venv / "bin" / "python"
+    if not python.exists():
+        subprocess.run(
+            ["/usr/bin/python3", "-m", "venv", "--system-site-packages", str(venv)], check=True
+        )
+    pip = [str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check"]
+    subprocess.run([*pip, "--no-build-isolation", "--no-deps", "-e", str(tree)], check=True)
+    version = re.search(
+        r'^MESHIO_VERSION="([^"]+)"', (tree / "scripts/install.sh").read_text(), re.M
+    )
+    probe = [str(python), "-c", f"import meshio; assert meshio.__version__ == '{version[1]}'"]
+    if subprocess.run(probe, capture_output=True).returncode != 0:
+        subprocess.run([*pip, f"meshio=={version[1]}"], check=True)
+    if not (venv / "bin" / "plantgrowth").exists():
+        raise SystemExit(f"the venv {venv} has no plantgrowth script after pip install -e")
+    return python
+
+
+def check_patterns(read, mutants: list[Mutant]) -> None:
+    """Every replacement of every mutant matches its pristine file (``read(file)``) exactly
+    once; stops the study otherwise."""
+    problems = []
+    for m in mutants:
+        text = read(m.file)
+        for old, _ in m.replacements:
+            count = text.count(old)
+            if count != 1:
+                problems.append(f"{m.name}: {old!r} occurs {count} times in {m.file}")
+    if problems:
+        raise SystemExit("mutant patterns out of date:\n  " + "\n  ".join(problems))
+
+
+def apply(tree: Path, mutant: Mutant) -> None:
+    path = tree / mutant.file
+    text = path.read_text()
+    for old, new in mutant.replacements:
+        assert text.count(old) == 1, (mutant.name, old)
+        text = text.replace(old, new)
+    path.write_text(text)
+
+
+FAILURE = re.compile(r"^(FAILED|ERROR) (\S+)", re.M)
+
+
+def run_suite(python: Path, tree: Path, basetemp: Path, log: Path, timeout: float) -> dict:
+    """The default serial suite with -x in ``tree``; returns outcome, killer, seconds."""
+    command = [str(python), *PYTEST_ARGS, "-rfE", f"--basetemp={basetemp}"]
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    env["PATH"] = f"{python.parent}{os.pathsep}{env.get('PATH', '')}"
+    start = time.perf_counter()
+    with open(log, "w") as out:
+        process = subprocess.Popen(
+            command, cwd=tree, env=env, stdout=out, stderr=subprocess.STDOUT,
+            start_new_session=True,  # its own process group: a timeout ends mpirun children too
+        )  # fmt: skip
+        try:
+            returncode = process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+            returncode = None
+    seconds = round(time.perf_counter() - start, 1)
+    text = log.read_text()
+    failure = FAILURE.search(text)
+    last = text.strip().splitlines()[-1] if text.strip() else ""
+    if returncode is None:
+        return {"outcome": "timeout", "killed_by": None, "seconds": seconds, "summary": last}
+    if returncode == 0:
+        return {"outcome": "passed", "killed_by": None, "seconds": seconds, "summary": last}
+    killer = failure[2] if failure else f"pytest exit code {returncode} (no failing test named)"
+    return {"outcome": "failed", "killed_by": killer, "seconds": seconds, "summary": last}
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    chosen = [m for m in MUTANTS if not args.only or m.name in args.only]
+    assert all(m.category in CATEGORIES for m in MUTANTS)
+    assert len({m.name for m in MUTANTS}) == len(MUTANTS)
+    if args.list:
+        check_patterns(lambda name: git("show", f"HEAD:{name}") + "\n", MUTANTS)
+        width = max(len(m.name) for m in MUTANTS)
+        for m in MUTANTS:
+            print(f"{m.name:{width}}  {m.file:30}  {m.category:24}  {m.description}")
+        print(f"{len(MUTANTS)} mutants; every pattern matches HEAD exactly once")
+        return 0
+    workdir = args.workdir.resolve()
+    tree, logs, basetemp = workdir / "tree", workdir / "logs", workdir / "pytest-tmp"
+    start = time.perf_counter()
+    commit = export_tree(tree)
+    check_patterns(lambda name: (tree / name).read_text(), chosen)
+    python = make_venv(workdir / "venv", tree)
+    logs.mkdir(parents=True, exist_ok=True)
+    command = " ".join(["python", *map(shlex.quote, PYTEST_ARGS)])
+    print(f"commit {commit}; tree {tree}; logs {logs}\nsuite: {command}", flush=True)
+
+    baseline = None
+    if not args.skip_baseline:
+        baseline = run_suite(python, tree, basetemp, logs / "baseline.log", args.timeout)
+        print(f"baseline: {baseline['outcome']} in {baseline['seconds']} s", flush=True)
+        if baseline["outcome"] != "passed":
+            print(f"the unmutated suite does not pass: see {logs / 'baseline.log'}")
+            return 1
+
+    pristine = {m.file: (tree / m.file).read_text() for m in chosen}
+    results = []
+    for i, mutant in enumerate(chosen, start=1):
+        for name, text in pristine.items():
+            (tree / name).write_text(text)
+        apply(tree, mutant)
+        result = run_suite(python, tree, basetemp, logs / f"{mutant.name}.log", args.timeout)
+        killed = result["outcome"] in ("failed", "timeout")
+        results.append(
+            {
+                "name": mutant.name,
+                "file": mutant.file,
+                "category": mutant.category,
+                "description": mutant.description,
+                "killed": killed,
+                "killed_by": result["killed_by"]
+                or ("timeout" if result["outcome"] == "timeout" else None),
+                "seconds": result["seconds"],
+                "commit": commit,
+            }
+        )
+        status = f"killed by {results[-1]['killed_by']}" if killed else "SURVIVED"
+        print(f"[{i}/{len(chosen)}] {mutant.name}: {status} ({result['seconds']} s)", flush=True)
+    for name, text in pristine.items():
+        (tree / name).write_text(text)
+
+    total = round(time.perf_counter() - start, 1)
+    write_results(args.output, commit, command, baseline, results, args.only is not None, total)
+    survivors = [r["name"] for r in results if not r["killed"]]
+    print(f"{len(results) - len(survivors)} of {len(results)} mutants killed in {total} s")
+    if survivors:
+        print("survivors: " + ", ".join(survivors))
+    print(f"written: {args.output}")
+    return 1 if survivors else 0
+
+
+def write_results(
+    path: Path,
+    commit: str,
+    command: str,
+    baseline: dict | None,
+    results: list[dict],
+    merge: bool,
+    wall_seconds: float,
+) -> None:
+    """Write (or, for a subset run, update) the JSON, mutants in the order of MUTANTS.
+    ``wall_seconds``: this invocation's wall time (export, venv, baseline and mutant runs)."""
+    old = json.loads(path.read_text()) if merge and path.is_file() else {}
+    entries = {r["name"]: r for r in old.get("mutants", [])}
+    entries.update({r["name"]: r for r in results})
+    order = [m.name for m in MUTANTS]
+    mutants = [entries[name] for name in order if name in entries]
+    data = {
+        "description": "physics mutants against the default serial CI suite (issue 8); "
+        "killed_by is the first failing test (pytest -x)",
+        "command": "python scripts/mutation_study.py",
+        "suite": command,
+        "commit": commit,
+        "baseline": old.get("baseline") if baseline is None else {"commit": commit, **baseline},
+        "n_mutants": len(mutants),
+        "n_killed": sum(m["killed"] for m in mutants),
+        "survivors": [m["name"] for m in mutants if not m["killed"]],
+        "mutant_seconds": round(sum(m["seconds"] for m in mutants), 1),
+        "wall_seconds_last_invocation": wall_seconds,
+        "mutants": mutants,
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
