@@ -1,8 +1,9 @@
 """Command line: ``plantgrowth run | validate | cell | compare``.
 
-``main(argv) -> int`` logs on rank 0 only. Exit codes: 0 done, 2 bad input (one line naming
-the field and its valid range), 3 a run that failed numerically (step, time, place, cause),
-130 interrupted by SIGINT at the end of a step.
+``main(argv) -> int`` logs on rank 0 only: progress to stdout, warnings to stderr, both to the
+run's ``run.log``. Exit codes: 0 done, 2 bad input (one line naming the field and its valid
+range), 3 a run that failed numerically (step, time, place, cause), 130 interrupted by SIGINT at
+the end of a step. A closed stdout (``plantgrowth ... | head``) silences the progress only.
 """
 
 from __future__ import annotations
@@ -10,7 +11,11 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
+import signal
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from mpi4py import MPI
@@ -24,6 +29,11 @@ from plantgrowth.errors import (
 )
 
 log = logging.getLogger("plantgrowth")
+
+OVERWRITE_HELP = (
+    "replace an earlier run in the output directory (only the files plantgrowth wrote are "
+    "removed); without it such a directory is refused"
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -87,16 +97,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument(
         "--resume", type=Path, default=None, metavar="DIR",
-        help="continue the interrupted run in DIR from its last completed step",
+        help="continue the run in DIR from its last completed step (a finished run is extended "
+        "if the scene's only change is a larger time.t_max)",
     )  # fmt: skip
+    run.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     run.set_defaults(handler=_run_command)
 
     compare = sub.add_parser(
         "compare",
         help="compare the micro and macro models for several Nx",
         description="Runs, for each Nx, the macro model on the region the micro tissue covers "
-        "and the micro model; writes DIR/compare.csv (nx, delta, err_u1, err_u2 at the first "
-        "step, mean growth rates at t = 0 and t_max, run times) and DIR/nx<N>/{macro,micro}.",
+        "and the micro model; writes DIR/compare.csv (nx, delta, the relative errors err_u1, "
+        "err_u2, err_G at the first step, mean growth rates at t = 0 and t_max, run times) and "
+        "DIR/nx<N>/{macro,micro}.",
     )
     compare.add_argument("scene", type=Path, help="scene TOML file")
     compare.add_argument("--nx", type=int, nargs="+", required=True, help="even cell counts")
@@ -116,11 +129,17 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument(
         "--first-step-only",
         action="store_true",
-        help="stop both models after the first step (errors only)",
+        help="stop both models after the first step (errors only; no t_max columns)",
     )
+    compare.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     compare.set_defaults(handler=_compare_command)
 
-    validate = sub.add_parser("validate", help="check a scene without running it")
+    validate = sub.add_parser(
+        "validate",
+        help="check a scene without running it",
+        description="Load and check a scene file (keys, types, ranges, geometry, loads) and "
+        "print a one-line summary; warnings about implausible parameters go to stderr.",
+    )
     validate.add_argument("scene", type=Path, help="scene TOML file")
     validate.set_defaults(handler=_validate_command)
     return parser
@@ -156,6 +175,7 @@ def _validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.scene import load_scene
 
     scene = load_scene(args.scene)
+    _warn_about(scene)
     if comm.rank == 0:
         print(
             f"{args.scene}: valid {scene.model} scene, growth law {scene.growth.law}, "
@@ -177,32 +197,53 @@ def _compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         if args.resolution is not None:
             wall_mesh_size(layout, args.resolution, "--resolution")
     outdir = args.output or Path("results") / f"compare_{args.scene.stem}"
-    _start_run(outdir, scene, comm)
-    try:
-        run_compare(scene, args.nx, outdir, comm, args.resolution, args.first_step_only)
-    except RunError as err:
-        return _run_failed(err, comm)
-    log.info("done: %s", outdir / "compare.csv")
+    with _run_directory(outdir, scene, comm, overwrite=args.overwrite):
+        log.info("plantgrowth compare %s -> %s on %d rank(s)", args.scene, outdir, comm.size)
+        _warn_about(scene)
+        try:
+            run_compare(scene, args.nx, outdir, comm, args.resolution, args.first_step_only)
+        except RunError as err:
+            return _run_failed(err, comm)
+        log.info("done: %s", outdir / "compare.csv")
     return 0
 
 
-def _start_run(outdir: Path, scene, comm: MPI.Comm, resume: bool = False) -> None:
-    """Prepare the output directory, write the resolved scene, log into run.log (until
-    ``main`` returns)."""
-    from plantgrowth.output import prepare_directory
+@contextmanager
+def _run_directory(
+    outdir: Path, scene, comm: MPI.Comm, resume: bool = False, overwrite: bool = False
+) -> Iterator[None]:
+    """Hold the output directory for the run (see :mod:`plantgrowth.rundir`), write the resolved
+    scene and log into run.log (appended to on resume) until the block ends."""
+    from plantgrowth.output import atomic_write_text
+    from plantgrowth.rundir import claim
 
+    lock = claim(outdir, comm, resume=resume, overwrite=overwrite)
+    handler = None
     try:
-        prepare_directory(outdir, comm, keep=resume)
-    except OSError as err:
-        raise InputError(str(err)) from None
-    if comm.rank == 0 and not resume:
-        (outdir / "scene.toml").write_text(scene.to_toml())
-        handler = logging.FileHandler(outdir / "run.log")
-        handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
-        log.addHandler(handler)
+        if comm.rank == 0:
+            atomic_write_text(outdir / "scene.toml", scene.to_toml())
+            handler = logging.FileHandler(outdir / "run.log")  # appends
+            handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
+            log.addHandler(handler)
+        yield
+    finally:
+        if handler is not None:
+            log.removeHandler(handler)
+            handler.close()
+        if lock is not None:
+            lock.release()
+
+
+def _warn_about(scene) -> None:
+    """Log the scene's implausible parameters as warnings (stderr and run.log, rank 0)."""
+    from plantgrowth.plausibility import scene_warnings
+
+    for text in scene_warnings(scene):
+        log.warning("warning: %s", text)
 
 
 def _run_failed(err: RunError, comm: MPI.Comm) -> int:
+    """Report a failed run once: on stderr, and in run.log."""
     log.error("run failed: %s", err)
     if comm.rank == 0:
         print(f"plantgrowth: run failed: {err}", file=sys.stderr)
@@ -213,51 +254,81 @@ def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.coupled import run_macro
     from plantgrowth.micro import run_micro
     from plantgrowth.output import prepare_directory
+    from plantgrowth.rundir import check_resumable
     from plantgrowth.scene import load_scene
     from plantgrowth.timeloop import Interrupted
 
     scene = load_scene(args.scene)
     resume = args.resume is not None
+    extends = False
     if resume:
         if args.output is not None and args.output != args.resume:
             raise InputError("give either -o DIR or --resume DIR, not two different directories")
+        if args.overwrite:
+            raise InputError("give either --overwrite or --resume, not both")
         outdir = args.resume
-        _check_resumable(outdir, scene)
+        extends = check_resumable(outdir, scene)
     else:
         outdir = args.output if args.output is not None else Path("results") / args.scene.stem
-    _start_run(outdir, scene, comm, resume)
-    log.info("plantgrowth run %s -> %s on %d rank(s)", args.scene, outdir, comm.size)
-    runs = {"macro": [(run_macro, outdir)], "micro": [(run_micro, outdir)],
-            "both": [(run_macro, outdir / "macro"), (run_micro, outdir / "micro")]}  # fmt: skip
-    try:
-        for run, directory in runs[scene.model]:
-            if directory != outdir:
-                prepare_directory(directory, comm, keep=resume)
-            run(scene, directory, comm, resume=resume)
-    except RunError as err:
-        return _run_failed(err, comm)
-    except Interrupted as stop:
-        if comm.rank == 0:
-            print(f"plantgrowth: {stop}; continue with: plantgrowth run {args.scene} "
-                  f"--resume {outdir}", file=sys.stderr)  # fmt: skip
-        return 130
-    log.info("done: %s", outdir)
+    with _run_directory(outdir, scene, comm, resume, args.overwrite):
+        log.info("plantgrowth run %s -> %s on %d rank(s)", args.scene, outdir, comm.size)
+        if extends:
+            log.info("extending the run to time.t_max = %g", scene.time.t_max)
+        _warn_about(scene)
+        runs = {"macro": [(run_macro, outdir)], "micro": [(run_micro, outdir)],
+                "both": [(run_macro, outdir / "macro"), (run_micro, outdir / "micro")]}  # fmt: skip
+        try:
+            for run, directory in runs[scene.model]:
+                if directory != outdir:
+                    prepare_directory(directory, comm, keep=resume)
+                run(scene, directory, comm, resume=resume)
+        except RunError as err:
+            return _run_failed(err, comm)
+        except Interrupted as stop:
+            log.info("%s", stop)
+            if comm.rank == 0:
+                print(f"plantgrowth: {stop}; continue with: plantgrowth run {args.scene} "
+                      f"--resume {outdir}", file=sys.stderr)  # fmt: skip
+            return 130
+        log.info("done: %s", outdir)
     return 0
 
 
-def _check_resumable(outdir: Path, scene) -> None:
-    """A run can be resumed only with the scene it was started with."""
-    from plantgrowth.scene import load_scene
+class _Below(logging.Filter):
+    """Passes records below a level."""
 
-    saved = outdir / "scene.toml"
-    if not saved.is_file():
-        raise InputError(f"--resume {outdir}: no scene.toml there, so no run to resume")
-    if load_scene(saved) != scene:
-        raise InputError(f"--resume {outdir}: the scene differs from the one the run started with")
+    def __init__(self, level: int) -> None:
+        super().__init__()
+        self.level = level
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.levelno < self.level
+
+
+class _Console(logging.StreamHandler):
+    """A console handler that goes quiet when its reader is gone (``plantgrowth ... | head``)."""
+
+    def handleError(self, record: logging.LogRecord) -> None:  # noqa: N802 (logging's name)
+        if isinstance(sys.exc_info()[1], BrokenPipeError):
+            _discard_stdout()
+        else:
+            super().handleError(record)
+
+
+def _discard_stdout() -> None:
+    """Send the rest of stdout to /dev/null: its reader has closed the pipe."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # not a real file (e.g. captured by pytest)
+        pass
 
 
 def _configure_logging(comm: MPI.Comm) -> None:
-    """Progress of ``plantgrowth`` on rank 0 to stdout; other libraries' warnings only.
+    """Progress of ``plantgrowth`` on rank 0 to stdout, its warnings to stderr (as
+    ``plantgrowth: warning: ...``); errors are printed by ``main`` and the handlers, once; other
+    libraries' warnings only.
 
     The root handler drops INFO records: the JIT's build tool raises the root level to INFO
     when it compiles a form, which would otherwise flood the output.
@@ -268,28 +339,53 @@ def _configure_logging(comm: MPI.Comm) -> None:
     for handler in list(log.handlers):
         log.removeHandler(handler)
         handler.close()
-    console = logging.StreamHandler(sys.stdout)  # the stdout of this call
+    console = _Console(sys.stdout)  # the stdout of this call
     console.setFormatter(logging.Formatter("%(message)s"))
+    console.addFilter(_Below(logging.WARNING))
+    warnings = _Console(sys.stderr)
+    warnings.setFormatter(logging.Formatter("plantgrowth: %(message)s"))
+    warnings.setLevel(logging.WARNING)
+    warnings.addFilter(_Below(logging.ERROR))
     log.addHandler(console)
+    log.addHandler(warnings)
     log.propagate = False
-    log.setLevel(logging.INFO if comm.rank == 0 else logging.WARNING)
+    log.setLevel(logging.INFO if comm.rank == 0 else logging.ERROR)
+
+
+def _quiet_broken_pipe() -> None:
+    """Let a closed stdout raise BrokenPipeError (handled) instead of PETSc's SIGPIPE handler
+    aborting MPI (exit 59): initialise PETSc, then restore Python's ignored SIGPIPE."""
+    from petsc4py import PETSc  # noqa: F401  (PetscInitialize installs the signal handlers)
+
+    try:
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+    except ValueError:  # not the main thread (main() called from a thread): leave it
+        pass
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``plantgrowth`` command."""
     comm = MPI.COMM_WORLD
     _configure_logging(comm)
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser()
     try:
-        args = build_parser().parse_args(argv)
-        return args.handler(args, comm)
+        if not argv:
+            if comm.rank == 0:
+                parser.print_help()
+            raise InputError("no command given: choose one of cell, run, compare, validate")
+        args = parser.parse_args(argv)
+        _quiet_broken_pipe()
+        code = args.handler(args, comm)
+        sys.stdout.flush()
+        return code
     except USER_ERRORS as err:
         if comm.rank == 0:
             print(f"plantgrowth: error: {err}", file=sys.stderr)
         return 2
-    finally:
-        for handler in [h for h in log.handlers if isinstance(h, logging.FileHandler)]:
-            log.removeHandler(handler)
-            handler.close()
+    except BrokenPipeError:  # the reader of stdout is gone: nothing left to tell it
+        _discard_stdout()
+        return 0
 
 
 if __name__ == "__main__":

@@ -152,8 +152,9 @@ class CellSnapshot:
 def compare_one(
     scene: Scene, nx: int, outdir: Path, comm: MPI.Comm, resolution: int | None,
     n_steps: int | None,
-) -> dict[str, float]:  # fmt: skip
-    """Macro on the outline of the Nx tissue, then micro; errors at the first step."""
+) -> dict[str, float | None]:  # fmt: skip
+    """Macro on the outline of the Nx tissue, then micro; errors at the first step (the t_max
+    rates are None when only the first step runs)."""
     layout = TissueLayout(scene_cell(scene), nx)
     snapshot: dict[str, P1Snapshot] = {}
     errors: dict[str, tuple[float, float]] = {}
@@ -177,25 +178,29 @@ def compare_one(
     start = time.perf_counter()
     prepare_directory(outdir / "macro", comm)
     macro = MacroModel(*macro_domain(scene, comm, nx), comm)
-    macro_rows = run_model(macro, scene, outdir / "macro", comm, n_steps, keep_macro)
+    macro_rows = run_model(
+        macro, scene, outdir / "macro", comm, n_steps, keep_macro, label=f"Nx = {nx}, macro"
+    )
     seconds_macro = time.perf_counter() - start
     start = time.perf_counter()
     prepare_directory(outdir / "micro", comm)
     micro = MicroModel(scene, comm, nx, resolution)
-    micro_rows = run_model(micro, scene, outdir / "micro", comm, n_steps, measure_micro)
+    micro_rows = run_model(
+        micro, scene, outdir / "micro", comm, n_steps, measure_micro, label=f"Nx = {nx}, micro"
+    )
     seconds_micro = time.perf_counter() - start
     u = errors["u"]
     log.info(
-        "Nx = %d: err_u1 = %.4g (pinned gauge %.4g), err_u2 = %.4g, err_ubar = %.4g, "
-        "err_G = %.4g",
+        "Nx = %d, relative errors: err_u1 = %.4g (pinned gauge %.4g), err_u2 = %.4g, "
+        "err_ubar = %.4g, err_G = %.4g",
         nx, u["err_u1"], u["err_u1_pinned"], u["err_u2"], u["err_ubar"], errors["G"],
     )  # fmt: skip
     return {
         "nx": nx, "delta": 1.0 / nx, **u, "err_G": errors["G"],
         "rate_macro_t0": macro_rows[0]["growth_rate_area"],
         "rate_micro_t0": micro_rows[0]["growth_rate_area"],
-        "rate_macro_tmax": macro_rows[-1]["growth_rate_area"],
-        "rate_micro_tmax": micro_rows[-1]["growth_rate_area"],
+        "rate_macro_tmax": None if n_steps == 0 else macro_rows[-1]["growth_rate_area"],
+        "rate_micro_tmax": None if n_steps == 0 else micro_rows[-1]["growth_rate_area"],
         "seconds_macro": seconds_macro, "seconds_micro": seconds_micro,
         "dofs_macro": macro.problem.ndofs, "dofs_micro": micro.ndofs,
     }  # fmt: skip
@@ -209,7 +214,7 @@ def fitted_rate(nx: list[int], errors: list[float]) -> float:
 def run_compare(
     scene: Scene, nxs: list[int], outdir: Path, comm: MPI.Comm,
     resolution: int | None = None, first_step_only: bool = False,
-) -> list[dict[str, float]]:  # fmt: skip
+) -> list[dict[str, float | None]]:  # fmt: skip
     """Compare macro and micro for each Nx; writes ``outdir/compare.csv`` and per-Nx runs."""
     n_steps = 0 if first_step_only else None
     rows = []
@@ -219,7 +224,8 @@ def run_compare(
             with open(outdir / "compare.csv", "w", newline="") as f:
                 writer = csv.writer(f)
                 writer.writerow(COLUMNS)
-                writer.writerows([[f"{r[c]:.10g}" for c in COLUMNS] for r in rows])
+                writer.writerows([["" if r[c] is None else f"{r[c]:.10g}" for c in COLUMNS]
+                                  for r in rows])  # fmt: skip
     if len(rows) > 1:
         for key in ("err_u1", "err_u2", "err_ubar", "err_G"):
             rate = fitted_rate([r["nx"] for r in rows], [r[key] for r in rows])

@@ -17,7 +17,7 @@ from dolfinx.mesh import Mesh
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
-from plantgrowth import diagnostics, growth
+from plantgrowth import diagnostics, growth, plausibility
 from plantgrowth.coarse import CoarseGrid, project_to_nodes
 from plantgrowth.errors import RunError
 from plantgrowth.gather import MeshGather
@@ -185,9 +185,12 @@ class MacroModel:
         for function, (i, j) in zip(self.out.E, VOIGT_POSITIONS, strict=True):
             problem.set_cell_values(function, C[:, i, j])
         t3 = time.perf_counter()
+        n, M = problem.n_owned, self.scene.growth.clamp
         return StepResult(
             G, report.reason, report.residual, self.homogenizer.solves_last_call,
             {"seconds_cells": t1 - t0, "seconds_solve": t2 - t1, "seconds_growth": t3 - t2},
+            plausibility.largest_strain(eps_el[:n], self.comm),
+            plausibility.clamped_fraction(G[:n], M, problem.areas, self.comm),
         )  # fmt: skip
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:

@@ -16,12 +16,14 @@ RESIDUAL_BOUND = 1e-8
 """Largest accepted relative residual of a direct (LU) solve; round-off is ~1e-14."""
 
 EULER_HINT = "likely cause: a time step too large for explicit Euler (use integrator = 'exp')"
+ON_THIS_RANK = " on this rank"
+"""Where a count is local; :func:`stop_if` names the rank under MPI and drops it in serial."""
 
 
 def _where(mask: np.ndarray, points: np.ndarray, what: str) -> str:
     first = np.flatnonzero(mask)[0]
     x = points[first]
-    return f"{what} at x = ({x[0]:.4g}, {x[1]:.4g}) ({int(mask.sum())} place(s) on this rank)"
+    return f"{what} at x = ({x[0]:.4g}, {x[1]:.4g}) ({int(mask.sum())} place(s){ON_THIS_RANK})"
 
 
 def nonfinite_problems(name: str, values: np.ndarray, points: np.ndarray, cause: str) -> list[str]:
@@ -86,9 +88,20 @@ def solve_problems(reason: int, residual: float) -> list[str]:
     ]
 
 
+def _on_ranks(ranks: list[int], size: int) -> str:
+    """Which ranks found a problem: nothing in serial, or when all did (replicated data)."""
+    if size == 1 or len(ranks) == size:
+        return ""
+    return f" on rank{'s' if len(ranks) > 1 else ''} {', '.join(map(str, ranks))}"
+
+
 def stop_if(problems: list[str], comm: MPI.Comm) -> None:
     """Collective: raise one RunError if any rank found a problem."""
-    everything = sorted({p for part in comm.allgather(problems) for p in part})
+    ranks: dict[str, list[int]] = {}
+    for rank, part in enumerate(comm.allgather(problems)):
+        for problem in part:
+            ranks.setdefault(problem, []).append(rank)
+    everything = sorted(p.replace(ON_THIS_RANK, _on_ranks(r, comm.size)) for p, r in ranks.items())
     if everything:
         raise RunError("; ".join(everything))
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import time
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from plantgrowth import diagnostics, growth
+from plantgrowth import diagnostics, growth, plausibility
 from plantgrowth.errors import RunError
 from plantgrowth.forms import micro as micro_forms
 from plantgrowth.forms.elasticity import wall_bilinear_form
@@ -203,7 +204,26 @@ class MicroModel:
         return StepResult(
             G, report.reason, report.residual, 0,
             {"seconds_cells": 0.0, "seconds_solve": t1 - t0, "seconds_growth": t2 - t1},
+            plausibility.largest_strain(self._cell_mean_strains(), MPI.COMM_SELF),
+            plausibility.clamped_fraction(
+                G, self.scene.growth.clamp, self.hexagon_area, MPI.COMM_SELF
+            ),  # per-cell values are the same on every rank
         )  # fmt: skip
+
+    @cached_property
+    def _wall_strain_form(self) -> fem.Form:
+        """Per mesh cell ``int eps_el dx`` (compiled on first use)."""
+        tau = ufl.TestFunction(self.Fg.function_space)
+        dx = ufl.dx(domain=self.mesh)
+        return fem.form(micro_forms.elastic_strain_average_form(self.u, tau, self.Fg, dx))
+
+    def _cell_mean_strains(self) -> np.ndarray:
+        """(n_cells, 2, 2) elastic strain averaged over each cell's own walls: the strain the
+        strain law uses (pointwise values are singular at the walls' re-entrant corners)."""
+        integrals = fem.petsc.assemble_vector(self._wall_strain_form)
+        T0 = self.Fg.function_space
+        sums = self._per_cell(integrals.array.reshape(-1, 4), T0)
+        return (sums / self.wall_area[:, None]).reshape(-1, 2, 2)
 
     def check_growth(self, Fg: np.ndarray) -> None:
         diagnostics.stop_if(diagnostics.growth_problems(Fg, self.layout.centres), self.comm)

@@ -10,14 +10,15 @@ Layout of an output directory::
 A step's HDF5 file is written under a temporary name and renamed when complete, and the XDMF
 file likewise, so a run killed at any moment (even SIGKILL) leaves every completed step
 readable; files of completed steps are never opened for writing again. Data are gathered to
-rank 0, which alone writes (Debian's h5py is serial).
+rank 0, which alone writes (Debian's h5py is serial). Only these names are ever removed
+(:func:`run_files`): a user's own files in the directory are left alone.
 """
 
 from __future__ import annotations
 
 import csv
 import os
-import shutil
+import re
 from pathlib import Path
 
 import h5py
@@ -29,10 +30,30 @@ from plantgrowth.gather import MeshGather
 
 OUTPUT_FILES = ("fields.xdmf", "fields.h5", "summary.csv", "scene.toml", "run.log")
 STEP_DIR = "fields"
+_TEMPORARY = tuple(f".{name}.tmp" for name in OUTPUT_FILES)  # a kill during an atomic write
+_STEP_FILE = re.compile(r"\.?step_\d{6,}\.h5(\.tmp)?")  # a step file or its temporary name
+
+
+def run_files(directory: Path) -> list[Path]:
+    """The files of one run's layout that exist in ``directory`` (nothing else is listed)."""
+    found = [directory / n for n in OUTPUT_FILES + _TEMPORARY if (directory / n).is_file()]
+    steps = directory / STEP_DIR
+    if steps.is_dir():
+        found += sorted(p for p in steps.iterdir() if _STEP_FILE.fullmatch(p.name))
+    return found
+
+
+def remove_run_files(directory: Path) -> None:
+    """Remove :func:`run_files`, then the step directory if that leaves it empty."""
+    for path in run_files(directory):
+        path.unlink(missing_ok=True)
+    if (directory / STEP_DIR).is_dir() and not any((directory / STEP_DIR).iterdir()):
+        (directory / STEP_DIR).rmdir()
 
 
 def prepare_directory(directory: Path, comm: MPI.Comm, keep: bool = False) -> None:
-    """Create the output directory; unless ``keep``, remove the outputs of an earlier run.
+    """Create the output directory; unless ``keep``, remove the files of an earlier run there
+    (:func:`run_files` only).
 
     Raises OSError (on every rank) if the directory cannot be created or written.
     """
@@ -41,9 +62,7 @@ def prepare_directory(directory: Path, comm: MPI.Comm, keep: bool = False) -> No
         try:
             directory.mkdir(parents=True, exist_ok=True)
             if not keep:
-                for name in OUTPUT_FILES:
-                    (directory / name).unlink(missing_ok=True)
-                shutil.rmtree(directory / STEP_DIR, ignore_errors=True)
+                remove_run_files(directory)
             probe = directory / ".write-test"
             probe.write_text("")
             probe.unlink()
@@ -54,7 +73,7 @@ def prepare_directory(directory: Path, comm: MPI.Comm, keep: bool = False) -> No
         raise OSError(error)
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
+def atomic_write_text(path: Path, text: str) -> None:
     tmp = path.with_name(f".{path.name}.tmp")
     with open(tmp, "w") as f:
         f.write(text)
@@ -160,7 +179,7 @@ class FieldSeries:
                 f[f"state/{key}"] = v
         os.replace(tmp, path)
         self.steps = [(s, tt) for s, tt in self.steps if s < step] + [(step, t)]
-        _atomic_write_text(self.outdir / "fields.xdmf", self._xml())
+        atomic_write_text(self.outdir / "fields.xdmf", self._xml())
 
     def _xml(self) -> str:
         """XDMF 3: the mesh grid, then a temporal collection with one grid per step."""
@@ -233,7 +252,7 @@ class SummaryWriter:
                 + "\n"
                 + "".join(",".join(r[c] for c in columns) + "\n" for r in kept)
             )
-            _atomic_write_text(path, text)
+            atomic_write_text(path, text)
 
     def write(self, row: dict[str, float]) -> None:
         if self.comm.rank != 0:

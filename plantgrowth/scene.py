@@ -75,6 +75,7 @@ from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.meshes.tissue import MAX_NX as TISSUE_MAX_NX
 from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
+from plantgrowth.plausibility import unbalanced_load
 
 BIG = 1e12
 """Largest magnitude accepted for a non-dimensional parameter without a natural bound."""
@@ -316,7 +317,10 @@ class Time:
         _range("time.tolerance", self.tolerance, 0.0, 0.1, hi_open=False)
         n = t_max / dt
         if n < 1.0 - 1e-9:
-            raise SceneError(f"time.t_max = {t_max!r} is smaller than time.dt = {dt!r}")
+            raise SceneError(
+                f"time.t_max = {t_max!r} is smaller than time.dt = {dt!r}: set time.t_max to a "
+                "multiple of time.dt"
+            )
         if n > MAX_STEPS:
             raise SceneError(
                 f"time.t_max / time.dt = {n:.3g} steps: too many (limit {MAX_STEPS:g})"
@@ -324,7 +328,9 @@ class Time:
         if abs(n - round(n)) > 1e-9 * n:
             raise SceneError(
                 f"time.t_max = {t_max!r} is not a whole number of time steps: "
-                f"time.t_max / time.dt = {n!r} must be an integer"
+                f"time.t_max / time.dt = {n!r} must be an integer; use time.t_max = "
+                f"{math.floor(n) * dt:.12g} or {math.ceil(n) * dt:.12g}, or a time.dt that "
+                "divides it"
             )
         _set(self, t_max=t_max, dt=dt)
 
@@ -409,6 +415,8 @@ class Scene:
             raise SceneError(str(e)) from None
         if self.model != "macro":
             self.check_micro()
+        if unbalanced := unbalanced_load(self.loads, self.tissue.width, self.tissue.height):
+            raise SceneError(unbalanced)
 
     def check_micro(self) -> None:
         """The micro model needs a constant cell geometry (a gradient of w, l1, l2 or theta has no
@@ -537,7 +545,9 @@ def _check_edge(edge: str) -> None:
 def _check_keys(table: dict, path: str, valid: tuple[str, ...]) -> None:
     for key in table:
         if key not in valid:
-            close = difflib.get_close_matches(key, valid, n=1)
+            elsewhere = [f"{t}.{key}" for t, keys in _TABLES.items() if key in keys]  # wrong table
+            close = elsewhere if path.count(".") <= 1 else []
+            close = close or difflib.get_close_matches(key, valid, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else ""
             raise SceneError(f"unknown key '{path}{key}' (valid keys: {', '.join(valid)}){hint}")
 

@@ -23,6 +23,7 @@ from mpi4py import MPI
 from plantgrowth import growth
 from plantgrowth.errors import RunError
 from plantgrowth.output import FieldSeries, SummaryWriter, last_summary_step, read_state
+from plantgrowth.plausibility import StepWarnings
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -43,6 +44,8 @@ class StepResult:
     residual: float  # true relative residual of the linear solve
     n_cell_solves: int = 0
     seconds: dict[str, float] = field(default_factory=dict)  # seconds_cells, _solve, _growth
+    max_elastic_strain: float | None = None  # largest principal |eps_el| over the tissue
+    clamped_fraction: float | None = None  # area fraction where some |G_ij| reaches the clamp M
 
 
 class GrowthModel(Protocol):
@@ -154,14 +157,18 @@ def run_model(
     n_steps: int | None = None,
     on_step: Callable[[int, GrowthModel], None] | None = None,
     resume: bool = False,
+    label: str = "",
 ) -> list[dict]:
     """Run the growth loop of a scene; write fields.xdmf and summary.csv into ``outdir``.
 
-    Under growth law ``none`` there is no growth: a single static solve at t = 0.
+    Under growth law ``none`` there is no growth: a single static solve at t = 0. Implausible
+    states (large elastic strain, an active clamp) are logged as warnings, once per kind.
     Args:
         n_steps: stop after this many steps (default: the scene's t_max / dt).
         on_step: called after each step's solve as ``on_step(step, model)``.
-        resume: continue from the last completed step saved in ``outdir``.
+        resume: continue from the last completed step saved in ``outdir`` (a finished run is
+            extended if ``n_steps`` is larger).
+        label: what runs, for the progress lines (e.g. "Nx = 8, macro").
     Raises:
         RunError: a step failed (message names step, time, place, cause).
         Interrupted: SIGINT arrived; the loop stopped after the step it was in.
@@ -182,12 +189,17 @@ def run_model(
     substeps = [0, 0]  # sub-steps and extra cell solves of the advance that led to this step
     if last is None:
         Fg, first = model.initial_growth(), 0
+    elif last >= n_steps:
+        log.info("the run has already reached step %d (t = %g): nothing to do", last, last * dt)
+        return []
     else:
         Fg, G = model.restore(read_state(outdir, last))
         Fg, substeps[0], substeps[1] = _advance(model, Fg, G, scene, comm)
         first = last + 1
         log.info("resuming after step %d (t = %g)", last, last * dt)
     rows = []
+    warnings = StepWarnings()
+    prefix = f"{label}: " if label else ""
     start = time.perf_counter()
     with interrupt_at_step_end() as interrupt:
         for step in range(first, n_steps + 1):
@@ -212,9 +224,11 @@ def run_model(
             rows.append(row)
             left = (time.perf_counter() - start) / (step + 1 - first) * (n_steps - step)
             log.info(
-                "step %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d  (%.1f s left)",
-                step, n_steps, t, row["growth_rate_area"], row["n_cell_solves"], left,
+                "%sstep %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d  (%.1f s left)",
+                prefix, step, n_steps, t, row["growth_rate_area"], row["n_cell_solves"], left,
             )  # fmt: skip
+            for text in warnings.check(step, t, result):
+                log.warning("warning: %s%s", prefix, text)
             if step < n_steps:
                 if comm.allreduce(interrupt["set"], op=MPI.LOR):
                     raise Interrupted(step, t)

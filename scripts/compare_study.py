@@ -135,7 +135,7 @@ def write_scene(case: Case, scenes: Path, path: Path) -> Path:
 
 def command_line(command: str, case: Case, scene: Path, out: Path) -> list[str]:
     cmd = [command, "compare", str(scene), "--nx", *map(str, case.nx), "-o", str(out)]
-    return cmd + (["--first-step-only"] if case.first_step_only else [])
+    return cmd + ["--overwrite"] + (["--first-step-only"] if case.first_step_only else [])
 
 
 def is_complete(case: Case, scene: Path, out: Path) -> bool:

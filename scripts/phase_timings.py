@@ -31,7 +31,8 @@ def main(argv: list[str] | None = None) -> int:
         outdir = Path("results/phase_timings") / scene.stem
         start = time.perf_counter()
         plantgrowth = Path(sys.executable).with_name("plantgrowth")
-        subprocess.run([plantgrowth, "run", scene, "-o", outdir], check=True, capture_output=True)
+        command = [plantgrowth, "run", scene, "-o", outdir, "--overwrite"]
+        subprocess.run(command, check=True, capture_output=True)
         wall = time.perf_counter() - start
         with open(outdir / "summary.csv", newline="") as f:
             rows = list(csv.DictReader(f))

@@ -52,7 +52,8 @@ def read_csv(path: Path) -> dict[str, np.ndarray]:
     """A numeric CSV as ``{column: array}``."""
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
-    return {key: np.array([float(row[key]) for row in rows]) for key in rows[0]}
+    # "nan" for the empty t_max columns of --first-step-only
+    return {key: np.array([float(row[key] or "nan") for row in rows]) for key in rows[0]}
 
 
 def cases_of(index: dict, kind: str) -> list[dict]:

@@ -57,7 +57,9 @@ def run_one(command: str, scene: Path, out: Path) -> tuple[str, int, float]:
     start = time.perf_counter()
     with open(out / "stdout.txt", "w") as log:
         rc = subprocess.call(
-            [command, "run", str(scene), "-o", str(out)], stdout=log, stderr=subprocess.STDOUT
+            [command, "run", str(scene), "-o", str(out), "--overwrite"],
+            stdout=log,
+            stderr=subprocess.STDOUT,
         )
     seconds = time.perf_counter() - start
     print(f"{scene.stem:24s} {'ok' if rc == 0 else f'FAILED ({rc})':10s} {seconds:7.1f} s")

@@ -19,7 +19,6 @@ import csv
 import os
 import signal
 import subprocess
-import sys
 import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -28,16 +27,13 @@ import h5py
 import meshio
 import numpy as np
 import pytest
+from cli_helpers import finish, processes_mentioning, start
 from mpi4py import MPI
 
 from plantgrowth import macro_problem
 from plantgrowth.cli import main
 from plantgrowth.linear import SolveReport
 
-PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1",
-           OMPI_MCA_btl_vader_single_copy_mechanism="none")  # fmt: skip
 N_STEPS = 40
 SCENE = """\
 model = "macro"
@@ -58,39 +54,9 @@ cell_resolution = 1
 STEP_DATASETS = ("u", "Fg", "G", "sigma_hom", "state/Fg", "state/G", "state/midpoints")
 NOT_COMPARED = ("n_cell_solves", "residual")  # the cache restarts empty; round-off
 RTOL = 1e-10
-RUN_TIMEOUT = 180.0  # s, a run takes ~5 s serial and ~8 s on 2 ranks
 
 
 # --- helpers ------------------------------------------------------------------------------------
-
-
-def start(argv: list[str], cwd: Path, ranks: int = 1) -> subprocess.Popen:
-    """``plantgrowth argv`` (under ``mpirun -n ranks`` if ranks > 1) in its own session; output
-    to cwd/stdout.txt and cwd/stderr.txt (a pipe nobody reads could block the run)."""
-    command = [PLANTGROWTH, *argv]
-    if ranks > 1:
-        command = ["mpirun", "-n", str(ranks), *command]
-    out = open(cwd / "stdout.txt", "w")  # closed by finish()
-    err = open(cwd / "stderr.txt", "w")
-    proc = subprocess.Popen(
-        command, cwd=cwd, stdout=out, stderr=err, env=ENV, start_new_session=True
-    )
-    proc.files = (out, err)  # type: ignore[attr-defined]
-    return proc
-
-
-def finish(proc: subprocess.Popen, cwd: Path, timeout: float = RUN_TIMEOUT) -> tuple[int, str]:
-    """Wait for the process; its exit code and stderr (kill the session if it hangs)."""
-    try:
-        proc.wait(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-        pytest.fail(f"still running after {timeout:g} s")
-    finally:
-        for f in proc.files:  # type: ignore[attr-defined]
-            f.close()
-    return proc.returncode, (cwd / "stderr.txt").read_text()
 
 
 def run(argv: list[str], cwd: Path, ranks: int = 1) -> tuple[int, str]:
@@ -118,22 +84,6 @@ def wait_for_rows(proc: subprocess.Popen, outdir: Path, n: int, timeout: float =
             pass
         time.sleep(0.005)
     pytest.fail(f"no {n} summary rows after {timeout:g} s")
-
-
-def processes_mentioning(text: str) -> list[int]:
-    """Live processes whose command line contains ``text`` (zombies are dead)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
-            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
-        except OSError:
-            continue
-        if text in cmdline and state != "Z":
-            found.append(int(entry.name))
-    return found
 
 
 def kill_session(proc: subprocess.Popen, cwd: Path, marker: str) -> None:
@@ -349,7 +299,7 @@ def test_resume_needs_the_same_scene(tmp_path_factory, capsys, setup):
     if setup == "no_scene_toml":
         _write(outdir / "fields" / "step_000000.h5", "")
     elif setup == "other_scene":
-        _write(outdir / "scene.toml", SCENE.replace("t_max = 40.0", "t_max = 41.0"))
+        _write(outdir / "scene.toml", SCENE.replace("cell_resolution = 1", "cell_resolution = 2"))
     listing = sorted(p.name for p in directory.rglob("*"))
     capsys.readouterr()
     code = main(["run", str(scene), "--resume", str(outdir)])

@@ -396,7 +396,7 @@ def test_zero_pressure_computes_no_K(runs):
 def test_loads_add_a_traction_term():
     unloaded = macro_problem(_merged("stress"))
     assert not any("traction" in t for t in unloaded.active_terms)
-    loaded = _merged("stress") | {"loads": {"right": [0.001, 0.0]}}
+    loaded = _merged("stress") | {"loads": {"left": [-0.001, 0.0], "right": [0.001, 0.0]}}
     assert "traction on right" in macro_problem(loaded).active_terms
     zero_load = _merged("stress") | {"loads": {"top": [0.0, 0.0]}}  # zero loads are dropped
     assert not any("traction" in t for t in macro_problem(zero_load).active_terms)

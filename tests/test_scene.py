@@ -123,9 +123,11 @@ def test_linear_field_from_toml():
 
 
 def test_integers_accepted_and_loads_normalised():
-    scene = parse("[time]\nt_max = 6\ndt = 2\n[loads]\nright = [1, 0]\ntop = [0, 0]\n")
+    scene = parse(
+        "[time]\nt_max = 6\ndt = 2\n[loads]\nleft = [-1, 0]\nright = [1, 0]\ntop = [0, 0]\n"
+    )
     assert (scene.time.t_max, scene.time.n_steps) == (6.0, 3)
-    assert scene.loads == {"right": (1.0, 0.0)}  # the zero load on "top" is dropped
+    assert scene.loads == {"left": (-1.0, 0.0), "right": (1.0, 0.0)}  # the zero "top" is dropped
     assert isinstance(scene.loads["right"][0], float)
 
 
@@ -170,6 +172,7 @@ dt = 0.1
 integrator = "euler"
 [loads]
 left = [-0.001, 0]
+right = [0.001, 0]
 top = [0, 2e-3]
 [output]
 fields = ["eps_hom", "u"]

@@ -1,0 +1,94 @@
+"""Helpers for tests that drive the ``plantgrowth`` CLI (not a test module).
+
+In-process: ``main`` on every rank (valid under mpirun; rank 0 alone prints and writes the
+files that are not collective), in a directory created on rank 0 and shared. As processes: the
+environment Open MPI needs as root, and the live processes of a run.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from mpi4py import MPI
+
+from plantgrowth.cli import main
+
+PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+           OMPI_MCA_rmaps_base_oversubscribe="1",
+           OMPI_MCA_btl_vader_single_copy_mechanism="none")  # fmt: skip
+RANK0 = MPI.COMM_WORLD.rank == 0
+RUN_TIMEOUT = 180.0  # s; the test runs take seconds, mpirun ones a few more
+
+
+def shared_dir(factory, name: str) -> Path:
+    """A fresh temporary directory, made on rank 0, the same path on every rank."""
+    comm = MPI.COMM_WORLD
+    return comm.bcast(factory.mktemp(name) if comm.rank == 0 else None, root=0)
+
+
+def write(path: Path, text: str) -> None:
+    """Write on rank 0 (making the parents), then let every rank see it."""
+    if RANK0:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    MPI.COMM_WORLD.Barrier()
+
+
+def call(argv: list, capsys) -> tuple[int, str, str]:
+    """``main(argv)`` on every rank: (exit code, stdout, stderr) of this rank."""
+    capsys.readouterr()
+    code = main([str(a) for a in argv])
+    MPI.COMM_WORLD.Barrier()  # rank 0 writes the last rows and log lines after the collectives
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def processes_mentioning(text: str) -> list[int]:
+    """Live processes whose command line contains ``text`` (zombies are dead)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            continue
+        if text in cmdline and state != "Z":
+            found.append(int(entry.name))
+    return found
+
+
+def start(argv: list[str], cwd: Path, ranks: int = 1) -> subprocess.Popen:
+    """``plantgrowth argv`` (under ``mpirun -n ranks`` if ranks > 1) in its own session; output
+    to cwd/stdout.txt and cwd/stderr.txt (a pipe nobody reads could block the run)."""
+    command = [PLANTGROWTH, *argv]
+    if ranks > 1:
+        command = ["mpirun", "-n", str(ranks), *command]
+    out = open(cwd / "stdout.txt", "w")  # closed by finish()
+    err = open(cwd / "stderr.txt", "w")
+    proc = subprocess.Popen(
+        command, cwd=cwd, stdout=out, stderr=err, env=ENV, start_new_session=True
+    )
+    proc.files = (out, err)  # type: ignore[attr-defined]
+    return proc
+
+
+def finish(proc: subprocess.Popen, cwd: Path, timeout: float = RUN_TIMEOUT) -> tuple[int, str]:
+    """Wait for the process; its exit code and stderr (kill the session if it hangs)."""
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        pytest.fail(f"still running after {timeout:g} s")
+    finally:
+        for f in proc.files:  # type: ignore[attr-defined]
+            f.close()
+    return proc.returncode, (cwd / "stderr.txt").read_text()
