@@ -1,24 +1,37 @@
 """Open a run's fields.xdmf with ParaView's own XDMF3 reader and print what it sees.
 
-Run with ParaView's batch interpreter (Debian: apt-get install paraview python3-paraview):
-    pvbatch scripts/check_paraview.py results/reference_stress/fields.xdmf
+Run with ParaView's batch interpreter (Debian: apt-get install paraview python3-paraview xvfb
+xauth); without a display, under a virtual X server (pvbatch needs one to render):
+    xvfb-run -a pvbatch scripts/check_paraview.py results/reference_stress/fields.xdmf
 Prints one JSON line: the time values, point/cell counts and the array names at the last time.
+With ``--png FILE`` it also renders the last time (coloured by u) into FILE.
 """
 
+import argparse
 import json
-import sys
 
 from paraview import servermanager
-from paraview.simple import Xdmf3ReaderS
+from paraview.simple import ColorBy, GetActiveViewOrCreate, SaveScreenshot, Show, Xdmf3ReaderS
 
 
-def main(path: str) -> None:
-    reader = Xdmf3ReaderS(FileName=[path])
+def main() -> None:
+    parser = argparse.ArgumentParser(description="ParaView's view of a plantgrowth run")
+    parser.add_argument("xdmf", help="the run's fields.xdmf")
+    parser.add_argument("--png", default=None, help="also render the last time into this file")
+    args = parser.parse_args()
+    reader = Xdmf3ReaderS(FileName=[args.xdmf])
     reader.UpdatePipelineInformation()
-    times = list(reader.TimestepValues)
+    values = reader.TimestepValues  # a bare float when the series has one time
+    times = [values] if isinstance(values, float) else list(values)
     reader.UpdatePipeline(times[-1])
     data = servermanager.Fetch(reader)
     points, cells = data.GetPointData(), data.GetCellData()
+    if args.png:
+        view = GetActiveViewOrCreate("RenderView")
+        view.ViewTime = times[-1]
+        ColorBy(Show(reader, view), ("POINTS", "u", "Magnitude"))
+        view.ResetCamera()
+        SaveScreenshot(args.png, view, ImageResolution=[640, 360])
     print(
         json.dumps(
             {
@@ -34,4 +47,4 @@ def main(path: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main()

@@ -36,9 +36,11 @@ APT_PACKAGES=(
 )
 
 # Optional: PLANTGROWTH_WITH_PARAVIEW=1 also installs ParaView (pvbatch), whose own XDMF reader
-# tests/test_paraview_reader.py then uses on a run's output (large; not needed otherwise).
+# tests/test_paraview_reader.py then uses on a run's output (large; not needed otherwise), and
+# a virtual X server: pvbatch aborts without a display, so headless it runs as
+# `xvfb-run -a pvbatch ...` (xauth: xvfb-run needs it, and it is only a recommendation of xvfb).
 if [[ "${PLANTGROWTH_WITH_PARAVIEW:-0}" == "1" ]]; then
-    APT_PACKAGES+=(paraview python3-paraview)
+    APT_PACKAGES+=(paraview python3-paraview xvfb xauth)
 fi
 
 log() { echo "[install.sh] $*"; }

@@ -1,11 +1,15 @@
-"""ParaView's own XDMF3 reader opens a run's fields.xdmf (skipped where ParaView is absent).
+"""ParaView's own XDMF3 reader opens a run's fields.xdmf and renders it headless (skipped where
+ParaView is absent), and the optional install provides what that needs.
 
-ParaView is not part of the default install (it is large); `apt-get install paraview
-python3-paraview` provides `pvbatch`, which runs scripts/check_paraview.py.
+ParaView is not part of the default install (it is large); `PLANTGROWTH_WITH_PARAVIEW=1 bash
+scripts/install.sh` provides `pvbatch`, which runs scripts/check_paraview.py, and `xvfb-run`:
+pvbatch aborts without an X server when it renders ("bad X server connection").
 """
 
 import json
+import os
 import shutil
+import struct
 import subprocess
 from pathlib import Path
 
@@ -19,26 +23,53 @@ SCENE = """
 [tissue]
 h = 0.5
 [growth]
-law = "strain"
+law = "{law}"
 [time]
 t_max = 3
 [accuracy]
 cell_resolution = 1
 """
+HEADLESS = ["xvfb-run", "-a", "pvbatch"]
+
+
+def pvbatch() -> list[str]:
+    """pvbatch, under a virtual X server when there is no display."""
+    return ["pvbatch"] if os.environ.get("DISPLAY") else HEADLESS
+
+
+needs_paraview = pytest.mark.skipif(
+    shutil.which("pvbatch") is None, reason="ParaView (pvbatch) not installed"
+)
+
+
+def run(directory: Path, law: str) -> Path:
+    """A run of SCENE with the growth law; its output directory."""
+    scene, outdir = directory / "scene.toml", directory / "out"
+    scene.write_text(SCENE.format(law=law))
+    assert main(["run", str(scene), "-o", str(outdir)]) == 0
+    return outdir
+
+
+def check(outdir: Path, *extra: str) -> dict:
+    if pvbatch() == HEADLESS and shutil.which("xvfb-run") is None:
+        pytest.fail(
+            "no display and no xvfb-run: PLANTGROWTH_WITH_PARAVIEW=1 bash scripts/install.sh"
+        )
+    done = subprocess.run(
+        [*pvbatch(), str(REPO / "scripts" / "check_paraview.py"), str(outdir / "fields.xdmf"),
+         *extra],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 @pytest.mark.skip_in_parallel
-@pytest.mark.skipif(shutil.which("pvbatch") is None, reason="ParaView (pvbatch) not installed")
-def test_paraview_reads_every_step_and_field(tmp_path):
-    scene = tmp_path / "scene.toml"
-    scene.write_text(SCENE)
-    outdir = tmp_path / "out"
-    assert main(["run", str(scene), "-o", str(outdir)]) == 0
-    done = subprocess.run(
-        ["pvbatch", str(REPO / "scripts" / "check_paraview.py"), str(outdir / "fields.xdmf")],
-        capture_output=True, text=True, timeout=300, check=True,
-    )  # fmt: skip
-    seen = json.loads(done.stdout.strip().splitlines()[-1])
+@needs_paraview
+def test_paraview_reads_every_step_and_field_and_renders_headless(tmp_path):
+    outdir = run(tmp_path, "strain")
+    picture = tmp_path / "last.png"
+    seen = check(outdir, "--png", str(picture))
     assert seen["times"] == [0.0, 1.0, 2.0, 3.0]
     with h5py.File(outdir / "fields.h5") as f:
         n_points, n_cells = len(f["Mesh/geometry"]), len(f["Mesh/topology"])
@@ -48,3 +79,34 @@ def test_paraview_reads_every_step_and_field(tmp_path):
     with h5py.File(outdir / "fields" / "step_000003.h5") as f:
         u_max = abs(f["u"][:, 0]).max()
     assert seen["u_max_abs_x"] == pytest.approx(u_max, rel=1e-6)  # float32 in VTK arrays
+    header = picture.read_bytes()[:24]
+    assert header[:8] == b"\x89PNG\r\n\x1a\n"
+    assert struct.unpack(">II", header[16:24]) == (640, 360)  # IHDR width, height
+
+
+@pytest.mark.skip_in_parallel
+@needs_paraview
+def test_paraview_reads_a_single_time(tmp_path):
+    """A static run (law none) has one time, which ParaView reports as a bare float."""
+    assert check(run(tmp_path, "none"))["times"] == [0.0]
+
+
+def test_the_paraview_install_brings_a_virtual_x_server():
+    """`PLANTGROWTH_WITH_PARAVIEW=1` adds ParaView, xvfb (for `xvfb-run -a pvbatch`) and xauth
+    (which xvfb-run needs; only a recommendation of xvfb) to the Debian packages."""
+    script = REPO / "scripts" / "install.sh"
+    section = f"sed -n '/^APT_PACKAGES=(/,/^fi$/p' {script}"  # the list and its options
+    listing = f'eval "$({section})"; printf "%s\\n" "${{APT_PACKAGES[@]}}"'
+
+    def packages(flag: str) -> set[str]:
+        env = dict(os.environ, PLANTGROWTH_WITH_PARAVIEW=flag)
+        done = subprocess.run(["bash", "-c", listing], env=env, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        return set(done.stdout.split())
+
+    optional = {"paraview", "python3-paraview", "xvfb", "xauth"}
+    assert optional <= packages("1")
+    assert not optional & packages("0")
+    assert "python3-dolfinx" in packages("0")
+    readme = (REPO / "README.md").read_text()
+    assert "xvfb-run -a pvbatch scripts/check_paraview.py" in readme
