@@ -22,6 +22,11 @@ Markdown table). The exit code is 1 if a mutant survives or the baseline fails.
     python scripts/mutation_study.py --only cell_pressure_sign --only E_hom_doubled
     python scripts/mutation_study.py --workdir /scratch/mutants --skip-baseline --only ...
 
+An *equivalent* mutant (one that changes no result) is no bug and is replaced, never kept as a
+survivor: the first run's ``micro_mean_weighted_by_walls`` (tissue-mean growth rate weighted by
+wall instead of hexagon areas) was one, since every cell's own walls, cut cells included, are
+phi_w times its hexagon area.
+
 With ``--only`` the named mutants' entries of an existing JSON file are replaced and the others
 kept (each entry records the commit it was measured on).
 """
@@ -198,10 +203,16 @@ MUTANTS = (
         (CLAMPED,),
     ),
     Mutant(
-        "micro_mean_weighted_by_walls", "plantgrowth/micro.py", "wrong average",
-        "tissue-mean micro growth rate weighted by wall areas instead of cell (hexagon) areas",
-        (("weights = self.hexagon_area / self.hexagon_area.sum()",
-          "weights = self.wall_area / self.wall_area.sum()"),),
+        "micro_average_over_hexagon", "plantgrowth/micro.py", "wrong average",
+        "per-cell micro growth driven by the wall integral divided by the cell's hexagon area "
+        "instead of its wall area",
+        (("reshape(-1, 4), T0) / self.wall_area[:, None]",
+          "reshape(-1, 4), T0) / self.hexagon_area[:, None]"),),
+    ),
+    Mutant(
+        "micro_cut_cell_shear_kept", "plantgrowth/micro.py", "wrong average",
+        "cut bottom cells averaged as they are (shear kept) instead of as the mirrored full cell",
+        (("means[self.layout.cut_cells, 1:3] = 0.0", "means[self.layout.cut_cells, 1:3] *= 1.0"),),
     ),
     # --- time loop --------------------------------------------------------------------------------
     Mutant(
