@@ -90,7 +90,7 @@ class MacroModel:
         self.strain_averages = scene.growth.law == "strain" or "eps_hom" in scene.output.fields
         self.homogenizer = Homogenizer(
             scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
-            problem.K is not None, self.strain_averages, comm,
+            problem.K is not None, self.strain_averages, comm, scene.accuracy.cell_tolerance,
         )  # fmt: skip
         self.out = _Outputs(problem, scene.output.fields)
         self.outputs = self.out.functions

@@ -7,22 +7,32 @@ Inputs are reduced before solving, by exact invariances of the cell problems (MO
 The reduced inputs are rounded to ``key_tolerance``; each distinct key is solved once per run
 (results are cached across time steps). Keys are shared round-robin among the ranks, each solving
 on ``COMM_SELF``, and the results are exchanged with one ``allgather``.
+
+With ``cell_tolerance > 0`` the growth state goes through :mod:`plantgrowth.surrogate` instead
+(rotation split off exactly, the stretch interpolated on lattices refined to the tolerance),
+backed by the on-disk cache of :mod:`plantgrowth.cell_cache`; every ``CHECK_EVERY``-th call
+also solves one of its queries exactly and logs the surrogate's error there.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from mpi4py import MPI
 
+from plantgrowth import surrogate
+from plantgrowth.cell_cache import CellCache, cache_root
 from plantgrowth.cell_solver import CellResult, CellSolver
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.tensors import voigt_matrix
+from plantgrowth.tensors import rotate2, rotate4, tensor_from_voigt, voigt_matrix
 
 log = logging.getLogger("plantgrowth")
+
+CHECK_EVERY = 10
+"""The surrogate is checked against an exact solve at one random node every this many calls."""
 
 
 @dataclass(frozen=True)
@@ -54,6 +64,8 @@ class Homogenizer:
         pressure: solve the pressure problem [UCw_weak] (only when P1 is not zero).
         strain_averages: compute dbar[w^ij], dbar[v] (strain law or eps_hom output only).
         comm: the communicator whose ranks share the cell problems.
+        cell_tolerance: relative error accepted from the surrogate (0: solve every distinct
+            rounded input exactly).
     """
 
     def __init__(
@@ -63,6 +75,7 @@ class Homogenizer:
         pressure: bool,
         strain_averages: bool,
         comm: MPI.Comm,
+        cell_tolerance: float = 0.0,
     ) -> None:
         self.resolution = resolution
         self.tol = key_tolerance
@@ -73,6 +86,24 @@ class Homogenizer:
         self._results: dict[tuple, np.ndarray] = {}
         self.solves_last_call = 0
         self.seconds_last_call = 0.0
+        self.surrogate = None
+        if cell_tolerance > 0.0:
+            sizes = [9, 1, 4] + [4] * pressure + [16] * strain_averages
+            sizes += [4] * (pressure and strain_averages)
+            bounds = np.cumsum([0, *sizes])
+            segments = [slice(bounds[0], bounds[1])] + [
+                slice(a, b) for a, b in zip(bounds[3:-1], bounds[4:], strict=True)
+            ]  # E_hom and the optional pieces; phi_w and P2 depend on the geometry only
+            self.surrogate = surrogate.LatticeSurrogate(
+                self._solve_stretch, cell_tolerance, segments, comm
+            )
+            fingerprint = (resolution, pressure, strain_averages)
+            self.cache = CellCache(cache_root(), fingerprint, comm)
+            self._tables: set[tuple] = set()
+            self._calls = 0
+            self._rng = np.random.default_rng(0)  # the same draws on every rank
+            self.checks = 0
+            self.largest_checked_error = 0.0
 
     def _key(self, geometry: np.ndarray, nu: float, Fg: np.ndarray) -> tuple:
         reduced = np.concatenate([geometry, [nu], (Fg / np.sqrt(np.linalg.det(Fg))).ravel()])
@@ -80,13 +111,19 @@ class Homogenizer:
 
     def _solve(self, key: tuple) -> np.ndarray:
         values = np.array(key, dtype=float) * self.tol
-        geometry, nu, Fg = tuple(values[:4]), values[4], values[5:].reshape(2, 2)
+        return self._solve_exact(tuple(values[:4]), values[4], values[5:].reshape(2, 2))
+
+    def _solve_exact(self, geometry: tuple, nu: float, Fg: np.ndarray) -> np.ndarray:
+        """Packed results of one cell problem (E = 1) on this rank."""
         solver = self._solvers.get(geometry)
         if solver is None:
             solver = CellSolver(HoneycombCell(*geometry), self.resolution, MPI.COMM_SELF)
             self._solvers[geometry] = solver
-        result = solver.solve(Fg, 1.0, nu, self.pressure, self.strain_averages)
-        return _pack(result)
+        return _pack(solver.solve(Fg, 1.0, nu, self.pressure, self.strain_averages))
+
+    def _solve_stretch(self, table: tuple, U: np.ndarray) -> np.ndarray:
+        values = np.array(table, dtype=float) * self.tol
+        return self._solve_exact(tuple(values[:4]), values[4], U)
 
     def homogenize(
         self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray
@@ -99,16 +136,68 @@ class Homogenizer:
             Fg: (n, 2, 2) growth tensors per node.
         """
         start = time.perf_counter()
-        keys = [self._key(g, v, F) for g, v, F in zip(geometry, nu, Fg, strict=True)]
-        new = sorted(set(keys) - self._results.keys())
-        mine = {k: self._solve(k) for k in new[self.comm.rank :: self.comm.size]}
-        for part in self.comm.allgather(mine):
-            self._results.update(part)
-        self.solves_last_call = len(new)
+        if self.surrogate is None:
+            keys = [self._key(g, v, F) for g, v, F in zip(geometry, nu, Fg, strict=True)]
+            new = sorted(set(keys) - self._results.keys())
+            mine = {k: self._solve(k) for k in new[self.comm.rank :: self.comm.size]}
+            for part in self.comm.allgather(mine):
+                self._results.update(part)
+            self.solves_last_call = len(new)
+            packed = np.array([self._results[k] for k in keys])
+            tensors = self._unpack(packed, E)
+        else:
+            tensors = self._interpolate(geometry, E, nu, Fg)
         self.seconds_last_call = time.perf_counter() - start
+        return tensors
 
-        packed = np.array([self._results[k] for k in keys])
-        n = len(keys)
+    def _interpolate(
+        self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray
+    ) -> NodeTensors:
+        """The surrogate's answer: stretch interpolated, rotation applied exactly."""
+        R, s = surrogate.split_growth(Fg)
+        rounded = np.round(np.column_stack([geometry, nu]) / self.tol).astype(np.int64)
+        tables = [tuple(int(k) for k in row) for row in rounded]  # as in _key
+        for table in sorted(set(tables) - self._tables):
+            self.surrogate.add(self.cache.load(table))
+            self._tables.add(table)
+        queries = [surrogate.Query(t, q) for t, q in zip(tables, s, strict=True)]
+        answer = self.surrogate.evaluate(queries)
+        self.cache.save(self.surrogate.take_new_points())
+        self.solves_last_call = answer.solves + self._check(queries, answer)
+        tensors = self._unpack(answer.values, E)
+        C = voigt_matrix(rotate4(R, tensor_from_voigt(tensors.C)))
+        rotated = {"C": C}
+        for name in ("K", "dbar_v"):
+            if getattr(tensors, name) is not None:
+                rotated[name] = rotate2(R, getattr(tensors, name))
+        if tensors.dbar_w is not None:
+            rotated["dbar_w"] = rotate4(R, tensors.dbar_w)
+        return replace(tensors, **rotated)
+
+    def _check(self, queries: list[surrogate.Query], answer: surrogate.Answer) -> int:
+        """Every CHECK_EVERY-th call: one random interpolated query solved exactly on rank 0,
+        the error logged. Returns the number of exact solves made (the same on every rank)."""
+        self._calls += 1
+        candidates = np.flatnonzero(answer.interpolated)
+        if (self._calls - 1) % CHECK_EVERY or not len(candidates):
+            return 0
+        k = int(candidates[self._rng.integers(len(candidates))])
+        if self.comm.rank == 0:
+            q = queries[k]
+            exact = self._solve_stretch(q.table, surrogate.stretch(q.s))
+            error = self.surrogate.relative_difference(answer.values[k], exact)
+            self.checks += 1
+            self.largest_checked_error = max(self.largest_checked_error, error)
+            log.info(
+                "cell surrogate check %d: relative error %.2e at s = (%.4f, %.4f); largest "
+                "seen %.2e (tolerance %.1e)", self.checks, error, *q.s,
+                self.largest_checked_error, self.surrogate.tolerance,
+            )  # fmt: skip
+        return 1
+
+    def _unpack(self, packed: np.ndarray, E: np.ndarray) -> NodeTensors:
+        """NodeTensors from packed E = 1 results, scaled to the nodes' E."""
+        n = len(packed)
         C = packed[:, :9].reshape(n, 3, 3) * E[:, None, None]
         phi_w = packed[:, 9]
         P2_matrix = packed[:, 10:14].reshape(n, 2, 2)

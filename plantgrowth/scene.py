@@ -41,6 +41,8 @@ inclined wall length l2 = 1)::
     [accuracy]
     cell_resolution = 2        # P2 elements across a cell wall, integer in [1, 64]
     key_tolerance = 1e-6       # cell-problem inputs are rounded to this before caching, (0, 1e-2]
+    cell_tolerance = 0.0       # surrogate's relative error of the homogenized tensors, [0, 0.1]
+                               # (0: solve every distinct input exactly; plantgrowth/surrogate.py)
     [micro]
     nx = 16                    # cells per row of the micro model, even integer in [2, 256]
     resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
@@ -359,15 +361,18 @@ class Output:
 
 @dataclass(frozen=True)
 class Accuracy:
-    """Cell-problem resolution (P2 elements across a wall) and the rounding of their inputs."""
+    """Cell-problem resolution (P2 elements across a wall), the rounding of their inputs and
+    the surrogate's relative error (0: every distinct input solved exactly)."""
 
     cell_resolution: int = 2
     key_tolerance: float = 1e-6
+    cell_tolerance: float = 0.0
 
     def __post_init__(self) -> None:
         _integer("accuracy.cell_resolution", self.cell_resolution, 1, MAX_RESOLUTION)
         tol = _range("accuracy.key_tolerance", self.key_tolerance, 0.0, 1e-2, hi_open=False)
-        _set(self, key_tolerance=tol)
+        cell = _range("accuracy.cell_tolerance", self.cell_tolerance, 0.0, 0.1, False, False)
+        _set(self, key_tolerance=tol, cell_tolerance=cell)
 
 
 @dataclass(frozen=True)
@@ -521,7 +526,7 @@ _TABLES = {
     "time": ("t_max", "dt", "integrator", "tolerance"),
     "loads": EDGES,
     "output": ("fields",),
-    "accuracy": ("cell_resolution", "key_tolerance"),
+    "accuracy": ("cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
 }
 _FIELD_DEFAULTS = {

@@ -67,3 +67,25 @@ def from_voigt_stress(s: np.ndarray) -> np.ndarray:
     return np.stack(
         [np.stack([s[..., 0], s[..., 2]], -1), np.stack([s[..., 2], s[..., 1]], -1)], -2
     )
+
+
+def tensor_from_voigt(C: np.ndarray) -> np.ndarray:
+    """(..., 2, 2, 2, 2) tensors with minor symmetries from Voigt matrices (inverse of
+    :func:`voigt_matrix`)."""
+    idx = ((0, 0), (1, 1), (0, 1))
+    E = np.zeros((*C.shape[:-2], 2, 2, 2, 2))
+    for I, (i, j) in enumerate(idx):
+        for J, (k, l) in enumerate(idx):
+            for a, b, c, d in ((i, j, k, l), (j, i, k, l), (i, j, l, k), (j, i, l, k)):
+                E[..., a, b, c, d] = C[..., I, J]
+    return E
+
+
+def rotate2(R: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """``R T R^T`` for stacks (n, 2, 2) of rotations and 2nd-order tensors."""
+    return np.einsum("nia,nab,njb->nij", R, T, R)
+
+
+def rotate4(R: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """``T'_ijkl = R_ia R_jb R_kc R_ld T_abcd`` for stacks (n, ...) of 4th-order tensors."""
+    return np.einsum("nia,njb,nkc,nld,nabcd->nijkl", R, R, R, R, T)

@@ -20,6 +20,13 @@ def _collect_garbage_and_sync():
     MPI.COMM_WORLD.Barrier()
 
 
+@pytest.fixture(autouse=True)
+def _no_cell_cache(monkeypatch):
+    """No on-disk cell cache unless a test sets its own: results must not depend on what
+    earlier runs (or monkeypatched mutants) left in ~/.cache, and tests write nothing there."""
+    monkeypatch.setenv("PLANTGROWTH_CACHE_DIR", "off")
+
+
 @pytest.fixture
 def mpi_tmp_path(request, tmp_path_factory):
     """A fresh temporary directory shared by all ranks (created on rank 0, path broadcast).
