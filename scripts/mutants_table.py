@@ -14,20 +14,20 @@ DEFAULT = Path(__file__).resolve().parent.parent / "benchmarks" / "results" / "m
 
 def table(data: dict) -> str:
     lines = [
-        "| mutant | file | kind | killed by | s |",
-        "|---|---|---|---|---:|",
+        "| mutant | file | kind | killed by (first failing test of the default serial suite) |",
+        "|---|---|---|---|",
     ]
     for m in data["mutants"]:
-        killer = f"`{m['killed_by']}`" if m["killed"] else "**survived**"
-        lines.append(
-            f"| `{m['name']}` | `{m['file']}` | {m['category']} | {killer} | {m['seconds']:.0f} |"
-        )
+        killer = m["killed_by"].removeprefix("tests/") if m["killed"] else "**survived**"
+        killer = f"`{killer}`" if m["killed"] else killer
+        lines.append(f"| `{m['name']}` | {m['file']} | {m['category']} | {killer} |")
     baseline = data.get("baseline") or {}
     lines += [
         "",
         f"{data['n_killed']} of {data['n_mutants']} killed; commit {data['commit'][:10]}; "
         f"baseline {baseline.get('outcome', '-')} in {baseline.get('seconds', '-')} s; "
-        f"mutant runs {data['mutant_seconds']:.0f} s.",
+        f"mutant runs {data['mutant_seconds']:.0f} s, whole study "
+        f"{data['wall_seconds_last_invocation']:.0f} s.",
     ]
     return "\n".join(lines)
 
