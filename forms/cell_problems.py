@@ -37,3 +37,31 @@ def membrane_moment_form(selector, x, n, ds) -> ufl.Form:
     """``int_Gamma (S n) . x dgamma``; with S = e_i (x) e_j it gives ``int_Gamma y_j N_i``, from
     which ``P2vec = -(1/|Y|) int_Gamma (grad P1 . y) N`` follows for P2 = -grad(P1) . y ([P2])."""
     return ufl.inner(ufl.dot(selector, n), x) * ds
+
+
+# --- constant-coefficient basis (Fg constant over the cell) -------------------------------------
+# With G = Fg^{-1} constant, the cell-problem forms above are linear combinations of the integrals
+# below (weights from Fg, E, nu): the bilinear form of [UC_weak]/[UCw_weak] of the products
+# ``int d_a z_i d_c phi_j``, its right-hand sides and the averages of the moments ``int d_c phi_j``.
+
+
+def gradient_product_form(z, phi, P, Q, dx) -> ufl.Form:
+    """``int_{Y_w} (grad z : P)(grad phi : Q) + (grad z : Q)(grad phi : P) dy``.
+
+    With ``P = e_i (x) e_a`` and ``Q = e_j (x) e_c`` (constant 2x2 selectors) it gives the
+    symmetrized product ``B_pq + B_qp`` of ``B_pq = int d_a z_i d_c phi_j`` (p = (i, a),
+    q = (j, c)); the bilinear form of [UC_weak] is a weighted sum of them.
+    """
+    return (
+        ufl.inner(ufl.grad(z), P) * ufl.inner(ufl.grad(phi), Q)
+        + ufl.inner(ufl.grad(z), Q) * ufl.inner(ufl.grad(phi), P)
+    ) * dx
+
+
+def gradient_moment_form(phi, Q, dx) -> ufl.Form:
+    """``int_{Y_w} grad(phi) : Q dy``; with ``Q = e_j (x) e_c`` the moment ``int d_c phi_j``.
+
+    The right-hand sides of [UC_weak] and [UCw_weak] are weighted sums of these moments, and the
+    averages of [maacro_E], [maacro_K] and dbar are their dot products with the solution.
+    """
+    return ufl.inner(ufl.grad(phi), Q) * dx
