@@ -78,16 +78,22 @@ CLAMPED = (
 MUTANTS = (
     # --- forms/ --------------------------------------------------------------------------------
     Mutant(
-        "cell_pressure_sign", "forms/cell_problems.py", "sign",
+        "cell_pressure_sign", "plantgrowth/cell_solver.py", "sign",
         "pressure cell problem [UCw_weak] with the unit pressure's sign flipped (v -> -v), "
         "issue 8",
-        (("return -growth_weighted_work(ufl.Identity(2), phi, Fg, dx)",
-          "return growth_weighted_work(ufl.Identity(2), phi, Fg, dx)"),),
+        (("wall_b + [np.eye(2)] * pressure", "wall_b + [-np.eye(2)] * pressure"),),
+    ),
+    Mutant(
+        "cell_grad_g_transposed", "plantgrowth/cell_solver.py", "transposition",
+        "cell problems' growth map vec(X Fg^{-T}) instead of vec(X Fg^{-1}) (matrix, loads, "
+        "averages of [UC_weak]/[UCw_weak])",
+        (("return np.kron(np.eye(2), np.linalg.inv(Fg).T)",
+          "return np.kron(np.eye(2), np.linalg.inv(Fg))"),),
     ),
     Mutant(
         "grad_g_transposed", "forms/elasticity.py", "transposition",
-        "growth-weighted gradient grad(z) Fg^{-T} instead of grad(z) Fg^{-1} (cell, macro and "
-        "micro problems)",
+        "growth-weighted gradient grad(z) Fg^{-T} instead of grad(z) Fg^{-1} (macro and micro "
+        "problems; the cell solver's own map is cell_grad_g_transposed)",
         (("return ufl.grad(z) * ufl.inv(Fg)", "return ufl.grad(z) * ufl.inv(Fg).T"),),
     ),
     Mutant(
@@ -135,7 +141,8 @@ MUTANTS = (
     Mutant(
         "cell_average_over_walls", "plantgrowth/cell_solver.py", "wrong average",
         "cell averages divided by |Y_w| instead of |Y|",
-        (("            / self.area\n        )\n", "            / self.wall_area\n        )\n"),),
+        (("grad_g.transpose(0, 2, 1)) / self.area",
+          "grad_g.transpose(0, 2, 1)) / self.wall_area"),),
     ),
     Mutant(
         "voigt_vector_shear_factor", "plantgrowth/tensors.py", "factor",

@@ -44,9 +44,9 @@ import pytest
 from mpi4py import MPI
 
 from plantgrowth import homogenization
+from plantgrowth.cell_solver import CellSolver
 from plantgrowth.cli import main
 from plantgrowth.compare import COLUMNS, fitted_rate, run_compare
-from plantgrowth.forms import cell_problems
 from plantgrowth.scene import dict_to_toml, load_scene
 
 pytestmark = pytest.mark.convergence
@@ -167,8 +167,15 @@ def double_E_hom(monkeypatch) -> None:
 def flip_pressure_problem(monkeypatch) -> None:
     """Mutant: the pressure cell problem [UCw_weak] with the wrong sign (v -> -v: K_hom and
     dbar[v] both flip, consistently, as a sign slip in the form would do)."""
-    rhs = cell_problems.cell_pressure_rhs
-    monkeypatch.setattr(cell_problems, "cell_pressure_rhs", lambda *args: -rhs(*args))
+    solve = CellSolver.solve
+
+    def flipped(self, *args, **kwargs):
+        result = solve(self, *args, **kwargs)
+        K_hom = None if result.K_hom is None else -result.K_hom
+        dbar_v = None if result.dbar_v is None else -result.dbar_v
+        return dataclasses.replace(result, K_hom=K_hom, dbar_v=dbar_v)
+
+    monkeypatch.setattr(CellSolver, "solve", flipped)
 
 
 @pytest.mark.parametrize("mutant", [double_E_hom, flip_pressure_problem])
