@@ -63,7 +63,7 @@ def cache_files(cache: Path) -> list[Path]:
 
 def test_two_concurrent_runs_fill_one_cache_that_a_third_run_reuses(tmp_path):
     """Both concurrent runs finish; every file in the cache is complete; a third run finds
-    every lattice point it needs there."""
+    every lattice point it needs there (where the first two solved some)."""
     scene, cache = write_scene(tmp_path / "scene.toml", 6.0), tmp_path / "cache"
     runs = [start(scene, tmp_path / f"run{k}", cache) for k in (1, 2)]
     for proc in runs:
@@ -78,7 +78,9 @@ def test_two_concurrent_runs_fill_one_cache_that_a_third_run_reuses(tmp_path):
     _, err = third.communicate(timeout=300)
     assert third.returncode == 0, err
     assert sum(lattice_solves(tmp_path / "run3")) == 0  # steps 0..6 all from the cache
-    assert sum(lattice_solves(tmp_path / "run1")) > 0
+    # the cache is read as geometries appear, so one concurrent run may find the other's
+    # files and solve nothing; between them they solved
+    assert sum(lattice_solves(tmp_path / "run1")) + sum(lattice_solves(tmp_path / "run2")) > 0
 
 
 def test_a_killed_run_leaves_a_cache_the_next_run_starts_from(tmp_path):
