@@ -10,8 +10,10 @@ inclined wall length l2 = 1)::
     [tissue]                   # the rectangle [0, width] x [0, height]; x2 = 0 is a symmetry plane
     width = 6.928203230275509  # 8 cos(30 deg), at most 1e6
     height = 3.0               # at most 1e6
-    h = 0.1                    # fine-mesh edge length: 0 < h <= min(width, height)/2, <= 4e6 cells
-    H = 1.0                    # coarse-mesh edge (cell-problem nodes): h <= H <= max(width, height)
+    h = 0.1                    # (preset) fine-mesh edge: 0 < h <= min(width, height)/2,
+                               # at most 4e6 cells
+    H = 1.0                    # (preset) coarse-mesh edge (cell-problem nodes):
+                               # h <= H <= max(width, height)
     [cell]                     # honeycomb unit cell, MODEL.md section 2
     l1 = 1.0                   # vertical wall length, > 0
     l2 = 1.0                   # inclined wall length, > 0
@@ -30,22 +32,28 @@ inclined wall length l2 = 1)::
     Fg0 = [[1.0, 0.0], [0.0, 1.0]]  # initial growth tensor, finite entries, det > 0
     [time]
     t_max = 60.0               # end time, a whole number (<= 1e6) of steps dt
-    dt = 1.0                   # time step, > 0
-    integrator = "exp"         # "exp": Fg <- expm(dt G) Fg (det Fg >= 1); "euler": the paper's
-                               # Fg <- Fg + dt G Fg; "adaptive": exp with step doubling (below)
+    dt = 1.0                   # (preset) time step, > 0
+    integrator = "exp"         # (preset) "exp": Fg <- expm(dt G) Fg (det Fg >= 1); "euler":
+                               # the paper's Fg <- Fg + dt G Fg; "adaptive": exp with step
+                               # doubling (below)
     tolerance = 1e-3           # adaptive: largest relative local error of Fg per step, (0, 0.1]
     [loads]                    # traction f on an edge (default none); "bottom" cannot be loaded
     right = [0.0, 0.0]         # also "left", "top"
     [output]
     fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these and "eps_hom"
     [accuracy]
-    cell_resolution = 2        # P2 elements across a cell wall, integer in [1, 64]
+    preset = "balanced"        # "draft" | "balanced" | "fine": sets the keys marked (preset)
+    cell_resolution = 2        # (preset) P2 elements across a cell wall, integer in [1, 64]
     key_tolerance = 1e-6       # cell-problem inputs are rounded to this before caching, (0, 1e-2]
-    cell_tolerance = 0.0       # surrogate's relative error of the homogenized tensors, [0, 0.1]
-                               # (0: solve every distinct input exactly; plantgrowth/surrogate.py)
+    cell_tolerance = 1e-3      # (preset) surrogate's relative error of the homogenized tensors,
+                               # [0, 0.1] (0: solve every distinct input exactly; surrogate.py)
     [micro]
     nx = 16                    # cells per row of the micro model, even integer in [2, 256]
     resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
+
+Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/presets.py; the values
+shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped
+to the tissue (``h <= min(width, height)/2``, ``h <= H <= max(width, height)``).
 
 The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta`` and ``growth.tau`` are
 *fields*: a number, or ``{from = a, to = b}`` for a value linear in x1 from a at x1 = 0 to b at
@@ -78,6 +86,7 @@ from plantgrowth.meshes.tissue import MAX_NX as TISSUE_MAX_NX
 from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.plausibility import unbalanced_load
+from plantgrowth.presets import DEFAULT_PRESET, PRESETS, knob
 
 BIG = 1e12
 """Largest magnitude accepted for a non-dimensional parameter without a natural bound."""
@@ -211,8 +220,8 @@ class Tissue:
 
     width: float = REFERENCE_WIDTH
     height: float = 3.0
-    h: float = 0.1
-    H: float = 1.0
+    h: float = knob(DEFAULT_PRESET, "tissue", "h")
+    H: float = knob(DEFAULT_PRESET, "tissue", "H")
 
     def __post_init__(self) -> None:
         W = _range("tissue.width", self.width, 0.0, MAX_LENGTH, hi_open=False)
@@ -308,8 +317,8 @@ class Time:
     (exp with step-doubling control of the growth tensor's local error, ``tolerance``)."""
 
     t_max: float = 60.0
-    dt: float = 1.0
-    integrator: str = "exp"
+    dt: float = knob(DEFAULT_PRESET, "time", "dt")
+    integrator: str = knob(DEFAULT_PRESET, "time", "integrator")
     tolerance: float = 1e-3
 
     def __post_init__(self) -> None:
@@ -361,14 +370,17 @@ class Output:
 
 @dataclass(frozen=True)
 class Accuracy:
-    """Cell-problem resolution (P2 elements across a wall), the rounding of their inputs and
-    the surrogate's relative error (0: every distinct input solved exactly)."""
+    """The accuracy preset the knobs came from, the cell-problem resolution (P2 elements across
+    a wall), the rounding of their inputs and the surrogate's relative error (0: every distinct
+    input solved exactly)."""
 
-    cell_resolution: int = 2
+    preset: str = DEFAULT_PRESET
+    cell_resolution: int = knob(DEFAULT_PRESET, "accuracy", "cell_resolution")
     key_tolerance: float = 1e-6
-    cell_tolerance: float = 0.0
+    cell_tolerance: float = knob(DEFAULT_PRESET, "accuracy", "cell_tolerance")
 
     def __post_init__(self) -> None:
+        _choice("accuracy.preset", self.preset, tuple(PRESETS))
         _integer("accuracy.cell_resolution", self.cell_resolution, 1, MAX_RESOLUTION)
         tol = _range("accuracy.key_tolerance", self.key_tolerance, 0.0, 1e-2, hi_open=False)
         cell = _range("accuracy.cell_tolerance", self.cell_tolerance, 0.0, 0.1, False, False)
@@ -526,7 +538,7 @@ _TABLES = {
     "time": ("t_max", "dt", "integrator", "tolerance"),
     "loads": EDGES,
     "output": ("fields",),
-    "accuracy": ("cell_resolution", "key_tolerance", "cell_tolerance"),
+    "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
 }
 _FIELD_DEFAULTS = {
@@ -581,6 +593,29 @@ def _field(key: str, raw: object, width: float) -> Field:
     return Field(_number(key, raw), _number(key, raw), width)
 
 
+def _with_preset(tables: dict[str, dict]) -> dict[str, dict]:
+    """The tables with every knob of ``accuracy.preset`` the scene leaves out filled in; the
+    preset's h and H clipped to the tissue (the scene's own values are never changed)."""
+    name = _choice(
+        "accuracy.preset", tables["accuracy"].get("preset", DEFAULT_PRESET), tuple(PRESETS)
+    )
+    out = {section: dict(table) for section, table in tables.items()}
+    for section, knobs in PRESETS[name].items():
+        for key, value in knobs.items():
+            out[section].setdefault(key, value)
+    tissue, given = out["tissue"], tables["tissue"]
+    width = _range(
+        "tissue.width", tissue.get("width", REFERENCE_WIDTH), 0.0, MAX_LENGTH, hi_open=False
+    )
+    height = _range("tissue.height", tissue.get("height", 3.0), 0.0, MAX_LENGTH, hi_open=False)
+    if "h" not in given:
+        tissue["h"] = min(tissue["h"], min(width, height) / 2)
+    if "H" not in given:
+        h = _range("tissue.h", tissue["h"], 0.0, min(width, height) / 2, hi_open=False)
+        tissue["H"] = max(h, min(tissue["H"], max(width, height)))
+    return out
+
+
 def parse_scene(data: dict, source: str = "<scene>") -> Scene:
     """Validate parsed TOML data into a Scene; error messages end with ``(in source)``."""
     try:
@@ -594,7 +629,7 @@ def _parse(data: dict) -> Scene:
     if not isinstance(data, dict):
         raise SceneError(f"scene: expected a table of tables, got {_show(data)}")
     _check_keys(data, "", ("model", *_TABLES))
-    t = {name: _table(data, name) for name in _TABLES}
+    t = _with_preset({name: _table(data, name) for name in _TABLES})
     tissue = Tissue(**t["tissue"])
     f = {
         section: {

@@ -1,9 +1,15 @@
 """Shared pytest configuration (dolfinx style), valid in serial and under mpirun."""
 
 import gc
+import os
 
 import pytest
 from mpi4py import MPI
+
+# No on-disk cell cache unless a test sets its own: results must not depend on what earlier runs
+# (or monkeypatched mutants) left in ~/.cache, and tests write nothing there. Set here, before the
+# test modules are imported, because they copy os.environ for their subprocesses at import.
+os.environ["PLANTGROWTH_CACHE_DIR"] = "off"
 
 
 def pytest_runtest_setup(item):
@@ -18,13 +24,6 @@ def _collect_garbage_and_sync():
     yield
     gc.collect()
     MPI.COMM_WORLD.Barrier()
-
-
-@pytest.fixture(autouse=True)
-def _no_cell_cache(monkeypatch):
-    """No on-disk cell cache unless a test sets its own: results must not depend on what
-    earlier runs (or monkeypatched mutants) left in ~/.cache, and tests write nothing there."""
-    monkeypatch.setenv("PLANTGROWTH_CACHE_DIR", "off")
 
 
 @pytest.fixture

@@ -89,7 +89,7 @@ FIELD_KEYS = {  # number or {from, to}
     "growth": ("eta", "tau"),
 }
 INT_KEYS = {"accuracy": ("cell_resolution",), "micro": ("nx", "resolution")}
-CHOICE_KEYS = {("", "model"), ("growth", "law"), ("time", "integrator")}
+CHOICE_KEYS = {("", "model"), ("growth", "law"), ("time", "integrator"), ("accuracy", "preset")}
 TABLES = ("tissue", "cell", "material", "pressure", "growth", "time", "loads", "output",
           "accuracy", "micro")  # fmt: skip
 SCHEMA = {
@@ -101,7 +101,7 @@ SCHEMA = {
     "time": ("t_max", "dt", "integrator"),
     "loads": ("left", "right", "top"),
     "output": ("fields",),
-    "accuracy": ("cell_resolution", "key_tolerance"),
+    "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
 }
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
@@ -469,7 +469,7 @@ def _micro_scene(rng: random.Random, scene: dict):
 
 
 def _bad_choice(rng: random.Random, scene: dict):
-    what = rng.choice(["model", "law", "integrator", "fields", "fields_dup"])
+    what = rng.choice(["model", "law", "integrator", "preset", "fields", "fields_dup"])
     if what == "model":
         scene["model"] = rng.choice(["mezzo", "Macro", "", _name(rng, ("macro", "micro", "both"))])
         return scene, "model ="
@@ -479,6 +479,11 @@ def _bad_choice(rng: random.Random, scene: dict):
     if what == "integrator":
         scene.setdefault("time", {})["integrator"] = rng.choice(["rk4", "Exp", "", _name(rng)])
         return scene, "time.integrator"
+    if what == "preset":
+        scene.setdefault("accuracy", {})["preset"] = rng.choice(
+            ["fast", "Fine", "", _name(rng, ("draft", "balanced", "fine"))]
+        )
+        return scene, "accuracy.preset"
     name = rng.choice(OUTPUT_FIELDS)
     bad = [name, name] if what == "fields_dup" else [name, rng.choice(["p", "U", "sigma", "E"])]
     scene["output"] = {"fields": bad}

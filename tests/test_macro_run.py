@@ -8,7 +8,10 @@ of the run (nothing of the package is changed). The serial-vs-mpirun comparison 
 ``mpirun -n 2 plantgrowth run`` as a subprocess and is ``skip_in_parallel``.
 
 Small scenes: the reference tissue with h = 0.35, H = 1 (or 2 for gradient scenes), t_max = 3,
-dt = 1, P2 cell meshes with one element across a wall; the whole module takes seconds.
+dt = 1, P2 cell meshes with one element across a wall; the whole module takes seconds. The
+cell problems take their exact path (``cell_tolerance = 0``: every distinct input solved, which
+the cell-call checks count), except ``gradient_E_preset``, which keeps the default preset's
+surrogate for the serial-versus-mpirun check (the surrogate's own tests: test_surrogate.py).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from plantgrowth.forms import macro
 from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.meshes.honeycomb import HoneycombCell
+from plantgrowth.presets import DEFAULT_PRESET, knob
 from plantgrowth.scene import Scene, dict_to_toml, load_scene, parse_scene
 
 BIN = Path(sys.executable).parent
@@ -46,7 +50,7 @@ ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIR
 BASE = {
     "tissue": {"h": 0.35, "H": 1.0},
     "time": {"t_max": 3, "dt": 1},
-    "accuracy": {"cell_resolution": 1},
+    "accuracy": {"cell_resolution": 1, "cell_tolerance": 0.0},
 }
 SCENES = {  # name -> tables merged into BASE
     # homogeneous, stress law, E != 1, eta != 1, tau > 0 (MODEL.md section 4 consistency check)
@@ -61,6 +65,12 @@ SCENES = {  # name -> tables merged into BASE
         "tissue": {"H": 2.0},
         "material": {"E": {"from": 0.5, "to": 2.0}},
         "growth": {"law": "strain"},
+    },
+    "gradient_E_preset": {
+        "tissue": {"H": 2.0},
+        "material": {"E": {"from": 0.5, "to": 2.0}},
+        "growth": {"law": "strain"},
+        "accuracy": {"cell_tolerance": knob(DEFAULT_PRESET, "accuracy", "cell_tolerance")},
     },
     "gradient_P1": {
         "tissue": {"H": 2.0},
@@ -431,7 +441,7 @@ def test_law_none_is_one_static_solve(runs):
 
 
 @pytest.mark.skip_in_parallel
-@pytest.mark.parametrize("name", ["stress", "gradient_E"])
+@pytest.mark.parametrize("name", ["stress", "gradient_E", "gradient_E_preset"])
 def test_mpirun_reproduces_the_serial_summary(runs, name, tmp_path):
     """``mpirun -n 2 plantgrowth run`` against the serial in-process run of the same scene.
 

@@ -218,6 +218,8 @@ MISTAKES = {
     "number for string": ("model = 1\n", r"model: expected a string"),
     "bad model": ("model = 'mezzo'\n", r"model = 'mezzo' is invalid"),
     "bad integrator": ("[time]\nintegrator = 'rk4'\n", r"time\.integrator = 'rk4'"),
+    "bad preset": ("[accuracy]\npreset = 'fast'\n", r"accuracy\.preset = 'fast' is invalid"),
+    "number for preset": ("[accuracy]\npreset = 1\n", r"accuracy\.preset: expected a string"),
     "string for list": ("[output]\nfields = 'u'\n", r"output\.fields: expected an array"),
     "unknown output": ("[output]\nfields = ['u', 'stress']\n", r"output\.fields\[1\] = 'stress'"),
     "duplicate output": ("[output]\nfields = ['u', 'u']\n", r"output\.fields = "),

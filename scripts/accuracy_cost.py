@@ -1,0 +1,257 @@
+"""The accuracy-cost map (issue 9): error against a converged reference versus run time.
+
+For each scene (default: ``gradient_E_strain``, ``gradient_P1_stress`` and the hard case
+``E_contrast_100``) it runs, with ``plantgrowth run`` in a subprocess and the on-disk cell
+cache off (every run pays for its own cell solves):
+
+- the scene as shipped (its preset: ``balanced``) and each numerical knob varied alone from
+  it: ``tissue.h``, ``tissue.H``, ``accuracy.cell_resolution``, ``accuracy.cell_tolerance``,
+  ``time.dt`` and ``time.integrator``;
+- the three presets (``accuracy.preset``, the scene's own explicit keys kept);
+- a reference with every knob refined at once (at or beyond the finest level of each knob's
+  sequence), and the same one level coarser as a check. The reference's own error is
+  estimated knob by knob from the sequences: with d1, d2 the changes over the last two
+  refinements of a knob, the error left beyond its finest level is about d1 rho / (1 - rho),
+  rho = d1 / d2 (a geometric tail; successive refinement), or d1 where the changes do not
+  contract, summed over the knobs.
+
+Errors, relative to the reference: the final area, the final mean tr G and the L2 norm of
+u - u_ref at t_max (both fields sampled on one uniform grid of the reference rectangle, P1
+interpolation). Cost: the CPU seconds of the whole process (imports and set-up included;
+robust to other load on the machine), and its wall seconds. Writes
+``benchmarks/results/accuracy_cost.json`` after every run (a rerun reuses the runs already
+there with the same scene text and resolved knobs; ``--redo NAME`` repeats some); the sampled
+u fields are kept in ``results/accuracy_cost/`` (not committed), which a rerun needs.
+
+    python scripts/accuracy_cost.py [--scenes S ...] [--redo preset:balanced ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+from matplotlib.tri import LinearTriInterpolator, Triangulation
+
+from plantgrowth.machine import machine_description
+from plantgrowth.presets import PRESETS
+from plantgrowth.results_reader import read_series
+from plantgrowth.scene import dict_to_toml, parse_scene
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ("gradient_E_strain.toml", "gradient_P1_stress.toml", "hard/E_contrast_100.toml")
+OUT = ROOT / "benchmarks/results/accuracy_cost.json"
+SAMPLES_DIR = ROOT / "results/accuracy_cost"
+KNOBS: dict[str, list[dict]] = {
+    "h": [{"tissue.h": h} for h in (0.4, 0.2, 0.05, 0.025)],
+    "H": [{"tissue.H": H} for H in (4.0, 2.0, 0.5, 0.25)],
+    "cell_resolution": [{"accuracy.cell_resolution": r} for r in (1, 3, 4, 6)],
+    "cell_tolerance": [{"accuracy.cell_tolerance": c} for c in (3e-2, 1e-2, 3e-3, 1e-4, 0.0)],
+    "dt": [{"time.dt": dt} for dt in (4.0, 2.0, 0.5, 0.25)],
+    "integrator": [{"time.integrator": name} for name in ("euler", "exp", "adaptive")],
+}
+REFERENCE = {
+    "tissue.h": 0.025,
+    "tissue.H": 0.25,
+    "accuracy.cell_resolution": 10,
+    "accuracy.cell_tolerance": 1e-5,
+    "time.dt": 0.25,
+}
+COARSER = {
+    "tissue.h": 0.05,
+    "tissue.H": 0.5,
+    "accuracy.cell_resolution": 8,
+    "accuracy.cell_tolerance": 1e-4,
+    "time.dt": 0.5,
+}
+FINER = {"h": -1, "H": -1, "cell_resolution": 1, "cell_tolerance": -1, "dt": -1}
+"""Direction in which each refinement knob refines (-1: smaller is finer); 0 tolerance last."""
+SAMPLES = (140, 60)  # sample grid of u over the reference rectangle
+
+
+def with_overrides(scene: dict, overrides: dict) -> dict:
+    """A copy of the scene's TOML data with dotted keys set (outputs reduced to u)."""
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in scene.items()}
+    for dotted, value in overrides.items():
+        section, key = dotted.split(".")
+        out.setdefault(section, {})[key] = value
+    out["output"] = {"fields": ["u"]}
+    return out
+
+
+def runs_of(scene: dict) -> dict[str, dict]:
+    """Name -> overrides of every run of one scene."""
+    runs = {"shipped": {}}
+    for knob, levels in KNOBS.items():
+        for level in levels:
+            runs[f"{knob}:{next(iter(level.values()))}"] = level
+    runs |= {f"preset:{name}": {"accuracy.preset": name} for name in PRESETS}
+    return runs | {"reference": REFERENCE, "coarser_reference": COARSER}
+
+
+def run(scene_text: str, workdir: Path, samples: Path) -> dict:
+    """One ``plantgrowth run`` of the scene text: CPU and wall seconds and what it wrote (the
+    sampled u into the file ``samples``)."""
+    scene_file, outdir = workdir / "scene.toml", workdir / "out"
+    scene_file.write_text(scene_text)
+    env = os.environ | {"PLANTGROWTH_CACHE_DIR": "off"}
+    command = [Path(sys.executable).with_name("plantgrowth"), "run", scene_file, "-o", outdir]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    proc = subprocess.run(command, capture_output=True, text=True, env=env)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    record = {"exit": proc.returncode, "wall_seconds": wall, "cpu_seconds": cpu}
+    if proc.returncode != 0:
+        return record | {"error": (proc.stderr.strip().splitlines() or ["?"])[-1]}
+    with open(outdir / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    resolved = tomllib.loads((outdir / "scene.toml").read_text())
+    samples.parent.mkdir(parents=True, exist_ok=True)
+    np.save(samples, sample_u(outdir, float(rows[-1]["t"]), resolved["tissue"]))
+    return record | {
+        "t_final": float(rows[-1]["t"]),
+        "area": float(rows[-1]["area"]),
+        "mean_trG": float(rows[-1]["growth_rate_area"]),
+        "cell_solves": sum(int(float(r["n_cell_solves"])) for r in rows),
+        "resolved": resolved_knobs(resolved),
+    }
+
+
+def resolved_knobs(data: dict) -> dict:
+    """The numerical knobs of a resolved scene's TOML data, by dotted key."""
+    return {
+        "tissue.h": data["tissue"]["h"],
+        "tissue.H": data["tissue"]["H"],
+        **{f"accuracy.{k}": v for k, v in data["accuracy"].items()},
+        "time.dt": data["time"]["dt"],
+        "time.integrator": data["time"]["integrator"],
+    }
+
+
+def knobs_of(text: str) -> dict:
+    """The knobs a scene text resolves to (under the current presets)."""
+    return resolved_knobs(parse_scene(tomllib.loads(text)).to_dict())
+
+
+def sample_u(outdir: Path, t: float, tissue: dict) -> np.ndarray:
+    """u at t on the cell centres of a uniform grid of the rectangle (P1 interpolation)."""
+    series = read_series(outdir)
+    tri = Triangulation(*series.points.T, series.triangles)
+    nx, ny = SAMPLES
+    x1 = (np.arange(nx) + 0.5) * tissue["width"] / nx
+    x2 = (np.arange(ny) + 0.5) * tissue["height"] / ny
+    X1, X2 = np.meshgrid(x1, x2)
+    u = series.displacement(t)
+    return np.stack([LinearTriInterpolator(tri, u[:, i])(X1, X2).filled(np.nan) for i in (0, 1)])
+
+
+def errors(record: dict, ref: dict, u: np.ndarray, u_ref: np.ndarray) -> dict[str, float]:
+    """Relative errors of area, mean tr G and u (L2 over the sample grid) against ref."""
+    return {
+        "err_area": abs(record["area"] - ref["area"]) / abs(ref["area"]),
+        "err_trG": abs(record["mean_trG"] - ref["mean_trG"]) / abs(ref["mean_trG"]),
+        "err_u": float(np.sqrt(np.mean((u - u_ref) ** 2) / np.mean(u_ref**2))),
+    }
+
+
+def knob_sequence(runs: dict[str, dict], knob: str) -> list[str]:
+    """The runs of one knob and the shipped run, coarse to fine by their resolved value."""
+    key = next(iter(KNOBS[knob][0]))
+    names = [n for n in runs if n.startswith(knob + ":") or n == "shipped"]
+    names = [n for n in names if runs[n]["exit"] == 0]
+    by_value = {runs[n]["resolved"][key]: n for n in sorted(names, key=lambda n: n != "shipped")}
+
+    def fineness(v: float) -> float:
+        return v * FINER[knob] if v != 0 else np.inf  # cell_tolerance 0: exact, the finest
+
+    return [by_value[v] for v in sorted(by_value, key=fineness)]
+
+
+def tail_estimate(changes: list[float]) -> float:
+    """The error left beyond the last of a sequence of changes between successive levels:
+    the geometric tail ``d1 rho / (1 - rho)``, or ``d1`` itself where the changes do not
+    contract (rho >= 0.9: the knob is at the floor the other knobs leave)."""
+    if not changes:
+        return np.inf
+    rho = changes[-1] / changes[-2] if len(changes) > 1 and changes[-2] > 0.0 else 1.0
+    return changes[-1] * rho / (1.0 - rho) if rho < 0.9 else changes[-1]
+
+
+def summarize(runs: dict[str, dict], samples: Path) -> dict:
+    """Errors of every run against the reference; the reference's estimated error; the knob
+    whose refinement removes most of the shipped scene's error."""
+    ref = runs.get("reference")
+    if not ref or ref["exit"] != 0:
+        return {}
+    fields = {n: np.load(samples / f"{n}.npy") for n, r in runs.items() if r["exit"] == 0}
+    table = {}
+    for name, record in runs.items():
+        if record["exit"] == 0 and name != "reference":
+            e = errors(record, ref, fields[name], fields["reference"])
+            table[name] = e | {"err_max": max(e.values())}
+    estimate = {"err_area": 0.0, "err_trG": 0.0, "err_u": 0.0}
+    for knob in FINER:
+        sequence = knob_sequence(runs, knob)
+        pairs = list(zip(sequence[:-1], sequence[1:], strict=True))
+        for name in estimate:
+            changes = [errors(runs[a], runs[b], fields[a], fields[b])[name] for a, b in pairs]
+            estimate[name] += tail_estimate(changes)
+    out = {"errors": table, "reference_error_estimate": estimate}
+    shipped = table.get("shipped")
+    if shipped:
+        finest = {knob: min((table[n]["err_max"] for n in table if n.startswith(knob + ":")),
+                            default=np.inf) for knob in KNOBS}  # fmt: skip
+        out["dominant_knob"] = min(finest, key=finest.get)
+        out["error_left_when_refining"] = finest
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenes", nargs="*", default=list(SCENES))
+    parser.add_argument("--redo", nargs="*", default=[], help="run names to repeat")
+    parser.add_argument("--only", nargs="*", default=None, help="run only these names")
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+    data = json.loads(args.out.read_text()) if args.out.exists() else {"scenes": {}}
+    data["machine"] = machine_description()
+    data["command"] = "python scripts/accuracy_cost.py"
+    data["cost"] = "CPU seconds of the whole plantgrowth process (user + system), cache off"
+    for name in args.scenes:
+        path = ROOT / "scenes" / name
+        base = tomllib.loads(path.read_text())
+        entry = data["scenes"].setdefault(path.stem, {"scene": f"scenes/{name}", "runs": {}})
+        samples = SAMPLES_DIR / path.stem
+        for run_name, overrides in runs_of(base).items():
+            if args.only is not None and run_name not in args.only:
+                continue
+            text = dict_to_toml(with_overrides(base, overrides))
+            old = entry["runs"].get(run_name)
+            same = old and old["scene_text"] == text and old.get("resolved") == knobs_of(text)
+            if same and run_name not in args.redo:
+                continue
+            with tempfile.TemporaryDirectory() as tmp:
+                load = os.getloadavg()[0]
+                record = run(text, Path(tmp), samples / f"{run_name}.npy")
+            entry["runs"][run_name] = record | {"scene_text": text, "load_before": load}
+            entry |= summarize(entry["runs"], samples)
+            args.out.write_text(json.dumps(data, indent=1))
+            shown = {k: v for k, v in record.items() if k != "resolved"}
+            print(path.stem, run_name, json.dumps(shown), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

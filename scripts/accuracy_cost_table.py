@@ -1,0 +1,75 @@
+"""Markdown tables of the accuracy-cost map (``benchmarks/results/accuracy_cost.json``).
+
+Prints, per scene, every run's relative errors (final area, final mean tr G, u at t_max) and
+cost, then one table of the presets over all scenes; the docs and README tables are pasted
+from it. Never solves.
+
+    python scripts/accuracy_cost_table.py
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "benchmarks/results/accuracy_cost.json"
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.2g}%"
+
+
+def scene_table(stem: str, entry: dict) -> list[str]:
+    """One row per run of one scene."""
+    lines = [f"#### {stem}", "", "| run | err area | err mean tr G | err u | err max | CPU s | "
+             "wall s | cell solves |", "|---|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+    for name, run in entry["runs"].items():
+        if name == "reference":
+            cost = f"{run['cpu_seconds']:.3g} | {run['wall_seconds']:.3g} | {run['cell_solves']}"
+            lines.append(f"| reference | - | - | - | - | {cost} |")
+            continue
+        if run["exit"] != 0:
+            lines.append(f"| {name} | stopped: {run['error'][:60]} | | | | | | |")
+            continue
+        e = entry["errors"][name]
+        errors = " | ".join(_pct(e[k]) for k in ("err_area", "err_trG", "err_u", "err_max"))
+        cost = f"{run['cpu_seconds']:.3g} | {run['wall_seconds']:.3g} | {run['cell_solves']}"
+        lines.append(f"| {name} | {errors} | {cost} |")
+    estimate = entry.get("reference_error_estimate", {})
+    if estimate:
+        shown = ", ".join(f"{k[4:]} {_pct(v)}" for k, v in estimate.items() if k != "err_max")
+        lines += ["", f"Estimated error of the reference itself: {shown}."]
+    if "dominant_knob" in entry:
+        left = entry["error_left_when_refining"]
+        shown = ", ".join(f"{k} {_pct(v)}" for k, v in left.items())
+        lines += [f"Dominant knob of the shipped scene: **{entry['dominant_knob']}** (largest "
+                  f"error left when only that knob is refined: {shown})."]  # fmt: skip
+    return lines + [""]
+
+
+def preset_table(scenes: dict) -> list[str]:
+    """The presets' largest error and CPU seconds on every scene."""
+    names = [n for n in next(iter(scenes.values()))["runs"] if n.startswith("preset:")]
+    header = "| preset | " + " | ".join(f"{stem}: err max / CPU s" for stem in scenes) + " |"
+    lines = [header, "|---|" + "---:|" * len(scenes)]
+    for name in names:
+        cells = []
+        for entry in scenes.values():
+            run, e = entry["runs"].get(name), entry.get("errors", {}).get(name)
+            cells.append(f"{_pct(e['err_max'])} / {run['cpu_seconds']:.3g}" if e else "-")
+        lines.append(f"| {name.split(':')[1]} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def main() -> int:
+    scenes = json.loads(DATA.read_text())["scenes"]
+    for stem, entry in scenes.items():
+        print("\n".join(scene_table(stem, entry)))
+    print("\n".join(preset_table(scenes)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
