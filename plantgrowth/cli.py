@@ -1,9 +1,10 @@
-"""Command line: ``plantgrowth run | validate | cell | compare``.
+"""Command line: ``plantgrowth run | validate | cell | compare | sweep``.
 
 ``main(argv) -> int`` logs on rank 0 only: progress to stdout, warnings to stderr, both to the
 run's ``run.log``. Exit codes: 0 done, 2 bad input (one line naming the field and its valid
-range), 3 a run that failed numerically (step, time, place, cause), 130 interrupted by SIGINT at
-the end of a step. A closed stdout (``plantgrowth ... | head``) silences the progress only.
+range), 3 a run that failed numerically (step, time, place, cause; ``sweep``: some run failed,
+see its sweep.csv), 130 interrupted by SIGINT at the end of a step. A closed stdout
+(``plantgrowth ... | head``) silences the progress only.
 """
 
 from __future__ import annotations
@@ -142,7 +143,53 @@ def build_parser() -> argparse.ArgumentParser:
     )
     validate.add_argument("scene", type=Path, help="scene TOML file")
     validate.set_defaults(handler=_validate_command)
+    _add_sweep_parser(sub)
     return parser
+
+
+def _add_sweep_parser(sub) -> None:
+    sweep = sub.add_parser(
+        "sweep",
+        help="run a scene for many parameter values (also under mpirun and as a job array)",
+        description='Run every combination (mode = "grid") or every value of each key alone '
+        '(mode = "one-at-a-time") of the [vary] table of a sweep file on its base scene: '
+        "DIR/run_NNNN/ holds each run (as plantgrowth run writes it), DIR/sweep.csv one row per "
+        "run, DIR/sweep.toml the resolved sweep. Everything is checked before anything runs. "
+        "Started again, a sweep skips its finished runs, resumes interrupted ones and retries "
+        "failed ones.",
+    )
+    sweep.add_argument(
+        "sweep", type=Path,
+        help='sweep TOML file: base = "SCENE.toml", mode, [vary] "dotted.key" = [values]',
+    )  # fmt: skip
+    sweep.add_argument(
+        "-o", "--output", type=Path, default=None,
+        help="output directory (default: results/sweep_<sweep name>)",
+    )  # fmt: skip
+    sweep.add_argument(
+        "--ranks-per-run", type=int, default=1, metavar="K",
+        help="under mpirun -n N: N/K runs at a time, each on K ranks (N a multiple of K; "
+        "default 1)",
+    )  # fmt: skip
+    sweep.add_argument(
+        "--array-index", type=int, default=None, metavar="I",
+        help="as element I (0 <= I < N) of a job array, take runs I, I+N, I+2N, ... "
+        "(Slurm: $SLURM_ARRAY_TASK_ID, with --array=0-<N-1>)",
+    )  # fmt: skip
+    sweep.add_argument(
+        "--array-count", type=int, default=None, metavar="N",
+        help="number N of job-array elements (Slurm: $SLURM_ARRAY_TASK_COUNT)",
+    )  # fmt: skip
+    sweep.add_argument(
+        "--dry-run", action="store_true",
+        help="check the sweep and list its runs (this element's share); write nothing",
+    )  # fmt: skip
+    sweep.add_argument(
+        "--overwrite", action="store_true",
+        help="replace an earlier sweep in DIR (only plantgrowth's files are removed); without "
+        "it another sweep there is refused and the same one continued",
+    )  # fmt: skip
+    sweep.set_defaults(handler=_sweep_command)
 
 
 def _cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
@@ -203,6 +250,7 @@ def _compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         try:
             run_compare(scene, args.nx, outdir, comm, args.resolution, args.first_step_only)
         except RunError as err:
+            log.error("run failed: %s", err)
             return _run_failed(err, comm)
         log.info("done: %s", outdir / "compare.csv")
     return 0
@@ -243,35 +291,32 @@ def _warn_about(scene) -> None:
 
 
 def _run_failed(err: RunError, comm: MPI.Comm) -> int:
-    """Report a failed run once: on stderr, and in run.log."""
-    log.error("run failed: %s", err)
+    """Report a failed run once on stderr (run.log has it already)."""
     if comm.rank == 0:
         print(f"plantgrowth: run failed: {err}", file=sys.stderr)
     return 3
 
 
-def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+def run_scene(
+    scene, outdir: Path, comm: MPI.Comm, what: str, resume: bool = False, overwrite: bool = False
+) -> None:
+    """Run a scene into ``outdir`` on ``comm`` as ``plantgrowth run`` does: hold the directory,
+    write scene.toml and run.log (its first line names the run as ``what``), warn, run.
+
+    Raises:
+        InputError: the directory is busy, holds an earlier run, or cannot be resumed.
+        RunError: a step failed (logged in run.log).
+        Interrupted: SIGINT stopped the run after a completed step (logged in run.log).
+    """
     from plantgrowth.coupled import run_macro
     from plantgrowth.micro import run_micro
     from plantgrowth.output import prepare_directory
     from plantgrowth.rundir import check_resumable
-    from plantgrowth.scene import load_scene
     from plantgrowth.timeloop import Interrupted
 
-    scene = load_scene(args.scene)
-    resume = args.resume is not None
-    extends = False
-    if resume:
-        if args.output is not None and args.output != args.resume:
-            raise InputError("give either -o DIR or --resume DIR, not two different directories")
-        if args.overwrite:
-            raise InputError("give either --overwrite or --resume, not both")
-        outdir = args.resume
-        extends = check_resumable(outdir, scene)
-    else:
-        outdir = args.output if args.output is not None else Path("results") / args.scene.stem
-    with _run_directory(outdir, scene, comm, resume, args.overwrite):
-        log.info("plantgrowth run %s -> %s on %d rank(s)", args.scene, outdir, comm.size)
+    extends = resume and check_resumable(outdir, scene)
+    with _run_directory(outdir, scene, comm, resume, overwrite):
+        log.info("%s -> %s on %d rank(s)", what, outdir, comm.size)
         if extends:
             log.info("extending the run to time.t_max = %g", scene.time.t_max)
         _warn_about(scene)
@@ -283,15 +328,63 @@ def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
                     prepare_directory(directory, comm, keep=resume)
                 run(scene, directory, comm, resume=resume)
         except RunError as err:
-            return _run_failed(err, comm)
+            log.error("run failed: %s", err)
+            raise
         except Interrupted as stop:
             log.info("%s", stop)
-            if comm.rank == 0:
-                print(f"plantgrowth: {stop}; continue with: plantgrowth run {args.scene} "
-                      f"--resume {outdir}", file=sys.stderr)  # fmt: skip
-            return 130
+            raise
         log.info("done: %s", outdir)
+
+
+def _run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from plantgrowth.scene import load_scene
+    from plantgrowth.timeloop import Interrupted
+
+    scene = load_scene(args.scene)
+    resume = args.resume is not None
+    if resume:
+        if args.output is not None and args.output != args.resume:
+            raise InputError("give either -o DIR or --resume DIR, not two different directories")
+        if args.overwrite:
+            raise InputError("give either --overwrite or --resume, not both")
+        outdir = args.resume
+    else:
+        outdir = args.output if args.output is not None else Path("results") / args.scene.stem
+    try:
+        run_scene(scene, outdir, comm, f"plantgrowth run {args.scene}", resume, args.overwrite)
+    except RunError as err:
+        return _run_failed(err, comm)
+    except Interrupted as stop:
+        if comm.rank == 0:
+            print(f"plantgrowth: {stop}; continue with: plantgrowth run {args.scene} "
+                  f"--resume {outdir}", file=sys.stderr)  # fmt: skip
+        return 130
     return 0
+
+
+def _sweep_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from plantgrowth.sweep import Share, dry_run, load_sweep, run_sweep
+
+    share = Share.check(comm.size, args.ranks_per_run, args.array_index, args.array_count)
+    sweep = load_sweep(args.sweep)
+    if args.dry_run:
+        return dry_run(sweep, share, comm)
+    if args.overwrite and share.elements > 1:
+        raise InputError(
+            "--overwrite cannot be given to a job-array element (the elements share DIR): "
+            "remove the earlier sweep before submitting the array, or choose another -o"
+        )
+    outdir = (
+        args.output if args.output is not None else Path("results") / f"sweep_{args.sweep.stem}"
+    )
+    code = run_sweep(sweep, outdir, comm, share, run_scene, args.overwrite)
+    if comm.rank == 0 and code == 130:
+        print(f"plantgrowth: sweep interrupted; continue with: plantgrowth sweep {args.sweep} "
+              f"-o {outdir}", file=sys.stderr)  # fmt: skip
+    elif comm.rank == 0 and code == 3:
+        print(f"plantgrowth: not every run finished (failed, or held by another process): see "
+              f"{outdir / 'sweep.csv'}", file=sys.stderr)  # fmt: skip
+    return code
 
 
 class _Below(logging.Filter):
@@ -373,7 +466,7 @@ def main(argv: list[str] | None = None) -> int:
         if not argv:
             if comm.rank == 0:
                 parser.print_help()
-            raise InputError("no command given: choose one of cell, run, compare, validate")
+            raise InputError("no command given: choose one of cell, run, compare, validate, sweep")
         args = parser.parse_args(argv)
         _quiet_broken_pipe()
         code = args.handler(args, comm)

@@ -59,14 +59,19 @@ def remove_earlier_outputs(directory: Path) -> None:
 
 
 class DirectoryLock:
-    """The exclusive lock of one output directory, held by this process until :meth:`release`."""
+    """The exclusive lock of one output directory, held by this process until :meth:`release`.
 
-    def __init__(self, directory: Path) -> None:
+    ``shared``: a lock that other shared holders may hold too (the elements of a job array
+    sharing a sweep's directory), never together with an exclusive one; it leaves the file.
+    """
+
+    def __init__(self, directory: Path, shared: bool = False) -> None:
         self.path = directory / LOCK_NAME
+        self.shared = shared
         while True:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
             try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
             except BlockingIOError:
                 holder = os.pread(fd, 4096, 0).decode(errors="replace")
                 os.close(fd)
@@ -87,9 +92,11 @@ class DirectoryLock:
         self.fd: int | None = fd
 
     def release(self) -> None:
-        """Remove the lock file (while still holding it) and drop the lock."""
+        """Remove the lock file (while still holding it; not a shared one, which other holders
+        may still use) and drop the lock."""
         if self.fd is not None:
-            self.path.unlink(missing_ok=True)
+            if not self.shared:
+                self.path.unlink(missing_ok=True)
             os.close(self.fd)
             self.fd = None
 

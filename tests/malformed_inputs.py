@@ -647,7 +647,7 @@ def _cli_case(rng: random.Random, cls: str):
     what = rng.choice(["command", "flag", "value", "int", "none", "positional"])
     if what == "command":
         name = rng.choice(["grow", "Run", "simulate", "help", _name(rng).lower()])
-        if name in ("cell", "run", "compare", "validate"):
+        if name in ("cell", "run", "compare", "validate", "sweep"):
             name = "x" + name
         return (), [name, "x"], (name,)
     if what == "flag":
