@@ -14,19 +14,19 @@ from __future__ import annotations
 
 PRESETS: dict[str, dict[str, dict[str, float | int | str]]] = {
     "draft": {
-        "tissue": {"h": 0.2, "H": 2.0},
+        "tissue": {"h": 0.2, "H": 1.0},
         "accuracy": {"cell_resolution": 1, "cell_tolerance": 1e-2},
         "time": {"dt": 1.0, "integrator": "exp"},
     },
     "balanced": {
-        "tissue": {"h": 0.1, "H": 1.0},
+        "tissue": {"h": 0.1, "H": 0.5},
         "accuracy": {"cell_resolution": 2, "cell_tolerance": 1e-3},
         "time": {"dt": 1.0, "integrator": "exp"},
     },
     "fine": {
-        "tissue": {"h": 0.05, "H": 0.5},
-        "accuracy": {"cell_resolution": 6, "cell_tolerance": 1e-4},
-        "time": {"dt": 1.0, "integrator": "exp"},
+        "tissue": {"h": 0.05, "H": 0.0625},
+        "accuracy": {"cell_resolution": 3, "cell_tolerance": 1e-4},
+        "time": {"dt": 0.5, "integrator": "exp"},
     },
 }
 DEFAULT_PRESET = "balanced"

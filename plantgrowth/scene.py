@@ -12,7 +12,7 @@ inclined wall length l2 = 1)::
     height = 3.0               # at most 1e6
     h = 0.1                    # (preset) fine-mesh edge: 0 < h <= min(width, height)/2,
                                # at most 4e6 cells
-    H = 1.0                    # (preset) coarse-mesh edge (cell-problem nodes):
+    H = 0.5                    # (preset) coarse-mesh edge (cell-problem nodes):
                                # h <= H <= max(width, height)
     [cell]                     # honeycomb unit cell, MODEL.md section 2
     l1 = 1.0                   # vertical wall length, > 0
@@ -50,6 +50,10 @@ inclined wall length l2 = 1)::
     [micro]
     nx = 16                    # cells per row of the micro model, even integer in [2, 256]
     resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
+    [solver]                   # linear solvers: speed only, results agree to the solver tolerance
+    macro = "auto"             # "direct" (LU), "iterative" (CG + GAMG, true relative residual
+                               # <= 1e-10) or "auto": iterative from macro_threshold fine dofs on
+    macro_threshold = 200000   # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
 
 Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/presets.py; the values
 shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped
@@ -98,6 +102,9 @@ MAX_NX = TISSUE_MAX_NX  # micro.nx
 LAWS = ("stress", "strain", "none")
 INTEGRATORS = ("euler", "exp", "adaptive")
 MODELS = ("macro", "micro", "both")
+MACRO_SOLVERS = ("auto", "direct", "iterative")
+MACRO_THRESHOLD = 200_000
+"""Fine dofs from which ``solver.macro = "auto"`` solves iteratively (README: Large tissues)."""
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 EDGES = ("left", "right", "top")
@@ -388,6 +395,25 @@ class Accuracy:
 
 
 @dataclass(frozen=True)
+class Solver:
+    """The macro problem's linear solver: "direct", "iterative" or "auto" (iterative from
+    ``macro_threshold`` fine dofs on)."""
+
+    macro: str = "auto"
+    macro_threshold: int = MACRO_THRESHOLD
+
+    def __post_init__(self) -> None:
+        _choice("solver.macro", self.macro, MACRO_SOLVERS)
+        _integer("solver.macro_threshold", self.macro_threshold, 0, 10**9)
+
+    def macro_kind(self, ndofs: int) -> str:
+        """"direct" or "iterative" for a macro problem of ``ndofs`` fine dofs."""
+        if self.macro != "auto":
+            return self.macro
+        return "iterative" if ndofs >= self.macro_threshold else "direct"
+
+
+@dataclass(frozen=True)
 class Scene:
     """One fully validated simulation; build it with :func:`load_scene` or :func:`parse_scene`."""
 
@@ -403,6 +429,7 @@ class Scene:
     accuracy: Accuracy = Accuracy()
     micro_nx: int = 16
     micro_resolution: int = 2
+    solver: Solver = Solver()
 
     def __post_init__(self) -> None:
         _choice("model", self.model, MODELS)
@@ -500,6 +527,7 @@ class Scene:
         out["output"] = {"fields": self.output.fields}
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
         out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
+        out["solver"] = {f.name: getattr(self.solver, f.name) for f in fields(self.solver)}
         return out
 
     def to_toml(self) -> str:
@@ -540,6 +568,7 @@ _TABLES = {
     "output": ("fields",),
     "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
+    "solver": ("macro", "macro_threshold"),
 }
 _FIELD_DEFAULTS = {
     "cell": {"l1": 1.0, "l2": 1.0, "theta": 30.0, "w": 0.05},
@@ -652,6 +681,7 @@ def _parse(data: dict) -> Scene:
         accuracy=Accuracy(**t["accuracy"]),
         micro_nx=t["micro"].get("nx", 16),
         micro_resolution=t["micro"].get("resolution", 2),
+        solver=Solver(**t["solver"]),
     )
 
 

@@ -65,7 +65,10 @@ def test_explicit_keys_override_the_preset():
     }
     scene = parse_scene(data)
     expected = preset_values("fine") | {"tissue.h": 0.3, "time.dt": 2.0,
-                                        "accuracy.cell_tolerance": 0.0}  # fmt: skip
+                                        "accuracy.cell_tolerance": 0.0,
+                                        "tissue.H": 0.3}  # fmt: skip
+    # fine's H is below the given h: the preset's H is raised to it (h <= H)
+    assert PRESETS["fine"]["tissue"]["H"] < 0.3
     assert knob_values(scene) == expected
 
 
@@ -81,12 +84,13 @@ def test_the_resolved_scene_names_the_preset_and_every_value(tmp_path):
 
 
 def test_preset_mesh_sizes_are_clipped_to_a_small_tissue_but_given_ones_are_not():
-    small = {"growth": {"law": "stress"}, "tissue": {"width": 1.0, "height": 0.3}}
+    small = {"growth": {"law": "stress"}, "tissue": {"width": 0.8, "height": 0.3}}
     scene = parse_scene(small | {"accuracy": {"preset": "draft"}})
-    assert scene.tissue.h == 0.15  # min(width, height) / 2 < draft's h
-    assert scene.tissue.H == 1.0  # max(width, height) < draft's H
+    assert PRESETS["draft"]["tissue"]["h"] > 0.15 and PRESETS["draft"]["tissue"]["H"] > 0.8
+    assert scene.tissue.h == 0.15  # min(width, height) / 2
+    assert scene.tissue.H == 0.8  # max(width, height)
     with pytest.raises(ValueError, match=r"tissue\.h = 0\.2 is out of range"):
-        parse_scene(small | {"tissue": {"width": 1.0, "height": 0.3, "h": 0.2}})
+        parse_scene(small | {"tissue": {"width": 0.8, "height": 0.3, "h": 0.2}})
 
 
 def test_shipped_scenes_take_their_knobs_from_a_preset():

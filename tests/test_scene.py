@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from plantgrowth.errors import InputError
+from plantgrowth.presets import PRESETS
 from plantgrowth.scene import (
     DEFAULT_OUTPUT,
     Field,
@@ -77,7 +78,8 @@ def test_defaults():
     scene = parse(LAW)
     assert scene.model == "macro"
     t = scene.tissue
-    assert (t.width, t.height, t.h, t.H) == (4 * math.sqrt(3), 3.0, 0.1, 1.0)
+    assert (t.width, t.height) == (4 * math.sqrt(3), 3.0)
+    assert (t.h, t.H) == (PRESETS["balanced"]["tissue"]["h"], PRESETS["balanced"]["tissue"]["H"])
     assert t.width == 6.928203230275509
     values = {k: f.start for k, f in scene.parameter_fields().items()}
     assert values == {
