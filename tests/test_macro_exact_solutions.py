@@ -110,7 +110,8 @@ SHEARED_FG = np.array([[1.15, 0.2], [0.05, 0.95]])  # not symmetric, det = 1.082
 @pytest.fixture(scope="module")
 def sheared():
     """A homogeneous strain-law scene with E = 2 and the uniform, non-symmetric growth tensor
-    SHEARED_FG (growth.Fg0), first step; cell inputs kept exact (key_tolerance 1e-12)."""
+    SHEARED_FG (growth.Fg0), first step; cell inputs kept exact (key_tolerance 1e-12, no
+    surrogate: cell_tolerance 0)."""
     scene = parse_scene(
         {
             "tissue": {"h": 0.35, "H": 1.0},
@@ -119,7 +120,7 @@ def sheared():
                 "law": "strain", "eta": 1.5, "tau": 0.0005,
                 "Fg0": SHEARED_FG.tolist(),
             },
-            "accuracy": {"cell_resolution": 1, "key_tolerance": 1e-12},
+            "accuracy": {"cell_resolution": 1, "key_tolerance": 1e-12, "cell_tolerance": 0.0},
             "time": {"t_max": 1.0},
         }
     )  # fmt: skip

@@ -182,7 +182,9 @@ def test_a_varied_accuracy_preset_sets_the_knobs_the_base_leaves_out(tmp_path_fa
         accuracy, tissue = run.scene.accuracy, run.scene.tissue
         assert accuracy.preset == preset
         assert accuracy.cell_tolerance == knob(preset, "accuracy", "cell_tolerance")
-        assert tissue.H == min(knob(preset, "tissue", "H"), tissue.width)
+        # the preset's H, clipped to [h, max(width, height)] (scene.py: h <= H)
+        H = min(knob(preset, "tissue", "H"), max(tissue.width, tissue.height))
+        assert tissue.H == max(H, tissue.h)
         assert tissue.h == 0.35 and accuracy.cell_resolution == 1  # the base scene's own
 
 
