@@ -4,7 +4,8 @@ Run with ParaView's batch interpreter (Debian: apt-get install paraview python3-
 xauth); without a display, under a virtual X server (pvbatch needs one to render):
     xvfb-run -a pvbatch scripts/check_paraview.py results/reference_stress/fields.xdmf
 Prints one JSON line: the time values, point/cell counts and the array names at the last time.
-With ``--png FILE`` it also renders the last time (coloured by u) into FILE.
+With ``--png FILE`` it also renders the last time (coloured by u, or by the first point array
+where there is no u, as in ``coarse.xdmf``) into FILE.
 """
 
 import argparse
@@ -26,10 +27,12 @@ def main() -> None:
     reader.UpdatePipeline(times[-1])
     data = servermanager.Fetch(reader)
     points, cells = data.GetPointData(), data.GetCellData()
+    u = points.GetArray("u")  # None in coarse.xdmf (E_hom at the coarse nodes only)
     if args.png:
         view = GetActiveViewOrCreate("RenderView")
         view.ViewTime = times[-1]
-        ColorBy(Show(reader, view), ("POINTS", "u", "Magnitude"))
+        first = points.GetArrayName(0) if points.GetNumberOfArrays() else None
+        ColorBy(Show(reader, view), ("POINTS", "u" if points.GetArray("u") else first))
         view.ResetCamera()
         SaveScreenshot(args.png, view, ImageResolution=[640, 360])
     print(
@@ -40,7 +43,7 @@ def main() -> None:
                 "n_cells": data.GetNumberOfCells(),
                 "point_arrays": [points.GetArrayName(i) for i in range(points.GetNumberOfArrays())],
                 "cell_arrays": [cells.GetArrayName(i) for i in range(cells.GetNumberOfArrays())],
-                "u_max_abs_x": max(abs(v) for v in points.GetArray("u").GetRange(0)),
+                "u_max_abs_x": None if u is None else max(abs(v) for v in u.GetRange(0)),
             }
         )
     )
