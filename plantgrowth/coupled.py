@@ -24,6 +24,7 @@ from plantgrowth.gather import MeshGather
 from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
+from plantgrowth.output import NodeFields
 from plantgrowth.scene import Scene
 from plantgrowth.tensors import VOIGT_NAMES, VOIGT_POSITIONS
 from plantgrowth.timeloop import StepResult, max_abs_components, run_model
@@ -32,18 +33,34 @@ log = logging.getLogger("plantgrowth")
 
 
 class _Outputs:
-    """The DG0/P1 functions written to fields.xdmf, only those the scene asks for."""
+    """The DG0/P1 functions written to fields.xdmf, only those the scene asks for (E_hom lives
+    on the coarse nodes: see :func:`coarse_output`)."""
 
     def __init__(self, problem: MacroProblem, fields: tuple[str, ...]) -> None:
         self.fields = fields
-        T0, Q0 = problem.T0, problem.Q0
+        T0 = problem.T0
         self.G = fem.Function(T0, name="G")
         self.sigma = fem.Function(T0, name="sigma_hom")
         self.eps = fem.Function(T0, name="eps_hom")
-        self.E = [fem.Function(Q0, name=name) for name in VOIGT_NAMES]
-        chosen = {"u": [problem.u], "Fg": [problem.Fg], "G": [self.G], "sigma_hom": [self.sigma],
-                  "E_hom": self.E, "eps_hom": [self.eps]}  # fmt: skip
-        self.functions = [f for name in fields for f in chosen[name]]
+        chosen = {"u": problem.u, "Fg": problem.Fg, "G": self.G, "sigma_hom": self.sigma,
+                  "eps_hom": self.eps}  # fmt: skip
+        self.functions = [chosen[name] for name in fields if name in chosen]
+
+
+def coarse_triangles(grid: CoarseGrid) -> np.ndarray:
+    """(2 nx ny, 3) counter-clockwise triangles of the coarse grid, split as
+    :meth:`CoarseGrid.interpolation_matrix` splits its rectangles."""
+    i, j = np.meshgrid(np.arange(grid.nx), np.arange(grid.ny))
+    n00 = (j * (grid.nx + 1) + i).ravel()
+    n10, n01, n11 = n00 + 1, n00 + grid.nx + 1, n00 + grid.nx + 2
+    lower, upper = np.column_stack([n00, n10, n01]), np.column_stack([n11, n01, n10])
+    return np.stack([lower, upper], axis=1).reshape(-1, 3)
+
+
+def coarse_output(grid: CoarseGrid, fields: tuple[str, ...]) -> NodeFields:
+    """The coarse-node fields the scene asks for (E_hom's six components) on the coarse grid."""
+    names = VOIGT_NAMES if "E_hom" in fields else ()
+    return NodeFields(grid.nodes, coarse_triangles(grid), names)
 
 
 def _pruning_report(problem: MacroProblem, scene: Scene, strain_averages: bool) -> list[str]:
@@ -94,6 +111,7 @@ class MacroModel:
         )  # fmt: skip
         self.out = _Outputs(problem, scene.output.fields)
         self.outputs = self.out.functions
+        self.coarse_output = coarse_output(self.grid, scene.output.fields)
         self.output_space = problem.V
         self._gather = MeshGather(problem.V)
         log.info(
@@ -182,8 +200,9 @@ class MacroModel:
         problem.set_cell_values(self.out.sigma, sigma)
         if eps_hom is not None:
             problem.set_cell_values(self.out.eps, eps_hom)
-        for function, (i, j) in zip(self.out.E, VOIGT_POSITIONS, strict=True):
-            problem.set_cell_values(function, C[:, i, j])
+        if self.coarse_output.names:
+            for name, (i, j) in zip(VOIGT_NAMES, VOIGT_POSITIONS, strict=True):
+                self.coarse_output.values[name] = nt.C[:, i, j]
         t3 = time.perf_counter()
         n, M = problem.n_owned, self.scene.growth.clamp
         return StepResult(

@@ -112,6 +112,7 @@ class MicroModel:
         self._set(ids, np.arange(layout.n_cells, dtype=float))
         self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
         self.outputs = [self.u_out, self.Fg, self.G_out, ids]
+        self.coarse_output = None  # no coarse grid: every field lives on the walls mesh
         self._deformation_det = fem.Function(Q0)
         self._deformation_det_expr = fem.Expression(
             ufl.det(ufl.Identity(2) + ufl.grad(self.u)), Q0.element.interpolation_points()

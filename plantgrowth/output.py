@@ -1,17 +1,21 @@
-"""Run outputs that survive interruption: an XDMF time series and the per-step summary table.
+"""Run outputs that survive interruption: XDMF time series, the resume state and the summary.
 
 Layout of an output directory::
 
-    fields.xdmf            the time series ParaView opens (rewritten atomically after each step)
-    fields.h5              the mesh: /Mesh/geometry, /Mesh/topology
-    fields/step_NNNNNN.h5  one file per completed step: the fields, and /state for --resume
+    fields.xdmf            the fine mesh's time series ParaView opens (rewritten atomically)
+    coarse.xdmf            the coarse grid's time series (macro E_hom; only if one is written)
+    fields.h5              the meshes: /Mesh/{geometry,topology}, /CoarseMesh/{geometry,topology}
+    fields/step_NNNNNN.h5  one file per written step: the fields, coarse ones under /coarse
+    state.h5               the model state after the last two completed steps (float64, --resume)
     summary.csv            one row per completed step (flushed and fsync'ed)
 
-A step's HDF5 file is written under a temporary name and renamed when complete, and the XDMF
-file likewise, so a run killed at any moment (even SIGKILL) leaves every completed step
-readable; files of completed steps are never opened for writing again. Data are gathered to
-rank 0, which alone writes (Debian's h5py is serial). Only these names are ever removed
-(:func:`run_files`): a user's own files in the directory are left alone.
+Fields are written at t = 0, every ``output.every``-th step and at the last step
+(:class:`Schedule`), in ``output.precision`` (float32 by default: what ParaView's XDMF reader
+loads) with gzip and shuffle filters; the state, written after every step, keeps float64 so
+that a resumed run continues exactly. Every file is written under a temporary name and renamed
+when complete, so a run killed at any moment (even SIGKILL) leaves every written step readable.
+Data are gathered to rank 0, which alone writes (Debian's h5py is serial). Only these names are
+ever removed (:func:`run_files`): a user's own files in the directory are left alone.
 """
 
 from __future__ import annotations
@@ -19,6 +23,9 @@ from __future__ import annotations
 import csv
 import os
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
@@ -28,10 +35,16 @@ from mpi4py import MPI
 
 from plantgrowth.gather import MeshGather
 
-OUTPUT_FILES = ("fields.xdmf", "fields.h5", "summary.csv", "scene.toml", "run.log")
+OUTPUT_FILES = (
+    "fields.xdmf", "coarse.xdmf", "fields.h5", "state.h5", "summary.csv", "scene.toml", "run.log"
+)  # fmt: skip
 STEP_DIR = "fields"
 _TEMPORARY = tuple(f".{name}.tmp" for name in OUTPUT_FILES)  # a kill during an atomic write
 _STEP_FILE = re.compile(r"\.?step_\d{6,}\.h5(\.tmp)?")  # a step file or its temporary name
+FIELD_FILTERS = {"compression": "gzip", "compression_opts": 1, "shuffle": True}
+"""How field datasets are compressed: gzip after byte shuffling (HDF5's built-in filters, which
+every HDF5 reader has), level 1 with one chunk per dataset: measured here, higher levels save
+under 5% and take up to 3x as long."""
 
 
 def run_files(directory: Path) -> list[Path]:
@@ -104,10 +117,71 @@ def last_summary_step(path: Path) -> int | None:
     return steps[-1] if steps else None
 
 
-def read_state(outdir: Path, step: int) -> dict[str, np.ndarray]:
-    """The model state saved with a step (for --resume)."""
-    with h5py.File(step_file(outdir, step), "r") as f:
-        return {key: f["state"][key][...] for key in f["state"]}
+@contextmanager
+def _atomic_h5(path: Path) -> Iterator[h5py.File]:
+    """An HDF5 file written under a temporary name and renamed into place when complete."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    with h5py.File(tmp, "w") as f:
+        yield f
+    os.replace(tmp, path)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """The steps whose fields are written: t = 0, every ``every``-th step and the last one."""
+
+    every: int
+    n_steps: int
+
+    def __contains__(self, step: int) -> bool:
+        return step % self.every == 0 or step == self.n_steps
+
+
+class StateFile:
+    """``state.h5``: what --resume needs to continue after either of the last two completed
+    steps, in float64, one group ``step_NNNNNN`` per step.
+
+    Replaced atomically after every step, so it stays small whatever ``output.every`` is. Two
+    steps, not one: a step's summary row is written before its state, so the newest state's row
+    exists, and the previous state still serves if summary.csv lost its last row.
+    """
+
+    def __init__(self, outdir: Path, comm: MPI.Comm) -> None:
+        self.path = outdir / "state.h5"
+        self.comm = comm
+        self._previous: tuple[int, float, dict[str, np.ndarray]] | None = None  # on rank 0
+
+    def write(self, step: int, t: float, state: dict[str, np.ndarray] | None) -> None:
+        """Save the state of (step, t) (given on rank 0; other ranks pass None)."""
+        if self.comm.rank != 0:
+            return
+        current = (step, t, state or {})
+        with _atomic_h5(self.path) as f:
+            for s, s_t, arrays in [x for x in (self._previous, current) if x is not None]:
+                group = f.create_group(f"step_{s:06d}")
+                group.attrs["t"] = s_t
+                for key, value in arrays.items():
+                    group[key] = value
+        self._previous = current
+
+    def steps(self) -> list[int]:
+        """The steps whose state is saved, on every rank."""
+        steps = []
+        if self.comm.rank == 0 and self.path.is_file():
+            with h5py.File(self.path, "r") as f:
+                steps = sorted(int(name.removeprefix("step_")) for name in f)
+        return self.comm.bcast(steps, root=0)
+
+    def read(self, step: int) -> dict[str, np.ndarray]:
+        """The state saved with ``step`` (global arrays, read on every rank); the next
+        :meth:`write` keeps it as the previous step."""
+        with h5py.File(self.path, "r") as f:
+            group = f[f"step_{step:06d}"]
+            state = {key: group[key][...] for key in group}
+            t = float(group.attrs["t"])
+        if self.comm.rank == 0:
+            self._previous = (step, t, state)
+        return state
 
 
 _ATTRIBUTE_TYPES = {1: ("Scalar", 1), 2: ("Vector", 3), 4: ("Tensor", 9)}
@@ -125,109 +199,190 @@ def _pad(values: np.ndarray) -> np.ndarray:
     return values
 
 
+@dataclass
+class NodeFields:
+    """Scalar fields at the nodes of a small mesh that every rank holds whole (the coarse grid
+    of the macro model): the model puts each step's ``values`` (name -> (n_nodes,)) here."""
+
+    points: np.ndarray  # (n_nodes, 2)
+    triangles: np.ndarray  # (n_triangles, 3) node numbers
+    names: tuple[str, ...]
+    values: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def _write_field(f: h5py.File, name: str, values: np.ndarray, dtype: np.dtype) -> None:
+    f.create_dataset(name, data=values, dtype=dtype, chunks=values.shape, **FIELD_FILTERS)
+
+
+@dataclass(frozen=True)
+class _Attribute:
+    """One field of a time series: its XDMF attribute and its dataset in each step file."""
+
+    name: str
+    dataset: str
+    kind: str  # Scalar | Vector | Tensor
+    center: str  # Node | Cell
+    shape: tuple[int, int]
+    precision: int  # bytes per value
+
+    def xml(self, step: int) -> str:
+        dims = " ".join(map(str, self.shape))
+        return (
+            f'        <Attribute Name="{self.name}" AttributeType="{self.kind}" '
+            f'Center="{self.center}">\n'
+            f'          <DataItem Dimensions="{dims}" NumberType="Float" '
+            f'Precision="{self.precision}" '
+            f'Format="HDF">{STEP_DIR}/step_{step:06d}.h5:/{self.dataset}</DataItem>\n'
+            f"        </Attribute>\n"
+        )
+
+
+@dataclass(frozen=True)
+class _Mesh:
+    """A triangle mesh in fields.h5: ``/<group>/geometry`` and ``/<group>/topology``."""
+
+    group: str
+    n_nodes: int
+    n_cells: int
+
+
+def _series_xml(mesh: _Mesh, attributes: list[_Attribute], steps: list[tuple[int, float]]) -> str:
+    """XDMF 3: the mesh grid, then a temporal collection with one grid per step that includes
+    the mesh's topology and geometry."""
+    group, n_nodes, n_cells = mesh.group, mesh.n_nodes, mesh.n_cells
+    grid = (
+        f'    <Grid Name="{group}" GridType="Uniform">\n'
+        f'      <Topology TopologyType="Triangle" NumberOfElements="{n_cells}" '
+        f'NodesPerElement="3">\n'
+        f'        <DataItem Dimensions="{n_cells} 3" NumberType="Int" Precision="8" '
+        f'Format="HDF">fields.h5:/{group}/topology</DataItem>\n'
+        f"      </Topology>\n"
+        f'      <Geometry GeometryType="XY">\n'
+        f'        <DataItem Dimensions="{n_nodes} 2" NumberType="Float" Precision="8" '
+        f'Format="HDF">fields.h5:/{group}/geometry</DataItem>\n'
+        f"      </Geometry>\n"
+        f"    </Grid>\n"
+    )
+    include = (
+        "<xi:include xpointer=\"xpointer(/Xdmf/Domain/Grid[@GridType='Uniform'][1]/"
+        '*[self::Topology or self::Geometry])" />'
+    )
+    grids = [
+        f'      <Grid Name="step_{step}" GridType="Uniform">\n'
+        f"        {include}\n"
+        f'        <Time Value="{t!r}" />\n' + "".join(a.xml(step) for a in attributes)
+        + "      </Grid>\n"
+        for step, t in steps
+    ]  # fmt: skip
+    return (
+        '<?xml version="1.0"?>\n'
+        '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
+        "  <Domain>\n" + grid
+        + '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">\n'
+        + "".join(grids)
+        + "    </Grid>\n  </Domain>\n</Xdmf>\n"
+    )  # fmt: skip
+
+
 class FieldSeries:
-    """Writes the XDMF time series of a run, one HDF5 file per step.
+    """Writes the XDMF time series of a run, one HDF5 file per written step.
 
     Args:
         outdir: the output directory.
         V1: the P1 vector space that numbers the written mesh's nodes.
-        functions: P1 (node) or DG0 (cell) functions, written by name at every step.
-        resume: continue the series already in ``outdir`` instead of starting it.
+        functions: P1 (node) or DG0 (cell) functions, written by name.
+        schedule: the steps to write.
+        precision: "float32" (what ParaView's XDMF reader loads) or "float64".
+        coarse: fields on a second, coarse mesh (``coarse.xdmf``), or None.
+        keep_until: resume: keep the steps already written up to this one that are on the
+            schedule (files of the others are removed); None starts the series afresh.
     """
 
     def __init__(
         self, outdir: Path, V1: fem.FunctionSpace, functions: list[fem.Function],
-        resume: bool = False,
+        schedule: Schedule, precision: str = "float32", coarse: NodeFields | None = None,
+        keep_until: int | None = None,
     ) -> None:  # fmt: skip
         self.outdir = outdir
         self.functions = functions
+        self.schedule = schedule
+        self.dtype = np.dtype(precision)
+        self.coarse = coarse if coarse is not None and coarse.names else None
         self.gather = MeshGather(V1)
         self.comm = V1.mesh.comm
         points, triangles = self.gather.points(), self.gather.triangles()
         self.steps: list[tuple[int, float]] = []
         if self.comm.rank == 0:
-            (outdir / STEP_DIR).mkdir(exist_ok=True)
-            if resume:
-                self.steps = completed_steps(outdir)
-            if not self.steps:
-                with h5py.File(outdir / "fields.h5", "w") as f:
-                    f["Mesh/geometry"] = points
-                    f["Mesh/topology"] = triangles.astype(np.int64)
-            self.n_nodes, self.n_cells = len(points), len(triangles)
-        self.steps = self.comm.bcast(self.steps, root=0)
+            self._write_meshes(points, triangles)
+            self.indexes = {"fields.xdmf": self._fine_index(points, triangles)}
+            if self.coarse is not None:
+                self.indexes["coarse.xdmf"] = self._coarse_index()
+            self._keep(keep_until)
 
-    @property
-    def last_step(self) -> int | None:
-        return self.steps[-1][0] if self.steps else None
+    def _write_meshes(self, points: np.ndarray, triangles: np.ndarray) -> None:
+        (self.outdir / STEP_DIR).mkdir(exist_ok=True)
+        path = self.outdir / "fields.h5"
+        with _atomic_h5(path) as f:
+            f["Mesh/geometry"] = points
+            f["Mesh/topology"] = triangles.astype(np.int64)
+            if self.coarse is not None:
+                f["CoarseMesh/geometry"] = self.coarse.points
+                f["CoarseMesh/topology"] = self.coarse.triangles.astype(np.int64)
 
-    def forget_after(self, step: int | None) -> None:
-        """Drop the steps after ``step`` from the index (their files get rewritten)."""
-        self.steps = [(s, t) for s, t in self.steps if step is not None and s <= step]
+    def _fine_index(
+        self, points: np.ndarray, triangles: np.ndarray
+    ) -> tuple[_Mesh, list[_Attribute]]:
+        """The fine mesh and its attributes (fields.xdmf)."""
+        n_nodes, n_cells = len(points), len(triangles)
+        attributes = []
+        for f in self.functions:
+            kind, width = _ATTRIBUTE_TYPES[f.function_space.dofmap.index_map_bs]
+            cell = f.function_space.ufl_element().degree() == 0
+            center, n = ("Cell", n_cells) if cell else ("Node", n_nodes)
+            attributes.append(
+                _Attribute(f.name, f.name, kind, center, (n, width), self.dtype.itemsize)
+            )
+        return _Mesh("Mesh", n_nodes, n_cells), attributes
 
-    def write(self, step: int, t: float, state: dict[str, np.ndarray] | None) -> None:
-        """Write all functions at (step, t) with the model state (given on rank 0)."""
+    def _coarse_index(self) -> tuple[_Mesh, list[_Attribute]]:
+        """The coarse mesh and its node attributes (coarse.xdmf)."""
+        n = len(self.coarse.points)
+        size = self.dtype.itemsize
+        attributes = [_Attribute(name, f"coarse/{name}", "Scalar", "Node", (n, 1), size)
+                      for name in self.coarse.names]  # fmt: skip
+        return _Mesh("CoarseMesh", n, len(self.coarse.triangles)), attributes
+
+    def _keep(self, keep_until: int | None) -> None:
+        """Index the written steps to keep, then remove the files of the others."""
+        on_disk = completed_steps(self.outdir)
+        last = -1 if keep_until is None else keep_until
+        self.steps = [(s, t) for s, t in on_disk if s <= last and s in self.schedule]
+        self._write_index()
+        kept = {s for s, _ in self.steps}
+        for step, _ in on_disk:
+            if step not in kept:
+                step_file(self.outdir, step).unlink()
+
+    def write(self, step: int, t: float) -> None:
+        """Write all fields at (step, t): collective; rank 0 writes."""
         values = {f.name: self.gather.function(f) for f in self.functions}
         if self.comm.rank != 0:
             return
         path = step_file(self.outdir, step)
-        tmp = path.with_name(f".{path.name}.tmp")
-        with h5py.File(tmp, "w") as f:
+        with _atomic_h5(path) as f:
             f.attrs["step"], f.attrs["t"] = step, t
             for name, v in values.items():
-                f[name] = _pad(v)
-            for key, v in (state or {}).items():
-                f[f"state/{key}"] = v
-        os.replace(tmp, path)
+                _write_field(f, name, _pad(v), self.dtype)
+            for name in self.coarse.names if self.coarse is not None else ():
+                v = np.reshape(self.coarse.values[name], (-1, 1))
+                _write_field(f, f"coarse/{name}", v, self.dtype)
         self.steps = [(s, tt) for s, tt in self.steps if s < step] + [(step, t)]
-        atomic_write_text(self.outdir / "fields.xdmf", self._xml())
+        self._write_index()
 
-    def _xml(self) -> str:
-        """XDMF 3: the mesh grid, then a temporal collection with one grid per step."""
-        mesh = (
-            f'    <Grid Name="mesh" GridType="Uniform">\n'
-            f'      <Topology TopologyType="Triangle" NumberOfElements="{self.n_cells}" '
-            f'NodesPerElement="3">\n'
-            f'        <DataItem Dimensions="{self.n_cells} 3" NumberType="Int" Precision="8" '
-            f'Format="HDF">fields.h5:/Mesh/topology</DataItem>\n'
-            f"      </Topology>\n"
-            f'      <Geometry GeometryType="XY">\n'
-            f'        <DataItem Dimensions="{self.n_nodes} 2" Format="HDF">'
-            f"fields.h5:/Mesh/geometry</DataItem>\n"
-            f"      </Geometry>\n"
-            f"    </Grid>\n"
-        )
-        include = (
-            "<xi:include xpointer=\"xpointer(/Xdmf/Domain/Grid[@GridType='Uniform'][1]/"
-            '*[self::Topology or self::Geometry])" />'
-        )
-        grids = []
-        for step, t in self.steps:
-            attributes = []
-            for f in self.functions:
-                bs = f.function_space.dofmap.index_map_bs
-                kind, width = _ATTRIBUTE_TYPES[bs]
-                cell = f.function_space.ufl_element().degree() == 0
-                center, n = ("Cell", self.n_cells) if cell else ("Node", self.n_nodes)
-                attributes.append(
-                    f'        <Attribute Name="{f.name}" AttributeType="{kind}" '
-                    f'Center="{center}">\n'
-                    f'          <DataItem Dimensions="{n} {width}" Format="HDF">'
-                    f"{STEP_DIR}/step_{step:06d}.h5:/{f.name}</DataItem>\n"
-                    f"        </Attribute>\n"
-                )
-            grids.append(
-                f'      <Grid Name="step_{step}" GridType="Uniform">\n'
-                f"        {include}\n"
-                f'        <Time Value="{t!r}" />\n' + "".join(attributes) + "      </Grid>\n"
-            )
-        return (
-            '<?xml version="1.0"?>\n'
-            '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
-            "  <Domain>\n" + mesh
-            + '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">\n'
-            + "".join(grids)
-            + "    </Grid>\n  </Domain>\n</Xdmf>\n"
-        )  # fmt: skip
+    def _write_index(self) -> None:
+        """fields.xdmf (and coarse.xdmf) for the steps written so far, each replaced atomically."""
+        for name, (mesh, attributes) in self.indexes.items():
+            atomic_write_text(self.outdir / name, _series_xml(mesh, attributes, self.steps))
 
 
 class SummaryWriter:

@@ -1,15 +1,20 @@
-"""Read a run's ``fields.xdmf`` + ``fields.h5`` back (serial, h5py only; no dolfinx).
+"""Read a run's ``fields.xdmf`` + ``fields.h5`` (and ``coarse.xdmf``) back (serial, h5py and
+matplotlib's triangle finder only; no dolfinx).
 
-The XDMF file maps the mesh and every (function, time) to an HDF5 file and dataset, so it is the
-only index read here: no HDF5 path is guessed. That covers both layouts ``plantgrowth run`` has
-written: dolfinx 0.5's (mesh at ``fields.h5:/Mesh/mesh/geometry``, functions at
+The XDMF files map the meshes and every (function, time) to an HDF5 file and dataset, so they
+are the only index read here: no HDF5 path is guessed. That covers every layout ``plantgrowth
+run`` has written: dolfinx 0.5's (mesh at ``fields.h5:/Mesh/mesh/geometry``, functions at
 ``fields.h5:/Function/<name>/<time string>``) and the per-step one (mesh at
-``fields.h5:/Mesh/geometry``, functions at ``fields/step_NNNNNN.h5:/<name>``). In both:
+``fields.h5:/Mesh/geometry``, functions at ``fields/step_NNNNNN.h5:/<name>``). In all:
 
 - geometry (N x 2, or padded to 3) and topology (triangles, M x 3);
 - ``u``: point data at the N geometry nodes, padded to 3 components;
-- cell fields (``Fg``, ``G``, ``sigma_hom``, ``E1111``, ...): DG0 data in topology order, tensors
-  as 9 row-major components of a 3 x 3 (the 2D tensor is components 0, 1, 3, 4).
+- cell fields (``Fg``, ``G``, ``sigma_hom``, ...): DG0 data in topology order, tensors as 9
+  row-major components of a 3 x 3 (the 2D tensor is components 0, 1, 3, 4);
+- E_hom's components (``E1111``, ...): in ``coarse.xdmf``, at the nodes of the coarse grid where
+  the cell problems are solved (earlier runs wrote them on the fine cells, in ``fields.xdmf``).
+  :meth:`ResultSeries.cell_field` interpolates them to the fine cells as the model does (P1 on
+  the coarse triangles at the cell midpoints), so readers of either layout get fine-cell values.
 
 Typical use::
 
@@ -44,7 +49,8 @@ class ResultSeries:
         points: reference node coordinates, (N, 2).
         triangles: node indices of each cell, (M, 3).
         times: the output times of ``u`` (sorted).
-        datasets: ``{function name: {time: (HDF5 file, dataset path)}}`` from the XDMF file.
+        datasets: ``{function name: {time: (HDF5 file, dataset path)}}`` from fields.xdmf.
+        coarse: the coarse grid and its node fields (from coarse.xdmf), or None.
     """
 
     directory: Path
@@ -52,21 +58,17 @@ class ResultSeries:
     triangles: np.ndarray
     times: list[float]
     datasets: dict[str, dict[float, tuple[Path, str]]] = field(default_factory=dict)
+    coarse: CoarseSeries | None = None
 
     @property
     def names(self) -> list[str]:
-        """The functions written in this run."""
-        return sorted(self.datasets)
+        """The functions written in this run (fine and coarse)."""
+        return sorted(self.datasets | (self.coarse.datasets if self.coarse else {}))
 
     def _read(self, name: str, t: float) -> np.ndarray:
-        try:
-            series = self.datasets[name]
-        except KeyError:
-            raise KeyError(f"no field {name!r} in {self.directory} (has {self.names})") from None
-        key = min(series, key=lambda s: abs(s - t))
-        if abs(key - t) > 1e-9 * max(1.0, abs(t)):
-            raise KeyError(f"{name} has no output at t = {t!r} (nearest {key!r})")
-        return _load(*series[key])
+        if name not in self.datasets:
+            raise KeyError(f"no field {name!r} in {self.directory} (has {self.names})")
+        return _read_at(self.datasets[name], name, t)
 
     def displacement(self, t: float) -> np.ndarray:
         """The displacement u at the nodes at time t, (N, 2)."""
@@ -76,11 +78,14 @@ class ResultSeries:
         """A DG0 field at time t, one value (or row) per triangle.
 
         Args:
-            name: the function's name, e.g. "G", "Fg", "sigma_hom", "E1111".
+            name: the function's name, e.g. "G", "Fg", "sigma_hom", "E1111" (a coarse-node
+                field is interpolated to the cells, see :meth:`CoarseSeries.at_points`).
             t: an output time.
             component: for a tensor field, one of :data:`COMPONENTS`; None returns the raw data
                 (M, 9) for tensors, (M,) for scalars.
         """
+        if self.coarse is not None and name in self.coarse.datasets:
+            return self.coarse.at_points(name, t, self.points[self.triangles].mean(axis=1))
         data = self._read(name, t)
         if data.ndim == 2 and data.shape[1] == 1:
             data = data[:, 0]
@@ -97,40 +102,80 @@ class ResultSeries:
         raise ValueError(f"component {component!r} is not one of {COMPONENTS}")
 
 
+@dataclass
+class CoarseSeries:
+    """The coarse grid of a macro run and its node fields (``coarse.xdmf``).
+
+    Attributes:
+        points: coarse node coordinates, (n, 2).
+        triangles: node indices of each coarse triangle, (m, 3).
+        datasets: ``{function name: {time: (HDF5 file, dataset path)}}``.
+    """
+
+    points: np.ndarray
+    triangles: np.ndarray
+    datasets: dict[str, dict[float, tuple[Path, str]]]
+
+    def node_field(self, name: str, t: float) -> np.ndarray:
+        """The field's values at the coarse nodes at time t, (n,)."""
+        if name not in self.datasets:
+            raise KeyError(f"no coarse field {name!r} (has {sorted(self.datasets)})")
+        return _read_at(self.datasets[name], name, t).reshape(len(self.points))
+
+    def at_points(self, name: str, t: float, points: np.ndarray) -> np.ndarray:
+        """The field's P1 interpolant on the coarse triangles at ``points`` (k, 2), (k,)."""
+        from matplotlib.tri import LinearTriInterpolator, Triangulation
+
+        grid = Triangulation(self.points[:, 0], self.points[:, 1], self.triangles)
+        values = LinearTriInterpolator(grid, self.node_field(name, t))(points[:, 0], points[:, 1])
+        if np.ma.is_masked(values):
+            raise ValueError(f"{name}: some points lie outside the coarse grid")
+        return np.asarray(values)
+
+
+def _read_at(series: dict[float, tuple[Path, str]], name: str, t: float) -> np.ndarray:
+    """The dataset of ``series`` at time t (to round-off)."""
+    key = min(series, key=lambda s: abs(s - t))
+    if abs(key - t) > 1e-9 * max(1.0, abs(t)):
+        raise KeyError(f"{name} has no output at t = {t!r} (nearest {key!r})")
+    return _load(*series[key])
+
+
 def _load(h5file: Path, dataset: str) -> np.ndarray:
     with h5py.File(h5file, "r") as f:
         return np.asarray(f[dataset][...])
 
 
-def _reference(directory: Path, item: ET.Element | None) -> tuple[Path, str]:
+def _reference(xdmf: Path, item: ET.Element | None) -> tuple[Path, str]:
     """(HDF5 file, dataset) of an XDMF ``DataItem`` "file.h5:/path" (file relative to the XDMF)."""
     if item is None or not (item.text or "").strip() or item.get("Format", "HDF") != "HDF":
-        raise ValueError(f"{directory / 'fields.xdmf'}: expected an HDF DataItem")
+        raise ValueError(f"{xdmf}: expected an HDF DataItem")
     name, _, dataset = item.text.strip().partition(":")
-    return directory / name, dataset
+    return xdmf.parent / name, dataset
 
 
-def _index(directory: Path) -> tuple[tuple[Path, str], tuple[Path, str], dict]:
-    """Geometry and topology references and ``{name: {time: reference}}`` from the XDMF file."""
-    root = ET.parse(directory / "fields.xdmf").getroot()
+def _index(xdmf: Path) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Node coordinates (n, 2), triangles (m, 3) and ``{name: {time: reference}}`` of an XDMF
+    time series."""
+    root = ET.parse(xdmf).getroot()
     geometry = topology = None
     datasets: dict[str, dict[float, tuple[Path, str]]] = {}
     for grid in root.iter("Grid"):
         if grid.get("GridType") != "Uniform":
             continue
         if geometry is None and grid.find("Geometry") is not None:
-            geometry = _reference(directory, grid.find("Geometry/DataItem"))
-            topology = _reference(directory, grid.find("Topology/DataItem"))
+            geometry = _reference(xdmf, grid.find("Geometry/DataItem"))
+            topology = _reference(xdmf, grid.find("Topology/DataItem"))
         time = grid.find("Time")
         if time is None:
             continue
         for attribute in grid.findall("Attribute"):
             name = attribute.get("Name", "")
-            reference = _reference(directory, attribute.find("DataItem"))
+            reference = _reference(xdmf, attribute.find("DataItem"))
             datasets.setdefault(name, {})[float(time.get("Value"))] = reference
     if geometry is None or topology is None:
-        raise ValueError(f"{directory / 'fields.xdmf'} has no mesh")
-    return geometry, topology, datasets
+        raise ValueError(f"{xdmf} has no mesh")
+    return _load(*geometry)[:, :2], _load(*topology).astype(np.int64), datasets
 
 
 def read_series(directory: str | os.PathLike) -> ResultSeries:
@@ -142,11 +187,12 @@ def read_series(directory: str | os.PathLike) -> ResultSeries:
     directory = Path(directory)
     if not (directory / "fields.xdmf").is_file():
         raise FileNotFoundError(f"{directory / 'fields.xdmf'} not found: not a run directory?")
-    geometry, topology, datasets = _index(directory)
-    points = _load(*geometry)[:, :2]
-    triangles = _load(*topology).astype(np.int64)
+    points, triangles, datasets = _index(directory / "fields.xdmf")
     times = sorted(datasets.get("u", {}) or {t for s in datasets.values() for t in s})
-    return ResultSeries(directory, points, triangles, times, datasets)
+    coarse = None
+    if (directory / "coarse.xdmf").is_file():
+        coarse = CoarseSeries(*_index(directory / "coarse.xdmf"))
+    return ResultSeries(directory, points, triangles, times, datasets, coarse)
 
 
 def boundary_outline(points: np.ndarray, triangles: np.ndarray) -> list[np.ndarray]:

@@ -41,6 +41,10 @@ inclined wall length l2 = 1)::
     right = [0.0, 0.0]         # also "left", "top"
     [output]
     fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these and "eps_hom"
+    every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has
+                               # every step), integer in [1, 1e6]
+    precision = "float32"      # of the written fields: "float32" | "float64" (the resume
+                               # state is float64 either way)
     [accuracy]
     preset = "balanced"        # "draft" | "balanced" | "fine": sets the keys marked (preset)
     cell_resolution = 2        # (preset) P2 elements across a cell wall, integer in [1, 64]
@@ -359,9 +363,12 @@ class Time:
 
 @dataclass(frozen=True)
 class Output:
-    """Fields written at each step, a subset of OUTPUT_FIELDS."""
+    """Fields written (a subset of OUTPUT_FIELDS) at t = 0, every ``every``-th step and t_max,
+    stored with the given precision."""
 
     fields: tuple[str, ...] = DEFAULT_OUTPUT
+    every: int = 1
+    precision: str = "float32"
 
     def __post_init__(self) -> None:
         if not isinstance(self.fields, (list, tuple)):
@@ -372,6 +379,8 @@ class Output:
             _choice(f"output.fields[{i}]", name, OUTPUT_FIELDS)
         if len(set(self.fields)) != len(self.fields):
             raise SceneError(f"output.fields = {list(self.fields)} names a field twice")
+        _integer("output.every", self.every, 1, int(MAX_STEPS))
+        _choice("output.precision", self.precision, ("float32", "float64"))
         _set(self, fields=tuple(self.fields))
 
 
@@ -407,7 +416,7 @@ class Solver:
         _integer("solver.macro_threshold", self.macro_threshold, 0, 10**9)
 
     def macro_kind(self, ndofs: int) -> str:
-        """"direct" or "iterative" for a macro problem of ``ndofs`` fine dofs."""
+        """The solver kind, "direct" or "iterative", for a macro problem of ``ndofs`` dofs."""
         if self.macro != "auto":
             return self.macro
         return "iterative" if ndofs >= self.macro_threshold else "direct"
@@ -524,7 +533,7 @@ class Scene:
             "t_max": t.t_max, "dt": t.dt, "integrator": t.integrator, "tolerance": t.tolerance
         }  # fmt: skip
         out["loads"] = dict(self.loads)
-        out["output"] = {"fields": self.output.fields}
+        out["output"] = {f.name: getattr(self.output, f.name) for f in fields(self.output)}
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
         out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
         out["solver"] = {f.name: getattr(self.solver, f.name) for f in fields(self.solver)}
@@ -565,7 +574,7 @@ _TABLES = {
     "growth": ("law", "eta", "tau", "clamp", "Fg0"),
     "time": ("t_max", "dt", "integrator", "tolerance"),
     "loads": EDGES,
-    "output": ("fields",),
+    "output": ("fields", "every", "precision"),
     "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
     "solver": ("macro", "macro_threshold"),

@@ -22,7 +22,14 @@ from mpi4py import MPI
 
 from plantgrowth import growth
 from plantgrowth.errors import RunError
-from plantgrowth.output import FieldSeries, SummaryWriter, last_summary_step, read_state
+from plantgrowth.output import (
+    FieldSeries,
+    NodeFields,
+    Schedule,
+    StateFile,
+    SummaryWriter,
+    last_summary_step,
+)
 from plantgrowth.plausibility import StepWarnings
 from plantgrowth.scene import Scene
 
@@ -53,6 +60,7 @@ class GrowthModel(Protocol):
 
     output_space: fem.FunctionSpace  # P1 vector space numbering the written mesh
     outputs: list[fem.Function]
+    coarse_output: NodeFields | None  # fields on a second mesh (macro: E_hom at coarse nodes)
 
     def initial_growth(self) -> np.ndarray:
         """(n_units, 2, 2) Fg at t = 0."""
@@ -159,15 +167,17 @@ def run_model(
     resume: bool = False,
     label: str = "",
 ) -> list[dict]:
-    """Run the growth loop of a scene; write fields.xdmf and summary.csv into ``outdir``.
+    """Run the growth loop of a scene; write its outputs (:mod:`plantgrowth.output`) into
+    ``outdir``: the fields at t = 0, every ``output.every``-th step and the last step, the state
+    and a summary row after every step.
 
     Under growth law ``none`` there is no growth: a single static solve at t = 0. Implausible
     states (large elastic strain, an active clamp) are logged as warnings, once per kind.
     Args:
         n_steps: stop after this many steps (default: the scene's t_max / dt).
         on_step: called after each step's solve as ``on_step(step, model)``.
-        resume: continue from the last completed step saved in ``outdir`` (a finished run is
-            extended if ``n_steps`` is larger).
+        resume: continue after the step of the state saved in ``outdir`` (a finished run is
+            extended if ``n_steps`` is larger); later summary rows and fields are redone.
         label: what runs, for the progress lines (e.g. "Nx = 8, macro").
     Raises:
         RunError: a step failed (message names step, time, place, cause).
@@ -178,13 +188,11 @@ def run_model(
     if scene.growth.law == "none":
         n_steps = 0
     dt = scene.time.dt
-    series = FieldSeries(outdir, model.output_space, model.outputs, resume)
-    last = None
-    if resume:  # a step is complete when both its field file and its summary row exist
-        rows_done = comm.bcast(last_summary_step(outdir / "summary.csv"), root=0)
-        done = [s for s in (series.last_step, rows_done) if s is not None]
-        last = min(done) if len(done) == 2 else None
-        series.forget_after(last)
+    state = StateFile(outdir, comm)
+    last = _resume_point(state, outdir, comm) if resume else None
+    schedule = Schedule(scene.output.every, n_steps)
+    series = FieldSeries(outdir, model.output_space, model.outputs, schedule,
+                         scene.output.precision, model.coarse_output, keep_until=last)  # fmt: skip
     summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm, keep_until=last)
     substeps = [0, 0]  # sub-steps and extra cell solves of the advance that led to this step
     if last is None:
@@ -193,7 +201,7 @@ def run_model(
         log.info("the run has already reached step %d (t = %g): nothing to do", last, last * dt)
         return []
     else:
-        Fg, G = model.restore(read_state(outdir, last))
+        Fg, G = model.restore(state.read(last))
         Fg, substeps[0], substeps[1] = _advance(model, Fg, G, scene, comm)
         first = last + 1
         log.info("resuming after step %d (t = %g)", last, last * dt)
@@ -212,7 +220,9 @@ def run_model(
             if on_step is not None:
                 on_step(step, model)
             t1 = time.perf_counter()
-            series.write(step, t, model.state(Fg, result.G))
+            if step in schedule:
+                series.write(step, t)
+            snapshot = model.state(Fg, result.G)
             t2 = time.perf_counter()
             row = model.measures(Fg, result.G)
             row.update(step=step, t=t, n_cell_solves=result.n_cell_solves + substeps[1],
@@ -220,7 +230,10 @@ def run_model(
                        substeps=substeps[0], **result.seconds)  # fmt: skip
             row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
                    for k, v in row.items()}  # fmt: skip
+            # fields, row, state: a kill between them leaves the state one step behind at most,
+            # and the resumed run redoes that step (its row and fields)
             summary.write(row)
+            state.write(step, t, snapshot)
             rows.append(row)
             left = (time.perf_counter() - start) / (step + 1 - first) * (n_steps - step)
             log.info(
@@ -238,6 +251,16 @@ def run_model(
                 except RunError as err:
                     raise RunError(f"after step {step}, t = {t:g}: {err}") from None
     return rows
+
+
+def _resume_point(state: StateFile, outdir: Path, comm: MPI.Comm) -> int | None:
+    """The last step with a saved state and a summary row (None: start again at t = 0)."""
+    rows = comm.bcast(last_summary_step(outdir / "summary.csv"), root=0)
+    saved = [s for s in state.steps() if rows is not None and s <= rows]
+    if not saved:
+        log.info("no saved state to continue from: the run starts again at t = 0")
+        return None
+    return saved[-1]
 
 
 def _advance(

@@ -88,10 +88,12 @@ FIELD_KEYS = {  # number or {from, to}
     "pressure": ("P1",),
     "growth": ("eta", "tau"),
 }
-INT_KEYS = {"accuracy": ("cell_resolution",), "micro": ("nx", "resolution")}
-CHOICE_KEYS = {("", "model"), ("growth", "law"), ("time", "integrator"), ("accuracy", "preset")}
+INT_KEYS = {"accuracy": ("cell_resolution",), "micro": ("nx", "resolution"), "output": ("every",),
+            "solver": ("macro_threshold",)}  # fmt: skip
+CHOICE_KEYS = {("", "model"), ("growth", "law"), ("time", "integrator"), ("accuracy", "preset"),
+               ("output", "precision"), ("solver", "macro")}  # fmt: skip
 TABLES = ("tissue", "cell", "material", "pressure", "growth", "time", "loads", "output",
-          "accuracy", "micro")  # fmt: skip
+          "accuracy", "micro", "solver")  # fmt: skip
 SCHEMA = {
     "tissue": ("width", "height", "h", "H"),
     "cell": ("l1", "l2", "theta", "w"),
@@ -100,9 +102,10 @@ SCHEMA = {
     "growth": ("law", "eta", "tau", "clamp", "Fg0"),
     "time": ("t_max", "dt", "integrator"),
     "loads": ("left", "right", "top"),
-    "output": ("fields",),
+    "output": ("fields", "every", "precision"),
     "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
+    "solver": ("macro", "macro_threshold"),
 }
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
 
@@ -161,9 +164,12 @@ def base_scene(rng: random.Random, micro: bool = False) -> dict:
                  "integrator": rng.choice(["exp", "euler"])},
         "loads": {} if micro else rng.choice([{"left": [-0.001, 0.0], "right": [0.001, 0.0]},
                                               {"top": [0.0, 0.001]}, {"right": [0.0, 0.001]}]),
-        "output": {"fields": rng.sample(OUTPUT_FIELDS, rng.randint(1, 6))},
+        "output": {"fields": rng.sample(OUTPUT_FIELDS, rng.randint(1, 6)),
+                   "every": rng.randint(1, 10), "precision": rng.choice(["float32", "float64"])},
         "accuracy": {"cell_resolution": rng.randint(1, 4), "key_tolerance": 1e-6},
         "micro": {"nx": 2 * rng.randint(1, 16), "resolution": rng.randint(1, 4)},
+        "solver": {"macro": rng.choice(["auto", "direct", "iterative"]),
+                   "macro_threshold": rng.randint(0, 10**6)},
     }  # fmt: skip
     for name in TABLES:  # a random subset of the keys (cell, time: all or none), growth.law
         whole = name in ("cell", "time")  # a default w or t_max may not fit the others
@@ -362,7 +368,8 @@ def _time_steps(rng: random.Random, scene: dict):
 
 def _out_of_range(rng: random.Random, scene: dict):
     what = rng.choice(["E", "P1", "eta", "tau", "clamp", "key_tolerance", "cell_resolution",
-                       "Fg0", "h_big", "H_small", "h_tiny", "micro_resolution"])  # fmt: skip
+                       "Fg0", "h_big", "H_small", "h_tiny", "micro_resolution",
+                       "every", "macro_threshold"])  # fmt: skip
     table, key, value = {
         "E": ("material", "E", rng.choice([0, -_magnitude(rng), 1e13])),
         "P1": ("pressure", "P1", -_magnitude(rng)),
@@ -377,6 +384,8 @@ def _out_of_range(rng: random.Random, scene: dict):
         "H_small": ("tissue", "H", 0.05),  # < h
         "h_tiny": ("tissue", "h", 1e-4),  # far more than 4e6 triangles
         "micro_resolution": ("micro", "resolution", rng.choice([0, -2, 65])),
+        "every": ("output", "every", rng.choice([0, -1, 10**6 + 1])),
+        "macro_threshold": ("solver", "macro_threshold", rng.choice([-1, -200000, 10**9 + 1])),
     }[what]  # fmt: skip
     if table == "tissue":
         scene["tissue"] = {"width": 8.0, "height": 4.0, "h": 0.1, "H": 1.0}
@@ -469,7 +478,8 @@ def _micro_scene(rng: random.Random, scene: dict):
 
 
 def _bad_choice(rng: random.Random, scene: dict):
-    what = rng.choice(["model", "law", "integrator", "preset", "fields", "fields_dup"])
+    what = rng.choice(["model", "law", "integrator", "preset", "precision", "solver", "fields",
+                       "fields_dup"])  # fmt: skip
     if what == "model":
         scene["model"] = rng.choice(["mezzo", "Macro", "", _name(rng, ("macro", "micro", "both"))])
         return scene, "model ="
@@ -484,6 +494,14 @@ def _bad_choice(rng: random.Random, scene: dict):
             ["fast", "Fine", "", _name(rng, ("draft", "balanced", "fine"))]
         )
         return scene, "accuracy.preset"
+    if what == "precision":
+        bad = rng.choice(["double", "Float32", "float16", "", _name(rng, ("float32", "float64"))])
+        scene.setdefault("output", {})["precision"] = bad
+        return scene, "output.precision"
+    if what == "solver":
+        bad = rng.choice(["LU", "cg", "Auto", "", _name(rng, ("auto", "direct", "iterative"))])
+        scene.setdefault("solver", {})["macro"] = bad
+        return scene, "solver.macro"
     name = rng.choice(OUTPUT_FIELDS)
     bad = [name, name] if what == "fields_dup" else [name, rng.choice(["p", "U", "sigma", "E"])]
     scene["output"] = {"fields": bad}

@@ -51,6 +51,7 @@ BASE = {
     "tissue": {"h": 0.35, "H": 1.0},
     "time": {"t_max": 3, "dt": 1},
     "accuracy": {"cell_resolution": 1, "cell_tolerance": 0.0},
+    "output": {"precision": "float64"},  # fields compared with summary rows to 1e-10
 }
 SCENES = {  # name -> tables merged into BASE
     # homogeneous, stress law, E != 1, eta != 1, tau > 0 (MODEL.md section 4 consistency check)

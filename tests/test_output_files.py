@@ -1,5 +1,5 @@
-"""What ``plantgrowth run`` writes (fields.xdmf/.h5, summary.csv, scene.toml, run.log), and what a
-bad scene or an unwritable output path does not write.
+"""What ``plantgrowth run`` writes (fields.xdmf/.h5, coarse.xdmf, state.h5, summary.csv,
+scene.toml, run.log), and what a bad scene or an unwritable output path does not write.
 
 In-process calls go through ``plantgrowth.cli.main(argv) -> int`` on COMM_WORLD (valid under
 mpirun: rank 0 prints and writes the CSV and the log, the XDMF/HDF5 files are written
@@ -48,7 +48,8 @@ dt = 1
 cell_resolution = 1
 """
 ALL_FIELDS = f"[output]\nfields = {json.dumps(list(OUTPUT_FIELDS))}\n"  # a JSON array is TOML
-E_NAMES = ["E1111", "E2222", "E1122", "E1212", "E1112", "E2212"]  # one DG0 function each
+E_NAMES = ["E1111", "E2222", "E1122", "E1212", "E1112", "E2212"]  # coarse-node fields
+ULP32 = 2.0**-23  # one float32 unit in the last place (relative): a stored value is off by half
 STATIC = '[growth]\nlaw = "none"\n[tissue]\nh = 0.5\n[accuracy]\ncell_resolution = 1\n'
 
 
@@ -75,7 +76,7 @@ def run(scene: Path, outdir: Path) -> int:
 
 @pytest.fixture(scope="module")
 def good_run(tmp_path_factory):
-    """One small run with every output field (E_hom as six functions, eps_hom included)."""
+    """One small run with every output field (E_hom as six coarse-node fields, eps_hom too)."""
     directory = shared_dir(tmp_path_factory, "output_files")
     scene, outdir = directory / "small.toml", directory / "run"
     write(scene, SMALL + ALL_FIELDS)
@@ -93,10 +94,11 @@ def read_summary(path: Path) -> tuple[list[str], list[dict[str, float]]]:
 # --- a good run ---------------------------------------------------------------------------------
 
 
-def test_output_directory_holds_the_five_files(good_run):
+def test_output_directory_holds_the_run_files(good_run):
     _, outdir = good_run
     names = {p.name for p in outdir.iterdir()}
-    assert {"fields.xdmf", "fields.h5", "fields", "summary.csv", "scene.toml", "run.log"} <= names
+    assert names == {"fields.xdmf", "coarse.xdmf", "fields.h5", "fields", "state.h5",
+                     "summary.csv", "scene.toml", "run.log"}  # fmt: skip
     assert not [n for n in names if n.startswith(".")]  # the write probe is gone
 
 
@@ -114,16 +116,19 @@ def test_summary_has_the_columns_and_one_row_per_step(good_run):
         assert all(np.isfinite(v) for v in row.values())
 
 
-def _xdmf(outdir: Path) -> ET.Element:
-    return ET.parse(outdir / "fields.xdmf").getroot()
+def _xdmf(outdir: Path, name: str = "fields.xdmf") -> ET.Element:
+    return ET.parse(outdir / name).getroot()
 
 
-def test_xdmf_has_a_mesh_and_one_time_series_per_field(good_run):
+@pytest.mark.parametrize("name", ["fields.xdmf", "coarse.xdmf"])
+def test_xdmf_has_a_mesh_and_one_time_series_per_field(good_run, name):
+    """fields.xdmf: the fine mesh, u at its nodes, the other fields on its cells; coarse.xdmf:
+    the coarse grid, E_hom's six components at its nodes."""
     scene_path, outdir = good_run
     scene = load_scene(scene_path)
     _, rows = read_summary(outdir / "summary.csv")
     times = [row["t"] for row in rows]
-    root = _xdmf(outdir)
+    root = _xdmf(outdir, name)
     assert root.tag == "Xdmf"
     domain = root.find("Domain")
     assert domain is not None
@@ -143,17 +148,22 @@ def test_xdmf_has_a_mesh_and_one_time_series_per_field(good_run):
     values = [float(step.find("Time").get("Value")) for step in steps]
     assert values == pytest.approx(times, rel=1e-12, abs=1e-12)
     assert all(a < b for a, b in zip(values, values[1:], strict=False))
-    expected = [n for f in scene.output.fields for n in (E_NAMES if f == "E_hom" else [f])]
+    fine = [f for f in scene.output.fields if f != "E_hom"]
+    expected = fine if name == "fields.xdmf" else E_NAMES
     for step in steps:
         attributes = {a.get("Name"): a for a in step.findall("Attribute")}
         assert sorted(attributes) == sorted(expected)
-        for name, attribute in attributes.items():
-            assert attribute.get("Center") == ("Node" if name == "u" else "Cell")
+        for field, attribute in attributes.items():
+            on_nodes = field == "u" or name == "coarse.xdmf"
+            assert attribute.get("Center") == ("Node" if on_nodes else "Cell")
 
 
-def test_every_dataitem_exists_in_the_h5_file_with_its_dimensions(good_run):
+@pytest.mark.parametrize("name", ["fields.xdmf", "coarse.xdmf"])
+def test_every_dataitem_exists_in_the_h5_file_with_its_dimensions(good_run, name):
+    """Each DataItem names an existing dataset of its dimensions and type (readers load the
+    values with the declared type: ParaView's default is float32)."""
     _, outdir = good_run
-    items = list(_xdmf(outdir).iter("DataItem"))
+    items = list(_xdmf(outdir, name).iter("DataItem"))
     assert len(items) > 10
     opened: dict[str, h5py.File] = {}
     try:
@@ -169,13 +179,17 @@ def test_every_dataitem_exists_in_the_h5_file_with_its_dimensions(good_run):
             assert path in f, path
             dimensions = tuple(int(d) for d in item.get("Dimensions").split())
             assert f[path].shape == dimensions, path
+            declared = (item.get("NumberType"), int(item.get("Precision")))
+            kind = "Int" if f[path].dtype.kind == "i" else "Float"
+            assert declared == (kind, f[path].dtype.itemsize), path
     finally:
         for f in opened.values():
             f.close()
 
 
 def test_h5_fields_hold_the_run(good_run):
-    """Fg(0) = I in every cell; u(0) != 0 (turgor); the G field's mean is the summary's."""
+    """Fg(0) = I in every cell; u(0) != 0 (turgor); the G field's mean is the summary's (to the
+    float32 rounding of the stored values)."""
     _, outdir = good_run
     _, rows = read_summary(outdir / "summary.csv")
     with h5py.File(outdir / "fields.h5", "r") as f:
@@ -188,9 +202,10 @@ def test_h5_fields_hold_the_run(good_run):
         assert np.abs(f["u"][...]).max() > 0.0
     for step, row in enumerate(rows):
         with h5py.File(outdir / "fields" / f"step_{step:06d}.h5", "r") as f:
-            G = f["G"][...]
-        # uniform structured mesh: cell mean = area mean; values O(1e-2), round-off only
-        assert G[:, 0].mean() == pytest.approx(row["growth_rate_11"], rel=1e-10)
+            G = f["G"][...].astype(float)
+        # uniform structured mesh: cell mean = area mean; G11 > 0 in every cell, so the mean of
+        # the rounded values is within 2**-24 relative of the float64 mean
+        assert G[:, 0].mean() == pytest.approx(row["growth_rate_11"], rel=ULP32)
 
 
 def test_scene_toml_loads_back_to_the_run_scene(good_run):
@@ -249,6 +264,13 @@ def test_meshio_reads_the_fields(good_run):
         assert t == 0.0
         assert point_data["u"].shape == (len(points), 3)
         assert cell_data["G"][0].shape == (len(cells[0].data), 9)
+    with meshio.xdmf.TimeSeriesReader(str(outdir / "coarse.xdmf")) as reader:
+        points, cells = reader.read_points_cells()
+        assert cells[0].type == "triangle"
+        t, point_data, _ = reader.read_data(reader.num_steps - 1)
+        assert t == 2.0
+        assert sorted(point_data) == sorted(E_NAMES)
+        assert point_data["E1111"].shape == (len(points), 1)
 
 
 # --- bad scenes and bad output paths ------------------------------------------------------------

@@ -1,5 +1,5 @@
-"""ParaView's own XDMF3 reader opens a run's fields.xdmf and renders it headless (skipped where
-ParaView is absent), and the optional install provides what that needs.
+"""ParaView's own XDMF3 reader opens a run's fields.xdmf and coarse.xdmf and renders them
+headless (skipped where ParaView is absent), and the optional install provides what that needs.
 
 ParaView is not part of the default install (it is large); `PLANTGROWTH_WITH_PARAVIEW=1 bash
 scripts/install.sh` provides `pvbatch`, which runs scripts/check_paraview.py, and `xvfb-run`:
@@ -17,6 +17,7 @@ import h5py
 import pytest
 
 from plantgrowth.cli import main
+from plantgrowth.tensors import VOIGT_NAMES
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = """
@@ -50,14 +51,13 @@ def run(directory: Path, law: str) -> Path:
     return outdir
 
 
-def check(outdir: Path, *extra: str) -> dict:
+def check(outdir: Path, *extra: str, xdmf: str = "fields.xdmf") -> dict:
     if pvbatch() == HEADLESS and shutil.which("xvfb-run") is None:
         pytest.fail(
             "no display and no xvfb-run: PLANTGROWTH_WITH_PARAVIEW=1 bash scripts/install.sh"
         )
     done = subprocess.run(
-        [*pvbatch(), str(REPO / "scripts" / "check_paraview.py"), str(outdir / "fields.xdmf"),
-         *extra],
+        [*pvbatch(), str(REPO / "scripts" / "check_paraview.py"), str(outdir / xdmf), *extra],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
@@ -75,13 +75,27 @@ def test_paraview_reads_every_step_and_field_and_renders_headless(tmp_path):
         n_points, n_cells = len(f["Mesh/geometry"]), len(f["Mesh/topology"])
     assert (seen["n_points"], seen["n_cells"]) == (n_points, n_cells)
     assert seen["point_arrays"] == ["u"]
-    assert {"Fg", "G", "sigma_hom", "E1111"} <= set(seen["cell_arrays"])
+    assert {"Fg", "G", "sigma_hom"} <= set(seen["cell_arrays"])
     with h5py.File(outdir / "fields" / "step_000003.h5") as f:
         u_max = abs(f["u"][:, 0]).max()
     assert seen["u_max_abs_x"] == pytest.approx(u_max, rel=1e-6)  # float32 in VTK arrays
     header = picture.read_bytes()[:24]
     assert header[:8] == b"\x89PNG\r\n\x1a\n"
     assert struct.unpack(">II", header[16:24]) == (640, 360)  # IHDR width, height
+
+
+@pytest.mark.skip_in_parallel
+@needs_paraview
+def test_paraview_reads_the_coarse_grid_series(tmp_path):
+    """coarse.xdmf: the coarse grid with E_hom's six components at its nodes, at every time."""
+    outdir = run(tmp_path, "strain")
+    seen = check(outdir, xdmf="coarse.xdmf")
+    assert seen["times"] == [0.0, 1.0, 2.0, 3.0]
+    with h5py.File(outdir / "fields.h5") as f:
+        coarse = len(f["CoarseMesh/geometry"]), len(f["CoarseMesh/topology"])
+    assert (seen["n_points"], seen["n_cells"]) == coarse
+    assert sorted(seen["point_arrays"]) == sorted(VOIGT_NAMES)
+    assert seen["cell_arrays"] == []
 
 
 @pytest.mark.skip_in_parallel

@@ -1,0 +1,162 @@
+"""The macro problem's linear solver: LU or CG + GAMG (``solver.macro``), README: Large tissues.
+
+Synthetic coefficients (no cell problems): the regular honeycomb's E_hom (E1111 = E2222 =
+0.0305, E1122 = 0.0293, E1212 = 0.0006: a 2D Poisson ratio of 0.96, the hard case for multigrid)
+scaled by a wall modulus rising from 0.5 to 2 along x1, K_hom = 0.9 I, phi_w = 0.11 and a growth
+tensor that varies in space, on the reference rectangle with h = 0.1 (4,340 dofs): CG takes about
+100 iterations there, as on 1e6 dofs. Every test runs in serial and under ``mpirun -n 2``; the
+serial-versus-mpirun run starts ``mpirun`` itself and is ``skip_in_parallel``.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from plantgrowth import diagnostics
+from plantgrowth.errors import RunError
+from plantgrowth.macro_problem import MACRO_RTOL, MacroProblem, rectangle_mesh
+from plantgrowth.scene import Solver, dict_to_toml, parse_scene
+
+PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+HONEYCOMB = np.array([[0.030507, 0.029324, 0.0], [0.029324, 0.030507, 0.0], [0.0, 0.0, 0.000591]])
+AGREEMENT = 1e-8
+"""Iterative against direct, relative to |u|: the error is at most cond(A) times the relative
+residual (<= MACRO_RTOL = 1e-10 for CG, ~1e-13 for LU); 1e-8 allows an effective condition number
+of 100 (measured difference: 7e-11 serial, 3e-10 on 2 ranks)."""
+
+
+def scene(solver: dict, **tables: dict):
+    """The reference rectangle at h = 0.1 with the given [solver] table."""
+    data = {"tissue": {"h": 0.1, "H": 1.0}, "growth": {"law": "strain"}, "solver": solver}
+    return parse_scene(data | tables)
+
+
+def problem_with_coefficients(solver: dict, msh=None) -> MacroProblem:
+    """A MacroProblem (on ``msh``, default a new rectangle) whose coefficients are set as in a
+    growing E-gradient tissue."""
+    s = scene(solver)
+    problem = MacroProblem(s, rectangle_mesh(s, MPI.COMM_WORLD) if msh is None else msh)
+    x1 = problem.midpoints[:, 0] / s.tissue.width
+    n = problem.n_cells
+    Fg = np.tile(np.eye(2), (n, 1, 1))
+    Fg[:, 0, 0] += 0.2 * x1
+    Fg[:, 0, 1] = 0.05 * x1
+    problem.set_cell_values(problem.Fg, Fg)
+    problem.set_cell_values(problem.C, (0.5 + 1.5 * x1)[:, None, None] * HONEYCOMB)
+    problem.set_cell_values(problem.phi_w, np.full(n, 0.11))
+    problem.set_cell_values(problem.K, np.tile(0.9 * np.eye(2), (n, 1, 1)))
+    return problem
+
+
+def owned_norm(values: np.ndarray, problem: MacroProblem) -> float:
+    owned = problem.V.dofmap.index_map.size_local * problem.V.dofmap.index_map_bs
+    return np.sqrt(MPI.COMM_WORLD.allreduce(float(np.sum(values[:owned] ** 2)), op=MPI.SUM))
+
+
+def test_iterative_and_direct_solves_agree():
+    """CG + GAMG and LU solve the same system: |u_cg - u_lu| / |u_lu| <= 1e-8 (AGREEMENT), both
+    pass the true-residual check. CG's true residual is within 10 times its tolerance (it stops
+    on its recursive residual; measured equal to 1e-11), in fewer than 120 iterations (measured:
+    98 serial, 95 on 2 ranks; without the near-nullspace 143, with a wrong rotation mode 129)."""
+    direct = problem_with_coefficients({"macro": "direct"})
+    iterative = problem_with_coefficients({"macro": "iterative"}, direct.mesh)  # same partition
+    lu, cg = direct.solve(), iterative.solve()
+    for report, problem in ((lu, direct), (cg, iterative)):
+        diagnostics.check_solution(report, problem.u, MPI.COMM_WORLD)
+    assert cg.residual <= 10 * MACRO_RTOL <= diagnostics.RESIDUAL_BOUND
+    assert 10 < cg.iterations < 120
+    difference = owned_norm(iterative.u.x.array - direct.u.x.array, direct)
+    assert difference <= AGREEMENT * owned_norm(direct.u.x.array, direct)
+
+
+def test_the_solver_is_reused_between_steps():
+    """A second solve after re-assembly (the next time step) uses the same KSP and converges."""
+    problem = problem_with_coefficients({"macro": "iterative"})
+    ksp = problem.ksp
+    first = problem.solve()
+    problem.set_cell_values(problem.C, 1.1 * problem.cell_values(problem.C))
+    second = problem.solve()
+    assert problem.ksp is ksp
+    assert second.reason > 0 and second.residual <= 10 * MACRO_RTOL
+    assert abs(second.iterations - first.iterations) <= 0.2 * first.iterations
+
+
+@pytest.mark.parametrize("offset, expected", [(0, "iterative"), (1, "direct")])
+def test_auto_switches_at_the_threshold(offset, expected):
+    """``auto`` is iterative from ``macro_threshold`` dofs on: threshold = dofs gives CG + GAMG,
+    threshold = dofs + 1 gives LU."""
+    ndofs = 2 * 70 * 31  # the rectangle at h = 0.1: 70 x 31 nodes
+    s = scene({"macro": "auto", "macro_threshold": ndofs + offset})
+    problem = MacroProblem(s, rectangle_mesh(s, MPI.COMM_WORLD))
+    assert problem.ndofs == ndofs
+    assert problem.solver == expected
+    ksp_type, pc_type = ("cg", "gamg") if expected == "iterative" else ("preonly", "lu")
+    assert (problem.ksp.getType(), problem.ksp.getPC().getType()) == (ksp_type, pc_type)
+
+
+def test_explicit_choice_ignores_the_threshold():
+    assert Solver("direct", 0).macro_kind(10**6) == "direct"
+    assert Solver("iterative", 10**9).macro_kind(10) == "iterative"
+    assert Solver("auto", 100).macro_kind(99) == "direct"
+
+
+@pytest.mark.parametrize("tolerances", [{"max_it": 1}, {"rtol": 1e-4}])
+def test_true_residual_check_stops_a_bad_solve(tolerances):
+    """One CG iteration (PETSc reports divergence) or a loose tolerance (PETSc reports success,
+    the residual is ~1e-4 > RESIDUAL_BOUND): the check raises the named RunError."""
+    problem = problem_with_coefficients({"macro": "iterative"})
+    problem.ksp.setTolerances(**tolerances)
+    report = problem.solve()
+    assert report.residual > diagnostics.RESIDUAL_BOUND
+    if "rtol" in tolerances:
+        assert report.reason > 0  # only the true-residual test can catch this one
+    with pytest.raises(RunError, match="linear solve failed .* relative residual"):
+        diagnostics.check_solution(report, problem.u, MPI.COMM_WORLD)
+
+
+def summary(path: Path) -> list[dict[str, float]]:
+    with open(path, newline="") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+@pytest.mark.skip_in_parallel
+def test_mpirun_reproduces_the_serial_iterative_run(tmp_path):
+    """``plantgrowth run`` with ``solver.macro = "iterative"``, serial and ``mpirun -n 2``
+    (different multigrid aggregates, the same tolerance): the summary agrees to 1e-8 relative,
+    as for the direct solver (tests/test_macro_run.py)."""
+    mpirun = shutil.which("mpirun")
+    if mpirun is None:
+        pytest.skip("mpirun not found")
+    data = {
+        "tissue": {"h": 0.1, "H": 2.0},
+        "material": {"E": {"from": 0.5, "to": 2.0}},
+        "growth": {"law": "strain"},
+        "time": {"t_max": 2.0, "dt": 1.0},
+        "accuracy": {"cell_resolution": 1, "cell_tolerance": 0.0},
+        "solver": {"macro": "iterative"},
+    }
+    path = tmp_path / "scene.toml"
+    path.write_text(dict_to_toml(data))
+    rows = {}
+    for ranks, prefix in ((1, []), (2, [mpirun, "-n", "2"])):
+        out = tmp_path / f"ranks{ranks}"
+        command = prefix + [PLANTGROWTH, "run", str(path), "-o", str(out)]
+        done = subprocess.run(command, capture_output=True, text=True, env=ENV, timeout=300)
+        assert done.returncode == 0, done.stderr
+        assert "macro solver: CG + GAMG" in (out / "run.log").read_text()
+        rows[ranks] = summary(out / "summary.csv")
+    assert len(rows[1]) == len(rows[2]) == 3
+    for a, b in zip(rows[1], rows[2], strict=True):
+        for column in ("area", "growth_rate_11", "growth_rate_22", "u1_max", "u2_max"):
+            assert b[column] == pytest.approx(a[column], rel=1e-8), column
+        assert max(a["residual"], b["residual"]) <= 10 * MACRO_RTOL
