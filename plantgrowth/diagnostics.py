@@ -13,7 +13,8 @@ from mpi4py import MPI
 from plantgrowth.errors import RunError
 
 RESIDUAL_BOUND = 1e-8
-"""Largest accepted relative residual of a direct (LU) solve; round-off is ~1e-14."""
+"""Largest accepted relative residual of a linear solve; LU's round-off is ~1e-14, CG stops at
+1e-10 (macro_problem.MACRO_RTOL)."""
 
 EULER_HINT = "likely cause: a time step too large for explicit Euler (use integrator = 'exp')"
 ON_THIS_RANK = " on this rank"
@@ -77,14 +78,20 @@ def stiffness_problems(C: np.ndarray, nodes: np.ndarray) -> list[str]:
     ]
 
 
-def solve_problems(reason: int, residual: float) -> list[str]:
-    """A direct solve that failed or is inaccurate."""
+def solve_problems(reason: int, residual: float, iterations: int = 0) -> list[str]:
+    """A linear solve that failed or is inaccurate (``iterations`` > 0: a Krylov solve)."""
     if reason > 0 and residual <= RESIDUAL_BOUND:
         return []
+    krylov = (
+        f" after {iterations} CG iterations; the direct solver (solver.macro = 'direct') is "
+        "robust to what slows CG down: thin walls, stiffness contrast, nu close to 0.5"
+        if iterations > 0
+        else ""
+    )
     return [
         f"linear solve failed (PETSc reason {reason}, relative residual {residual:.3g} > "
-        f"{RESIDUAL_BOUND:g}); likely cause: a singular or ill-conditioned system (extreme "
-        "stiffness contrast, nu close to 0.5 or a degenerate mesh)"
+        f"{RESIDUAL_BOUND:g}){krylov}; likely cause: a singular or ill-conditioned system "
+        "(extreme stiffness contrast, nu close to 0.5 or a degenerate mesh)"
     ]
 
 
@@ -112,7 +119,7 @@ def check_solution(report, u, comm: MPI.Comm) -> None:
     points = u.function_space.tabulate_dof_coordinates()[:, :2]
     values = u.x.array.reshape(-1, 2)
     stop_if(
-        solve_problems(report.reason, report.residual)
+        solve_problems(report.reason, report.residual, report.iterations)
         + nonfinite_problems("u", values, points, "the solve broke down"),
         comm,
     )

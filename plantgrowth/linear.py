@@ -16,7 +16,8 @@ from petsc4py import PETSc
 
 @dataclass(frozen=True)
 class SolveReport:
-    """PETSc converged reason (> 0: converged), true relative residual, Krylov iterations."""
+    """PETSc converged reason (> 0: converged), true relative residual, Krylov iterations (0
+    for a direct solve)."""
 
     reason: int
     residual: float
@@ -118,4 +119,5 @@ def assemble_and_solve(
     ksp.solve(b, u.vector)
     u.x.scatter_forward()
     residual = relative_residual(A, u.vector, b)
-    return SolveReport(ksp.getConvergedReason(), residual, ksp.getIterationNumber())
+    iterations = 0 if ksp.getType() == "preonly" else ksp.getIterationNumber()
+    return SolveReport(ksp.getConvergedReason(), residual, iterations)

@@ -30,6 +30,9 @@ MACRO_RTOL = 1e-10
 """CG's relative tolerance on ``|b - A u| / |b|``: 100 times below the residual bound
 (diagnostics.RESIDUAL_BOUND), so that the true residual, which drifts from CG's recursive one,
 passes it, and serial and parallel runs agree to 1e-8 (README: Large tissues)."""
+MACRO_MAX_IT = 2000
+"""CG's iteration limit: about 100 iterations at any size on the shipped scenes, 700 on the
+thinnest-walled hard case (w = 0.005); a solve that needs more stops with a RunError."""
 PREFIX = "plantgrowth_macro_"
 
 EDGES = {"left": (0, 0.0), "right": (0, None), "top": (1, None)}
@@ -114,7 +117,7 @@ class MacroProblem:
 
     def _linear_solver(self) -> PETSc.KSP:
         if self.solver == "iterative":
-            return cg_gamg_solver(self.A, self.V, PREFIX, MACRO_RTOL)
+            return cg_gamg_solver(self.A, self.V, PREFIX, MACRO_RTOL, MACRO_MAX_IT)
         return lu_solver(self.A, self.mesh.comm, PREFIX)
 
     def _traction_terms(self, scene: Scene, psi) -> ufl.Form | int:
