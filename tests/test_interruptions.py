@@ -2,10 +2,12 @@
 them exactly as an uninterrupted run would.
 
 The scene is the reference stress scene with an extensibility gradient (so Fg varies in space and
-the cell problems change every step), t_max = 40, cell_resolution = 1: about 0.08 s per step,
-4-5 s a run. Subprocess tests are ``skip_in_parallel``; the parallel ones start ``mpirun -n 2``
-themselves, in a session of their own so that ``os.killpg`` reaches mpirun and its ranks. The
-``--resume`` argument checks and the failing-solve test run in-process (also under mpirun).
+the cell problems change every step), t_max = 40, cell_resolution = 1 and the exact cell path
+(cell_tolerance = 0: the surrogate would make the steps so fast that a kill after five steps could
+land after the last one): about 0.08 s per step, 4-5 s a run. Subprocess tests are
+``skip_in_parallel``; the parallel ones start ``mpirun -n 2`` themselves, in a session of their
+own so that ``os.killpg`` reaches mpirun and its ranks. The ``--resume`` argument checks and the
+failing-solve test run in-process (also under mpirun).
 
 Tolerances: a resumed run repeats the uninterrupted run's arithmetic (the cell problems are solved
 at their rounded keys, so an empty cache after the restart changes nothing): 1e-10 relative leaves
@@ -52,6 +54,7 @@ t_max = 40.0
 dt = 1.0
 [accuracy]
 cell_resolution = 1
+cell_tolerance = 0.0
 """
 EVERY = 7  # output.every of the sparse runs: fields at 0, 7, ..., 35 and 40
 STEP_DATASETS = ("u", "Fg", "G", "sigma_hom", "coarse/E1111", "coarse/E2212")
