@@ -37,6 +37,20 @@ class CoarseGrid:
         X, Y = np.meshgrid(x, y)
         return np.column_stack([X.ravel(), Y.ravel()])
 
+    def _corners(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Node numbers (00, 10, 01, 11) of the rectangles (i, j)."""
+        n00 = j * (self.nx + 1) + i
+        return n00, n00 + 1, n00 + self.nx + 1, n00 + self.nx + 2
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """(2 nx ny, 3) counter-clockwise triangles: each rectangle's lower (00, 10, 01) and
+        upper (11, 01, 10) triangle, the split :meth:`interpolation_matrix` uses."""
+        i, j = np.meshgrid(np.arange(self.nx), np.arange(self.ny))
+        n00, n10, n01, n11 = self._corners(i.ravel(), j.ravel())
+        lower, upper = np.column_stack([n00, n10, n01]), np.column_stack([n11, n01, n10])
+        return np.stack([lower, upper], axis=1).reshape(-1, 3)
+
     def interpolation_matrix(self, points: np.ndarray) -> sp.csr_matrix:
         """W with ``f(points) = W f(nodes)`` for the P1 interpolant on the coarse triangles.
 
@@ -48,8 +62,7 @@ class CoarseGrid:
         i = np.minimum(np.floor(xi).astype(int), self.nx - 1)
         j = np.minimum(np.floor(eta).astype(int), self.ny - 1)
         a, b = xi - i, eta - j
-        n00 = j * (self.nx + 1) + i
-        n10, n01, n11 = n00 + 1, n00 + self.nx + 1, n00 + self.nx + 2
+        n00, n10, n01, n11 = self._corners(i, j)
         lower = a + b <= 1.0
         # lower triangle (00, 10, 01); upper triangle (11, 01, 10)
         cols = np.where(lower, [n00, n10, n01], [n11, n01, n10]).T

@@ -47,20 +47,10 @@ class _Outputs:
         self.functions = [chosen[name] for name in fields if name in chosen]
 
 
-def coarse_triangles(grid: CoarseGrid) -> np.ndarray:
-    """(2 nx ny, 3) counter-clockwise triangles of the coarse grid, split as
-    :meth:`CoarseGrid.interpolation_matrix` splits its rectangles."""
-    i, j = np.meshgrid(np.arange(grid.nx), np.arange(grid.ny))
-    n00 = (j * (grid.nx + 1) + i).ravel()
-    n10, n01, n11 = n00 + 1, n00 + grid.nx + 1, n00 + grid.nx + 2
-    lower, upper = np.column_stack([n00, n10, n01]), np.column_stack([n11, n01, n10])
-    return np.stack([lower, upper], axis=1).reshape(-1, 3)
-
-
 def coarse_output(grid: CoarseGrid, fields: tuple[str, ...]) -> NodeFields:
     """The coarse-node fields the scene asks for (E_hom's six components) on the coarse grid."""
     names = VOIGT_NAMES if "E_hom" in fields else ()
-    return NodeFields(grid.nodes, coarse_triangles(grid), names)
+    return NodeFields(grid.nodes, grid.triangles, names)
 
 
 def _pruning_report(problem: MacroProblem, scene: Scene, strain_averages: bool) -> list[str]:

@@ -193,15 +193,5 @@ def check_resumable(directory: Path, scene: Scene) -> bool:
 
 def changed_keys(a: Scene, b: Scene) -> list[str]:
     """Dotted keys (``material.E``, ``model``) whose resolved values differ between two scenes."""
-    flat_a, flat_b = _flatten(a.to_dict()), _flatten(b.to_dict())
+    flat_a, flat_b = a.dotted(), b.dotted()
     return sorted(k for k in flat_a.keys() | flat_b.keys() if flat_a.get(k) != flat_b.get(k))
-
-
-def _flatten(data: dict) -> dict[str, object]:
-    out: dict[str, object] = {}
-    for key, value in data.items():
-        if isinstance(value, dict):
-            out.update({f"{key}.{k}": v for k, v in value.items()})
-        else:
-            out[key] = value
-    return out

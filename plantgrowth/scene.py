@@ -540,6 +540,16 @@ class Scene:
         out["solver"] = {f.name: getattr(self.solver, f.name) for f in fields(self.solver)}
         return out
 
+    def dotted(self) -> dict[str, Any]:
+        """The resolved scene by dotted key (``model``, ``material.nu``, ``loads.right``, ...)."""
+        out: dict[str, Any] = {}
+        for key, value in self.to_dict().items():
+            if isinstance(value, dict):
+                out.update({f"{key}.{k}": v for k, v in value.items()})
+            else:
+                out[key] = value
+        return out
+
     def to_toml(self) -> str:
         """The fully resolved scene (all defaults filled) as TOML that load_scene reads back."""
         header = "# plantgrowth scene, fully resolved (keys: see plantgrowth/scene.py)\n"

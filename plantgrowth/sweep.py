@@ -165,7 +165,7 @@ def load_sweep(path: Path) -> Sweep:
     mode = _mode(data, path)
     vary = _vary(data, keys, mode, path)
     runs = [_run(i, values, base_data, path) for i, values in enumerate(_combinations(vary, mode))]
-    flat = _flatten(base_scene.to_dict())
+    flat = base_scene.dotted()
     base_cells = {k: cell(flat[k]) if k in flat else "" for k in vary}
     return Sweep(path, base, mode, vary, runs, base_cells)
 
@@ -222,18 +222,7 @@ def _mode(data: dict, path: Path) -> str:
 
 def _scene_keys(scene: Scene) -> set[str]:
     """Every dotted key a scene has (``model``, ``material.nu``, ..., ``loads.right``)."""
-    return set(_flatten(scene.to_dict())) | {f"loads.{edge}" for edge in EDGES}
-
-
-def _flatten(data: dict) -> dict[str, Any]:
-    """Scene data by dotted key (two levels)."""
-    out: dict[str, Any] = {}
-    for key, value in data.items():
-        if isinstance(value, dict):
-            out.update({f"{key}.{k}": v for k, v in value.items()})
-        else:
-            out[key] = value
-    return out
+    return set(scene.dotted()) | {f"loads.{edge}" for edge in EDGES}
 
 
 def _vary_items(table: dict, keys: set[str], prefix: str = "") -> Iterator[tuple[str, Any]]:

@@ -49,7 +49,7 @@ from matplotlib.tri import LinearTriInterpolator, Triangulation
 from plantgrowth.machine import machine_description
 from plantgrowth.presets import PRESETS
 from plantgrowth.results_reader import read_series
-from plantgrowth.scene import dict_to_toml, parse_scene
+from plantgrowth.scene import Scene, dict_to_toml, load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ("gradient_E_strain.toml", "gradient_P1_stress.toml", "hard/E_contrast_100.toml")
@@ -124,24 +124,19 @@ def run(scene_text: str, workdir: Path, samples: Path) -> dict:
         "area": float(rows[-1]["area"]),
         "mean_trG": float(rows[-1]["growth_rate_area"]),
         "cell_solves": sum(int(float(r["n_cell_solves"])) for r in rows),
-        "resolved": resolved_knobs(resolved),
+        "resolved": resolved_knobs(load_scene(outdir / "scene.toml")),
     }
 
 
-def resolved_knobs(data: dict) -> dict:
-    """The numerical knobs of a resolved scene's TOML data, by dotted key."""
-    return {
-        "tissue.h": data["tissue"]["h"],
-        "tissue.H": data["tissue"]["H"],
-        **{f"accuracy.{k}": v for k, v in data["accuracy"].items()},
-        "time.dt": data["time"]["dt"],
-        "time.integrator": data["time"]["integrator"],
-    }
+def resolved_knobs(scene: Scene) -> dict:
+    """The numerical knobs of a resolved scene (all of [accuracy], h, H, dt, integrator)."""
+    knobs = ("tissue.h", "tissue.H", "time.dt", "time.integrator")
+    return {k: v for k, v in scene.dotted().items() if k in knobs or k.startswith("accuracy.")}
 
 
 def knobs_of(text: str) -> dict:
     """The knobs a scene text resolves to (under the current presets)."""
-    return resolved_knobs(parse_scene(tomllib.loads(text)).to_dict())
+    return resolved_knobs(parse_scene(tomllib.loads(text)))
 
 
 def sample_u(outdir: Path, t: float, tissue: dict) -> np.ndarray:

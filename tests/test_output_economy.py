@@ -29,7 +29,6 @@ from mpi4py import MPI
 from plantgrowth import output
 from plantgrowth.cli import main
 from plantgrowth.coarse import CoarseGrid
-from plantgrowth.coupled import coarse_triangles
 from plantgrowth.errors import RunError
 from plantgrowth.output import Schedule
 from plantgrowth.results_reader import read_series
@@ -105,6 +104,22 @@ def assert_close(got: np.ndarray, expected: np.ndarray, rtol: float, what: str) 
     assert error <= rtol, f"{what}: relative difference {error:.3g} > {rtol:.3g}"
 
 
+def assert_same_datasets(got: Path, expected: Path, rtol: float) -> None:
+    """The same datasets in two HDF5 files, equal to rtol (relative to each dataset's max)."""
+    found, wanted = datasets(got), datasets(expected)
+    assert found.keys() == wanted.keys()
+    for name, value in wanted.items():
+        assert_close(found[name], value, rtol, f"{expected.name}:{name}")
+
+
+def assert_same_fields_and_state(outdir: Path, reference: Path, steps: list[int]) -> None:
+    """The fields of ``steps`` (float32: one ulp) and the float64 state equal the reference's."""
+    for step in steps:
+        path = Path("fields") / f"step_{step:06d}.h5"
+        assert_same_datasets(outdir / path, reference / path, ULP32 + RTOL)
+    assert_same_datasets(outdir / "state.h5", reference / "state.h5", RTOL)
+
+
 def assert_same_outputs(outdir: Path, reference: Path) -> None:
     """The same written steps, summary rows, state and fields (RTOL; float32 fields one ulp)."""
     assert step_files(outdir) == step_files(reference)
@@ -116,16 +131,7 @@ def assert_same_outputs(outdir: Path, reference: Path) -> None:
         for key, value in ref.items():
             if not key.startswith("seconds") and key not in NOT_COMPARED:
                 assert row[key] == pytest.approx(value, rel=RTOL, abs=1e-300), (row["step"], key)
-    state, ref_state = datasets(outdir / "state.h5"), datasets(reference / "state.h5")
-    assert state.keys() == ref_state.keys()
-    for name, value in ref_state.items():
-        assert_close(state[name], value, RTOL, f"state.h5:{name}")
-    for step in step_files(reference):
-        path = Path("fields") / f"step_{step:06d}.h5"
-        fields, ref_fields = datasets(outdir / path), datasets(reference / path)
-        assert fields.keys() == ref_fields.keys()
-        for name, value in ref_fields.items():
-            assert_close(fields[name], value, ULP32 + RTOL, f"{path}:{name}")
+    assert_same_fields_and_state(outdir, reference, step_files(reference))
 
 
 # --- which steps are written --------------------------------------------------------------------
@@ -168,11 +174,11 @@ def test_output_keys_default_and_round_trip():
 # --- coarse grid --------------------------------------------------------------------------------
 
 
-def test_coarse_triangles_split_the_rectangles_as_the_interpolation_does():
+def test_coarse_grid_triangles_split_the_rectangles_as_the_interpolation_does():
     """Each triangle's centroid is interpolated from exactly its three nodes (weights 1/3), the
     triangles are counter-clockwise and tile the rectangle."""
     grid = CoarseGrid(3.0, 2.0, 3, 2)
-    triangles = coarse_triangles(grid)
+    triangles = grid.triangles
     x = grid.nodes[triangles]
     d1, d2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
     signed = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
@@ -212,16 +218,7 @@ def test_every_changes_what_is_written_not_the_numbers(runs):
     mpirun the parallel solves' round-off, ~1e-14, can move a float32 rounding by one ulp)."""
     sparse, dense = runs["every4"], runs["every1"]
     assert step_files(dense) == list(range(11))
-    for step in step_files(sparse):
-        path = Path("fields") / f"step_{step:06d}.h5"
-        got, expected = datasets(sparse / path), datasets(dense / path)
-        assert got.keys() == expected.keys()
-        for name, value in expected.items():
-            assert_close(got[name], value, ULP32 + RTOL, f"{path}:{name}")
-    state, expected = datasets(sparse / "state.h5"), datasets(dense / "state.h5")
-    assert state.keys() == expected.keys()
-    for name, value in expected.items():
-        assert_close(state[name], value, RTOL, f"state.h5:{name}")
+    assert_same_fields_and_state(sparse, dense, step_files(sparse))
 
 
 def test_e_hom_lives_on_the_coarse_grid_only(runs):
@@ -235,7 +232,7 @@ def test_e_hom_lives_on_the_coarse_grid_only(runs):
         nodes, triangles = f["CoarseMesh/geometry"][...], f["CoarseMesh/topology"][...]
     grid = CoarseGrid.with_edge(6.928203230275509, 3.0, 1.0)  # the scene's tissue and H
     assert np.array_equal(nodes, grid.nodes)
-    assert np.array_equal(triangles, coarse_triangles(grid))
+    assert np.array_equal(triangles, grid.triangles)
     with h5py.File(outdir / "fields" / "step_000010.h5", "r") as f:
         assert f["coarse/E1111"].shape == (len(nodes), 1)
         assert "E1111" not in f
