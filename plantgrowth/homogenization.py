@@ -5,8 +5,9 @@ Inputs are reduced before solving, by exact invariances of the cell problems (MO
   homogenized quantity unchanged;
 - ``E -> 1``: E_hom scales with E, dbar[v] with 1/E; K_hom, dbar[w^ij] do not depend on E.
 The reduced inputs are rounded to ``key_tolerance``; each distinct key is solved once per run
-(results are cached across time steps). Keys are shared round-robin among the ranks, each solving
-on ``COMM_SELF``, and the results are exchanged with one ``allgather``.
+(results are cached across time steps). Keys are shared among the ranks by estimated cost
+(:mod:`plantgrowth.balance`), each solving on ``COMM_SELF``, and the results are exchanged with
+one ``allgather``.
 
 With ``cell_tolerance > 0`` the growth state goes through :mod:`plantgrowth.surrogate` instead
 (rotation split off exactly, the stretch interpolated on lattices refined to the tolerance),
@@ -24,6 +25,7 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth import surrogate
+from plantgrowth.balance import CellScheduler
 from plantgrowth.cell_cache import CellCache, cache_root
 from plantgrowth.cell_solver import CellResult, CellSolver
 from plantgrowth.meshes.honeycomb import HoneycombCell
@@ -82,6 +84,7 @@ class Homogenizer:
         self.pressure = pressure
         self.strain_averages = strain_averages
         self.comm = comm
+        self.scheduler = CellScheduler(comm)
         self._solvers: dict[tuple, CellSolver] = {}
         self._results: dict[tuple, np.ndarray] = {}
         self.solves_last_call = 0
@@ -95,7 +98,7 @@ class Homogenizer:
                 slice(a, b) for a, b in zip(bounds[3:-1], bounds[4:], strict=True)
             ]  # E_hom and the optional pieces; phi_w and P2 depend on the geometry only
             self.surrogate = surrogate.LatticeSurrogate(
-                self._solve_stretch, cell_tolerance, segments, comm
+                self._solve_stretch, cell_tolerance, segments, comm, self.scheduler
             )
             fingerprint = (resolution, pressure, strain_averages)
             self.cache = CellCache(cache_root(), fingerprint, comm)
@@ -139,9 +142,7 @@ class Homogenizer:
         if self.surrogate is None:
             keys = [self._key(g, v, F) for g, v, F in zip(geometry, nu, Fg, strict=True)]
             new = sorted(set(keys) - self._results.keys())
-            mine = {k: self._solve(k) for k in new[self.comm.rank :: self.comm.size]}
-            for part in self.comm.allgather(mine):
-                self._results.update(part)
+            self._results.update(self.scheduler.solve_all(new, lambda k: k[:4], self._solve))
             self.solves_last_call = len(new)
             packed = np.array([self._results[k] for k in keys])
             tensors = self._unpack(packed, E)

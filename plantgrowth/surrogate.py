@@ -15,8 +15,11 @@ difference is its error estimate (for a smooth function the error of level L + 1
 third of it: the estimate is conservative). Bilinear weights in a lattice square are
 non-negative, so the interpolant of symmetric positive definite tensors is one: E_hom stays
 SPD by construction. Lattice points are exact cell solves, shared by every query and time
-step, solved in rounds collectively (each rank a share, on COMM_SELF, then one allgather), so
-every rank holds the same tables and serial and parallel runs agree.
+step, solved in rounds collectively (each rank its cost-balanced share, on COMM_SELF, then one
+allgather: :mod:`plantgrowth.balance`), so every rank holds the same tables. The queries are
+split into contiguous blocks, one per rank, each rank refining only its own; the answers are
+exchanged at the end. A query's answer depends only on the lattice and its own point, so serial
+and parallel runs agree exactly.
 """
 
 from __future__ import annotations
@@ -27,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
+
+from plantgrowth.balance import CellScheduler
 
 log = logging.getLogger("plantgrowth")
 
@@ -99,7 +104,8 @@ class LatticeSurrogate:
         solve: exact packed values at a point, ``solve(table, U)`` (on this rank only).
         tolerance: largest relative difference accepted between two levels, > 0.
         segments: slices of the packed vector measured separately (E_hom, K_hom, ...).
-        comm: ranks that share the lattice solves.
+        comm: ranks that share the queries and the lattice solves.
+        scheduler: deals the lattice solves to the ranks (default: a new one on ``comm``).
     """
 
     def __init__(
@@ -108,8 +114,10 @@ class LatticeSurrogate:
         tolerance: float,
         segments: Sequence[slice],
         comm: MPI.Comm,
+        scheduler: CellScheduler | None = None,
     ) -> None:
         self._solve = solve
+        self.scheduler = scheduler or CellScheduler(comm)
         self.tolerance = tolerance
         self.segments = tuple(segments)
         self.comm = comm
@@ -132,14 +140,16 @@ class LatticeSurrogate:
         return out if np.ndim(b) > 1 else float(out[0])
 
     def _solve_points(self, points: list[Point]) -> int:
-        """Solve the missing lattice points, shared round-robin over the ranks."""
-        missing = sorted(set(points) - self.values.keys())
-        mine = {
-            p: self._solve(p[0], stretch(np.array(p[1]) * (H0 / STEP)))
-            for p in missing[self.comm.rank :: self.comm.size]
-        }
-        for part in self.comm.allgather(mine):
-            self.values.update(part)
+        """Solve the lattice points missing on any rank (collective: ``points`` are this
+        rank's); each point's solver is its table's geometry (the table less nu)."""
+        wanted = set().union(*self.comm.allgather(set(points)))
+        missing = sorted(wanted - self.values.keys())
+        self.values.update(
+            self.scheduler.solve_all(
+                missing, lambda p: p[0][:-1],
+                lambda p: self._solve(p[0], stretch(np.array(p[1]) * (H0 / STEP))),
+            )
+        )  # fmt: skip
         self.new_points += missing
         return len(missing)
 
@@ -148,6 +158,8 @@ class LatticeSurrogate:
     ) -> np.ndarray:
         """Bilinear values (n, m) from the corner points (n, 4, 2) and weights (n, 4)."""
         zero = np.zeros(len(next(iter(self.values.values()))))
+        if not len(tables):
+            return np.zeros((0, len(zero)))
         corner_values = np.array(
             [
                 [  # a corner of zero weight (a query on a lattice line) is never needed
@@ -160,17 +172,18 @@ class LatticeSurrogate:
         return np.einsum("nc,ncm->nm", weights, corner_values)
 
     def evaluate(self, queries: Sequence[Query]) -> Answer:
-        """The surrogate's answer to the queries. Collective."""
-        n = len(queries)
-        s = np.array([q.s for q in queries]).reshape(n, 2)
-        tables = [q.table for q in queries]
-        level = np.zeros(n, dtype=np.int64)
+        """The surrogate's answer to the queries (the same list on every rank). Collective."""
+        n, size, rank = len(queries), self.comm.size, self.comm.rank
+        lo, hi = n * rank // size, n * (rank + 1) // size  # this rank's block of queries
+        s = np.array([q.s for q in queries[lo:hi]]).reshape(hi - lo, 2)
+        tables = [q.table for q in queries[lo:hi]]
+        level = np.zeros(hi - lo, dtype=np.int64)
         values: np.ndarray | None = None
-        estimates = np.zeros(n)
-        interpolated = np.zeros(n, dtype=bool)
-        pending = np.arange(n)
+        estimates = np.zeros(hi - lo)
+        interpolated = np.zeros(hi - lo, dtype=bool)
+        pending = np.arange(hi - lo)
         solves = 0
-        while len(pending):
+        while self.comm.allreduce(len(pending), op=MPI.MAX):
             sub = [tables[k] for k in pending]
             coarse_pts, coarse_w = _corners(s[pending], level[pending])
             fine_pts, fine_w = _corners(s[pending], level[pending] + 1)
@@ -185,14 +198,15 @@ class LatticeSurrogate:
             coarse = self._interpolate(sub, coarse_pts, coarse_w)
             fine = self._interpolate(sub, fine_pts, fine_w)
             if values is None:
-                values = np.zeros((n, fine.shape[1]))
+                values = np.zeros((hi - lo, fine.shape[1]))
             estimates[pending] = self.relative_difference(coarse, fine)
             done = (estimates[pending] <= self.tolerance) | (level[pending] + 1 == MAX_LEVEL)
             values[pending[done]] = fine[done]
             interpolated[pending[done]] = fine_w[done].max(axis=1) < 1.0
             level[pending[~done]] += 1
             pending = pending[~done]
-        return Answer(values, estimates, interpolated, solves)
+        blocks = self.comm.allgather((values, estimates, interpolated))
+        return Answer(*(np.concatenate([b[i] for b in blocks]) for i in range(3)), solves)
 
     def take_new_points(self) -> dict[Point, np.ndarray]:
         """The lattice values solved since the last call (for the on-disk cache)."""

@@ -134,3 +134,25 @@ def test_ranks_share_the_lattice_and_agree_with_one_rank():
     for name in ("C", "K", "dbar_w", "dbar_v"):
         a, b = getattr(shared, name), getattr(alone, name)
         np.testing.assert_allclose(a, b, rtol=0, atol=ROUND_OFF * np.abs(b).max())
+
+
+def test_each_rank_refines_only_its_block_of_queries(monkeypatch):
+    """No serial work that grows with the tissue: each rank interpolates its own contiguous
+    block of the queries (12 queries: 6 per rank on 2 ranks), and the answer it returns is
+    still the whole one."""
+    rows: list[int] = []
+    original = surrogate.LatticeSurrogate._interpolate
+
+    def counting(self, tables, points, weights):
+        rows.append(len(tables))
+        return original(self, tables, points, weights)
+
+    monkeypatch.setattr(surrogate.LatticeSurrogate, "_interpolate", counting)
+    Fg = random_growth(np.random.default_rng(7), 12, spread=0.15)
+    args = (np.repeat(GEOMETRY, 12, 0), np.ones(12), np.full(12, 0.3), Fg)
+    result = homogenizer(1e-3, MPI.COMM_WORLD).homogenize(*args)
+    comm = MPI.COMM_WORLD
+    assert result.C.shape == (12, 3, 3)
+    first_round = rows[0]  # the coarse interpolant of every query of this rank's block
+    assert first_round == 12 // comm.size
+    assert comm.allreduce(first_round) == 12
