@@ -154,18 +154,21 @@ class Homogenizer:
     def _interpolate(
         self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray
     ) -> NodeTensors:
-        """The surrogate's answer: stretch interpolated, rotation applied exactly."""
-        R, s = surrogate.split_growth(Fg)
+        """The surrogate's answer: stretch interpolated, rotation applied exactly, each rank
+        for its own block of the nodes, the blocks then exchanged."""
+        n, size, rank = len(Fg), self.comm.size, self.comm.rank
+        block = slice(n * rank // size, n * (rank + 1) // size)
         rounded = np.round(np.column_stack([geometry, nu]) / self.tol).astype(np.int64)
-        tables = [tuple(int(k) for k in row) for row in rounded]  # as in _key
-        for table in sorted(set(tables) - self._tables):
-            self.surrogate.add(self.cache.load(table))
+        for table in sorted(set(map(tuple, np.unique(rounded, axis=0).tolist())) - self._tables):
+            self.surrogate.add(self.cache.load(table))  # collective: all ranks' tables
             self._tables.add(table)
+        R, s = surrogate.split_growth(Fg[block])
+        tables = [tuple(row) for row in rounded[block].tolist()]  # as in _key
         queries = [surrogate.Query(t, q) for t, q in zip(tables, s, strict=True)]
         answer = self.surrogate.evaluate(queries)
         self.cache.save(self.surrogate.take_new_points())
         self.solves_last_call = answer.solves + self._check(queries, answer)
-        tensors = self._unpack(answer.values, E)
+        tensors = self._unpack(answer.values, E[block])
         C = voigt_matrix(rotate4(R, tensor_from_voigt(tensors.C)))
         rotated = {"C": C}
         for name in ("K", "dbar_v"):
@@ -173,27 +176,40 @@ class Homogenizer:
                 rotated[name] = rotate2(R, getattr(tensors, name))
         if tensors.dbar_w is not None:
             rotated["dbar_w"] = rotate4(R, tensors.dbar_w)
-        return replace(tensors, **rotated)
+        return self._all_blocks(replace(tensors, **rotated))
+
+    def _all_blocks(self, mine: NodeTensors) -> NodeTensors:
+        """The tensors of all nodes from every rank's block (in rank order)."""
+        blocks = self.comm.allgather(mine)
+        names = ("C", "phi_w", "K", "dbar_w", "dbar_v", "P2_matrix")
+        joined = [[getattr(b, name) for b in blocks] for name in names]
+        return NodeTensors(*(None if p[0] is None else np.concatenate(p) for p in joined))
 
     def _check(self, queries: list[surrogate.Query], answer: surrogate.Answer) -> int:
-        """Every CHECK_EVERY-th call: one random interpolated query solved exactly on rank 0,
-        the error logged. Returns the number of exact solves made (the same on every rank)."""
+        """Every CHECK_EVERY-th call: one random interpolated query (over all ranks' blocks)
+        solved exactly by the rank that holds it, the error logged. Returns the number of
+        exact solves made (the same on every rank)."""
         self._calls += 1
-        candidates = np.flatnonzero(answer.interpolated)
+        flags = self.comm.allgather(answer.interpolated)
+        candidates = np.flatnonzero(np.concatenate(flags))
         if (self._calls - 1) % CHECK_EVERY or not len(candidates):
             return 0
         k = int(candidates[self._rng.integers(len(candidates))])
-        if self.comm.rank == 0:
-            q = queries[k]
+        owner = int(np.searchsorted(np.cumsum([len(f) for f in flags]), k, side="right"))
+        found = None
+        if self.comm.rank == owner:
+            local = k - sum(len(f) for f in flags[:owner])
+            q = queries[local]
             exact = self._solve_stretch(q.table, surrogate.stretch(q.s))
-            error = self.surrogate.relative_difference(answer.values[k], exact)
-            self.checks += 1
-            self.largest_checked_error = max(self.largest_checked_error, error)
-            log.info(
-                "cell surrogate check %d: relative error %.2e at s = (%.4f, %.4f); largest "
-                "seen %.2e (tolerance %.1e)", self.checks, error, *q.s,
-                self.largest_checked_error, self.surrogate.tolerance,
-            )  # fmt: skip
+            found = (self.surrogate.relative_difference(answer.values[local], exact), q.s)
+        error, s = self.comm.bcast(found, root=owner)
+        self.checks += 1
+        self.largest_checked_error = max(self.largest_checked_error, error)
+        log.info(
+            "cell surrogate check %d: relative error %.2e at s = (%.4f, %.4f); largest "
+            "seen %.2e (tolerance %.1e)", self.checks, error, *s,
+            self.largest_checked_error, self.surrogate.tolerance,
+        )  # fmt: skip
         return 1
 
     def _unpack(self, packed: np.ndarray, E: np.ndarray) -> NodeTensors:

@@ -16,10 +16,9 @@ third of it: the estimate is conservative). Bilinear weights in a lattice square
 non-negative, so the interpolant of symmetric positive definite tensors is one: E_hom stays
 SPD by construction. Lattice points are exact cell solves, shared by every query and time
 step, solved in rounds collectively (each rank its cost-balanced share, on COMM_SELF, then one
-allgather: :mod:`plantgrowth.balance`), so every rank holds the same tables. The queries are
-split into contiguous blocks, one per rank, each rank refining only its own; the answers are
-exchanged at the end. A query's answer depends only on the lattice and its own point, so serial
-and parallel runs agree exactly.
+allgather: :mod:`plantgrowth.balance`), so every rank holds the same tables. Each rank asks
+about its own queries (its block of the coarse nodes); a query's answer depends only on the
+lattice and its own point, so serial and parallel runs agree exactly.
 """
 
 from __future__ import annotations
@@ -172,16 +171,15 @@ class LatticeSurrogate:
         return np.einsum("nc,ncm->nm", weights, corner_values)
 
     def evaluate(self, queries: Sequence[Query]) -> Answer:
-        """The surrogate's answer to the queries (the same list on every rank). Collective."""
-        n, size, rank = len(queries), self.comm.size, self.comm.rank
-        lo, hi = n * rank // size, n * (rank + 1) // size  # this rank's block of queries
-        s = np.array([q.s for q in queries[lo:hi]]).reshape(hi - lo, 2)
-        tables = [q.table for q in queries[lo:hi]]
-        level = np.zeros(hi - lo, dtype=np.int64)
+        """The surrogate's answer to this rank's queries (any number, 0 too). Collective."""
+        n = len(queries)
+        s = np.array([q.s for q in queries]).reshape(n, 2)
+        tables = [q.table for q in queries]
+        level = np.zeros(n, dtype=np.int64)
         values: np.ndarray | None = None
-        estimates = np.zeros(hi - lo)
-        interpolated = np.zeros(hi - lo, dtype=bool)
-        pending = np.arange(hi - lo)
+        estimates = np.zeros(n)
+        interpolated = np.zeros(n, dtype=bool)
+        pending = np.arange(n)
         solves = 0
         while self.comm.allreduce(len(pending), op=MPI.MAX):
             sub = [tables[k] for k in pending]
@@ -198,15 +196,14 @@ class LatticeSurrogate:
             coarse = self._interpolate(sub, coarse_pts, coarse_w)
             fine = self._interpolate(sub, fine_pts, fine_w)
             if values is None:
-                values = np.zeros((hi - lo, fine.shape[1]))
+                values = np.zeros((n, fine.shape[1]))
             estimates[pending] = self.relative_difference(coarse, fine)
             done = (estimates[pending] <= self.tolerance) | (level[pending] + 1 == MAX_LEVEL)
             values[pending[done]] = fine[done]
             interpolated[pending[done]] = fine_w[done].max(axis=1) < 1.0
             level[pending[~done]] += 1
             pending = pending[~done]
-        blocks = self.comm.allgather((values, estimates, interpolated))
-        return Answer(*(np.concatenate([b[i] for b in blocks]) for i in range(3)), solves)
+        return Answer(values, estimates, interpolated, solves)
 
     def take_new_points(self) -> dict[Point, np.ndarray]:
         """The lattice values solved since the last call (for the on-disk cache)."""
