@@ -29,7 +29,7 @@ log = logging.getLogger("plantgrowth")
 MACRO_RTOL = 1e-10
 """CG's relative tolerance on ``|b - A u| / |b|``: 100 times below the residual bound
 (diagnostics.RESIDUAL_BOUND), so that the true residual, which drifts from CG's recursive one,
-passes it, and serial and parallel runs agree to 1e-8 (README: Large tissues)."""
+passes it, and serial and parallel runs agree to 1e-8 (docs/large_tissues.md)."""
 MACRO_MAX_IT = 2000
 """CG's iteration limit: about 100 iterations at any size on the shipped scenes, 700 on the
 thinnest-walled hard case (w = 0.005); a solve that needs more stops with a RunError."""

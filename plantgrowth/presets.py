@@ -7,7 +7,7 @@ A preset sets the numerical knobs a scene leaves out: the fine and coarse mesh s
 read off the accuracy-cost map (``scripts/accuracy_cost.py``,
 ``benchmarks/results/accuracy_cost.json``): each preset is a point on the error-time Pareto
 front of the map's scenes, ``balanced`` within 1% of the converged reference, ``draft``
-within 3% and ``fine`` within 0.1% (README, "What accuracy costs").
+within 3% and ``fine`` within 0.1% (docs/accuracy_cost.md).
 """
 
 from __future__ import annotations

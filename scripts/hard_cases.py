@@ -7,7 +7,7 @@ resolution: the large-step study (final area versus a dt = 0.25 'adaptive' run f
 with each integrator (``EXTRA``), and the limit scenes (``LIMIT_SCENES``: they stop with
 "element inverted") with other steps and integrators (``LIMIT_RUNS``). Writes the criterion
 values, the refinement changes, the limits, the step-size errors, the cost of 'adaptive' and the
-machine description to ``benchmarks/results/hard_cases.json`` and the README section
+machine description to ``benchmarks/results/hard_cases.json`` and the section
 "Numerical stability" to ``docs_snippets/hard_cases_readme.md``. Each run is a serial
 subprocess (``--jobs 2`` runs two at a time); run directories go to ``results/hard_cases/``.
 
@@ -67,7 +67,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--readme", type=Path, default=Path("docs_snippets/hard_cases_readme.md"))
     parser.add_argument("--jobs", type=int, default=1, help="runs at a time (default 1)")
     parser.add_argument("--only", type=lambda s: s.split(","), default=None, help="scene names")
-    parser.add_argument("--render-only", action="store_true", help="rewrite the README from JSON")
+    parser.add_argument("--render-only", action="store_true", help="rewrite the docs from JSON")
     parser.add_argument("--force", action="store_true", help="rerun runs that have a result")
     parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)  # one run (internal)
     return parser.parse_args(argv)
@@ -425,7 +425,7 @@ def _t_stop(r: dict | None) -> str:
 
 
 def render(summary: dict) -> str:
-    """The README section "Numerical stability" from the collected results."""
+    """The section "Numerical stability" (docs/stability.md) from the collected results."""
     cases, limits = summary["cases"], summary["limits"]
     lines = [
         "## Numerical stability",
@@ -820,7 +820,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{len(results)} runs in {wall:.1f} s wall -> {args.json}")
     args.readme.parent.mkdir(parents=True, exist_ok=True)
     args.readme.write_text(render(summary))
-    print(f"README section -> {args.readme}")
+    print(f"docs section -> {args.readme}")
     return 0
 
 

@@ -6,7 +6,7 @@ once per module. ``scripts/hard_cases.py`` runs the same scenes at full resoluti
 and the whole large-step study; its results are in ``benchmarks/results/hard_cases.json``.
 
 Four scenes are known limits of the (geometrically linear) macro model, not of the integrator
-(README, "Numerical stability"): two of them stop even on the cheap mesh and must stop cleanly
+(docs/stability.md): two of them stop even on the cheap mesh and must stop cleanly
 with the model's "element inverted" RunError, every other criterion holding up to that step;
 the other two stop only on finer meshes (at t ~ 11 and ~ 15 with h = 0.1) and are checked here up
 to shortly before.

@@ -1,4 +1,4 @@
-"""The macro problem's linear solver: LU or CG + GAMG (``solver.macro``), README: Large tissues.
+"""The macro problem's linear solver: LU or CG + GAMG (``solver.macro``), docs/large_tissues.md.
 
 Synthetic coefficients (no cell problems): the regular honeycomb's E_hom (E1111 = E2222 =
 0.0305, E1122 = 0.0293, E1212 = 0.0006: a 2D Poisson ratio of 0.96, the hard case for multigrid)
