@@ -52,9 +52,12 @@ def unbalanced_load(loads: dict[str, tuple[float, float]], width: float, height:
 
 
 def scene_warnings(scene: Scene) -> list[str]:
-    """Warnings about a scene's parameters (P1 / E, theta), before anything runs."""
-    ends = (0.0, scene.tissue.width)
-    ratios = [float(scene.P1(x) / scene.material.E(x)) for x in ends if float(scene.P1(x)) != 0.0]
+    """Warnings about a scene's parameters (P1 / E, theta) at the tissue's corners, before
+    anything runs."""
+    x1, x2 = np.array(scene.corners()).T
+    with np.errstate(all="ignore"):  # an expression may be undefined at a corner never used
+        P1, E, theta = scene.P1(x1, x2), scene.material.E(x1, x2), scene.cell.theta(x1, x2)
+    ratios = [float(p / e) for p, e in zip(P1, E, strict=True) if p != 0.0 and np.isfinite(p / e)]
     out = []
     low, high = P1_OVER_E
     outside = [r for r in ratios if not low <= r <= high]
@@ -64,7 +67,7 @@ def scene_warnings(scene: Scene) -> list[str]:
             "model is non-dimensional (wall E = 1, reference turgor P1 = 0.001); are P1 and E "
             "in the same units?"
         )
-    theta = min(float(scene.cell.theta(x)) for x in ends)
+    theta = float(np.nanmin(theta))
     if theta < MIN_THETA:
         out.append(
             f"cell.theta = {theta:g} degrees is below {MIN_THETA:g}: theta is in degrees "

@@ -86,9 +86,9 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from plantgrowth.errors import InputError, check_growth_tensor, check_number
+from plantgrowth.errors import InputError, SceneError, check_growth_tensor, check_number
+from plantgrowth.expression import parse_expression
+from plantgrowth.fields import AXES, AnyField, ExprField, Field
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.meshes.tissue import MAX_NX as TISSUE_MAX_NX
 from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
@@ -113,13 +113,21 @@ step meets LU's on the E-gradient scene, 1 rank (measured 1.96e5; scripts/scalin
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 EDGES = ("left", "right", "top")
+RANGES = {
+    "cell.l1": (0.0, MAX_LENGTH, True, False),
+    "cell.l2": (0.0, MAX_LENGTH, True, False),
+    "cell.theta": (0.0, 90.0, True, True),
+    "cell.w": (0.0, MAX_LENGTH, True, False),
+    "material.E": (0.0, BIG, True, False),
+    "material.nu": (-1.0, 0.5, True, True),
+    "pressure.P1": (0.0, BIG, False, False),
+    "growth.eta": (0.0, BIG, False, False),
+    "growth.tau": (0.0, BIG, False, False),
+}
+"""Each field's interval (low, high, low end open, high end open), checked wherever it is used."""
 IDENTITY = ((1.0, 0.0), (0.0, 1.0))
 REFERENCE_WIDTH = 4.0 * math.sqrt(3.0)  # = 8 cos(30 deg), exactly rounded
 """Reference tissue width 8c = 6.928203230275509 (MODEL.md section 9)."""
-
-
-class SceneError(InputError):
-    """Bad scene input; the message starts with the dotted key (or the file name)."""
 
 
 # --- checks shared by the dataclasses and the loader ----------------------------------------------
@@ -185,48 +193,6 @@ def _set(obj: object, **values: object) -> None:
 
 
 @dataclass(frozen=True)
-class Field:
-    """A scene parameter: constant, or linear in x1 across the tissue (MODEL.md section 9).
-
-    Ranges are checked by the owner (:meth:`check`), which knows the key.
-    """
-
-    start: float  # value at x1 = 0
-    end: float  # value at x1 = width (== start for a constant)
-    width: float  # tissue width
-
-    def __post_init__(self) -> None:
-        _set(self, start=_number("field.start", self.start), end=_number("field.end", self.end))
-        _set(self, width=_range("field.width", self.width, 0.0, math.inf))
-
-    @property
-    def is_constant(self) -> bool:
-        return self.start == self.end
-
-    @property
-    def gradient(self) -> float:
-        """d/dx1 = (end - start) / width."""
-        return (self.end - self.start) / self.width
-
-    def __call__(self, x1: np.ndarray) -> np.ndarray:
-        """Values at the points x1 (vectorised): start + gradient * x1."""
-        return self.start + self.gradient * np.asarray(x1, dtype=float)
-
-    def to_toml(self) -> float | dict[str, float]:
-        """A number for a constant, else the inline table {from = start, to = end}."""
-        return self.start if self.is_constant else {"from": self.start, "to": self.end}
-
-    def check(self, key: str, low: float, high: float, lo_open=True, hi_open=True) -> None:
-        """SceneError unless both ends lie in the interval (the extremes of a linear field)."""
-        same = self.is_constant or (math.isnan(self.start) and math.isnan(self.end))
-        ends = (
-            [(key, self.start)] if same else [(f"{key}.from", self.start), (f"{key}.to", self.end)]
-        )
-        for name, value in ends:
-            _range(name, value, low, high, lo_open, hi_open)
-
-
-@dataclass(frozen=True)
 class Tissue:
     """The tissue rectangle [0, width] x [0, height] and the fine (h) / coarse (H) mesh sizes."""
 
@@ -253,42 +219,58 @@ class Tissue:
 class CellGeometry:
     """Honeycomb cell parameters (MODEL.md section 2); theta in degrees."""
 
-    l1: Field
-    l2: Field
-    theta: Field
-    w: Field
+    l1: AnyField
+    l2: AnyField
+    theta: AnyField
+    w: AnyField
 
     def __post_init__(self) -> None:
-        self.l1.check("cell.l1", 0.0, MAX_LENGTH, hi_open=False)
-        self.l2.check("cell.l2", 0.0, MAX_LENGTH, hi_open=False)
-        self.theta.check("cell.theta", 0.0, 90.0)
-        self.w.check("cell.w", 0.0, MAX_LENGTH, hi_open=False)
-        constant = all(f.is_constant for f in (self.l1, self.l2, self.theta, self.w))
-        # w_max is not linear in x1: check the ends and the middle
-        for x1 in (0.0, self.w.width / 2, self.w.width):
-            try:
-                self.at(x1)
-            except GeometryError as e:  # its message starts with the parameter's name
-                msg = str(e) if str(e).startswith(("l1", "l2", "theta", "w")) else f"w: {e}"
-                raise SceneError(
-                    f"cell.{msg}" + ("" if constant else f" (at x1 = {x1:g})")
-                ) from None
+        for key in ("l1", "l2", "theta", "w"):
+            getattr(self, key).check(f"cell.{key}", *RANGES[f"cell.{key}"])
+        if self.by_expression:
+            return  # checked at the coarse nodes (plantgrowth.field_checks)
+        linear = [f for f in self.fields() if not f.is_constant]
+        # w_max is not linear in x1, x2: check the ends and the middle along each axis used
+        width, height = (linear[0].width, linear[0].height) if linear else (1.0, 1.0)
+        axes = {f.along for f in linear}
+        x1s = (0.0, width / 2, width) if "x1" in axes else (0.0,)
+        x2s = (0.0, height / 2, height) if "x2" in axes else (0.0,)
+        for x1 in x1s:
+            for x2 in x2s:
+                place = f"x1 = {x1:g}" if axes == {"x1"} else f"x1 = {x1:g}, x2 = {x2:g}"
+                self.check_at(x1, x2, "" if not linear else f" (at {place})")
 
-    def at(self, x1: float) -> HoneycombCell:
-        """The unit cell at x1 (GeometryError if impossible there)."""
-        return HoneycombCell(*(float(f(x1)) for f in (self.l1, self.l2, self.theta, self.w)))
+    def fields(self) -> tuple[AnyField, ...]:
+        return (self.l1, self.l2, self.theta, self.w)
+
+    @property
+    def by_expression(self) -> bool:
+        """True if some parameter is a non-constant expression."""
+        return any(isinstance(f, ExprField) and not f.is_constant for f in self.fields())
+
+    def check_at(self, x1: float, x2: float, place: str) -> HoneycombCell:
+        """The unit cell at (x1, x2), else SceneError naming the parameter and ``place``."""
+        try:
+            return self.at(x1, x2)
+        except GeometryError as e:  # its message starts with the parameter's name
+            msg = str(e) if str(e).startswith(("l1", "l2", "theta", "w")) else f"w: {e}"
+            raise SceneError(f"cell.{msg}{place}") from None
+
+    def at(self, x1: float, x2: float) -> HoneycombCell:
+        """The unit cell at (x1, x2) (GeometryError if impossible there)."""
+        return HoneycombCell(*(float(f(x1, x2)) for f in self.fields()))
 
 
 @dataclass(frozen=True)
 class Material:
     """Wall Young modulus E > 0 and Poisson ratio -1 < nu < 0.5 (MODEL.md section 1)."""
 
-    E: Field
-    nu: Field
+    E: AnyField
+    nu: AnyField
 
     def __post_init__(self) -> None:
-        self.E.check("material.E", 0.0, BIG, hi_open=False)
-        self.nu.check("material.nu", -1.0, 0.5)
+        self.E.check("material.E", *RANGES["material.E"])
+        self.nu.check("material.nu", *RANGES["material.nu"])
 
 
 @dataclass(frozen=True)
@@ -299,15 +281,15 @@ class Growth:
     """
 
     law: str
-    eta: Field
-    tau: Field
+    eta: AnyField
+    tau: AnyField
     clamp: float = 1.0
     Fg0: tuple[tuple[float, float], tuple[float, float]] = IDENTITY
 
     def __post_init__(self) -> None:
         _choice("growth.law", self.law, LAWS)
-        self.eta.check("growth.eta", 0.0, BIG, lo_open=False, hi_open=False)
-        self.tau.check("growth.tau", 0.0, BIG, lo_open=False, hi_open=False)
+        self.eta.check("growth.eta", *RANGES["growth.eta"])
+        self.tau.check("growth.tau", *RANGES["growth.tau"])
         _set(self, clamp=_range("growth.clamp", self.clamp, 0.0, BIG, hi_open=False))
         rows = tuple(
             tuple(
@@ -431,7 +413,7 @@ class Scene:
     tissue: Tissue
     cell: CellGeometry
     material: Material
-    P1: Field
+    P1: AnyField
     growth: Growth
     time: Time
     loads: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -443,10 +425,12 @@ class Scene:
 
     def __post_init__(self) -> None:
         _choice("model", self.model, MODELS)
-        self.P1.check("pressure.P1", 0.0, BIG, lo_open=False, hi_open=False)
+        self.P1.check("pressure.P1", *RANGES["pressure.P1"])
         for key, f in self.parameter_fields().items():
-            if f.width != self.tissue.width:
+            if isinstance(f, Field) and f.width != self.tissue.width:
                 raise SceneError(f"{key}: field width {f.width!r} != tissue.width")
+            if isinstance(f, Field) and f.height != self.tissue.height:
+                raise SceneError(f"{key}: field height {f.height!r} != tissue.height")
         loads = {}
         for edge, f in self.loads.items():
             _check_edge(edge)
@@ -460,10 +444,10 @@ class Scene:
         if _integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
             raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
         _integer("micro.resolution", self.micro_resolution, 1, MAX_RESOLUTION)
-        try:  # the unit-cell meshes at the cell geometry's ends must be affordable
-            for x1 in (0.0, self.tissue.width):
+        try:  # the unit-cell meshes at the corners must be affordable (expressions: field_checks)
+            for x1, x2 in [] if self.cell.by_expression else self.corners():
                 mesh_size(
-                    self.cell.at(x1), self.accuracy.cell_resolution, "accuracy.cell_resolution"
+                    self.cell.at(x1, x2), self.accuracy.cell_resolution, "accuracy.cell_resolution"
                 )
         except GeometryError as e:
             raise SceneError(str(e)) from None
@@ -471,6 +455,10 @@ class Scene:
             self.check_micro()
         if unbalanced := unbalanced_load(self.loads, self.tissue.width, self.tissue.height):
             raise SceneError(unbalanced)
+
+    def corners(self) -> list[tuple[float, float]]:
+        """The tissue rectangle's corners (x1, x2)."""
+        return [(x1, x2) for x1 in (0.0, self.tissue.width) for x2 in (0.0, self.tissue.height)]
 
     def check_micro(self) -> None:
         """The micro model needs a constant cell geometry (a gradient of w, l1, l2 or theta has no
@@ -487,29 +475,33 @@ class Scene:
                 "straight left/right/top edges; use model = 'macro'"
             )
         try:  # the walls mesh must be affordable
-            wall_mesh_size(TissueLayout(self.cell.at(0.0), self.micro_nx), self.micro_resolution)
+            wall_mesh_size(
+                TissueLayout(self.cell.at(0.0, 0.0), self.micro_nx), self.micro_resolution
+            )
         except GeometryError as e:
             raise SceneError(str(e)) from None
 
-    def over_width(self, width: float) -> Scene:
-        """This scene on a tissue whose x1 extent is [0, width] (a micro tissue, or the macro
-        side of a micro-macro comparison): every field runs from its ``from`` value at x1 = 0 to
-        its ``to`` value at x1 = width, never extrapolated (MODEL.md section 7). Revalidated."""
-        if width == self.tissue.width:
+    def over_extent(self, width: float, height: float) -> Scene:
+        """This scene on a tissue of extent [0, width] x [0, height] (a micro tissue, or the
+        macro side of a micro-macro comparison): every linear field runs from its ``from`` value
+        at 0 to its ``to`` value at the extent along its axis, never extrapolated (MODEL.md
+        section 7); expressions are unchanged. Revalidated."""
+        if (width, height) == (self.tissue.width, self.tissue.height):
             return self
 
-        def over(f: Field) -> Field:
-            return replace(f, width=width)
+        def over(f: AnyField) -> AnyField:
+            return f.over(width, height)
 
         cell = CellGeometry(*(over(getattr(self.cell, k)) for k in ("l1", "l2", "theta", "w")))
         material = Material(over(self.material.E), over(self.material.nu))
         growth = replace(self.growth, eta=over(self.growth.eta), tau=over(self.growth.tau))
         return replace(
-            self, tissue=replace(self.tissue, width=width), cell=cell, material=material,
+            self, tissue=replace(self.tissue, width=width, height=height), cell=cell,
+            material=material,
             P1=over(self.P1), growth=growth,
         )  # fmt: skip
 
-    def parameter_fields(self) -> dict[str, Field]:
+    def parameter_fields(self) -> dict[str, AnyField]:
         """All spatially varying parameters by dotted key."""
         cell, mat, g = self.cell, self.material, self.growth
         out = {f"cell.{k}": getattr(cell, k) for k in ("l1", "l2", "theta", "w")}
@@ -522,7 +514,7 @@ class Scene:
         }
 
     def to_dict(self) -> dict[str, Any]:
-        """The fully resolved scene as plain TOML/JSON data (fields as numbers or {from, to})."""
+        """The fully resolved scene as plain TOML/JSON data (fields as numbers or tables)."""
         out: dict[str, Any] = {"model": self.model}
         out["tissue"] = {f.name: getattr(self.tissue, f.name) for f in fields(self.tissue)}
         for key, f in self.parameter_fields().items():
@@ -630,16 +622,25 @@ def _table(data: dict, name: str) -> dict:
     return table
 
 
-def _field(key: str, raw: object, width: float) -> Field:
-    """A field value: a number or {from = a, to = b}."""
+def _field(key: str, raw: object, width: float, height: float) -> AnyField:
+    """A field value: a number, {from = a, to = b[, along = "x1" | "x2"]} or {expr = "..."}."""
     if isinstance(raw, dict):
-        _check_keys(raw, f"{key}.", ("from", "to"))
-        if len(raw) != 2:
+        _check_keys(raw, f"{key}.", ("from", "to", "along", "expr"))
+        if "expr" in raw:
+            if len(raw) != 1:
+                raise SceneError(f'{key}: an expression field is {{expr = "..."}} alone')
+            return ExprField(parse_expression(f"{key}.expr", raw["expr"], AXES))
+        if "from" not in raw or "to" not in raw:
             raise SceneError(f"{key}: a linear field needs both ends, {{from = a, to = b}}")
-        return Field(_number(f"{key}.from", raw["from"]), _number(f"{key}.to", raw["to"]), width)
+        along = _choice(f"{key}.along", raw.get("along", "x1"), AXES)
+        start, end = _number(f"{key}.from", raw["from"]), _number(f"{key}.to", raw["to"])
+        return Field(start, end, width, height, along)
     if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-        raise SceneError(f"{key}: expected a number or {{from = a, to = b}}, got {_show(raw)}")
-    return Field(_number(key, raw), _number(key, raw), width)
+        raise SceneError(
+            f'{key}: expected a number, {{from = a, to = b}} or {{expr = "..."}}, got '
+            f"{_show(raw)}"
+        )
+    return Field(_number(key, raw), _number(key, raw), width, height)
 
 
 def _with_preset(tables: dict[str, dict]) -> dict[str, dict]:
@@ -682,7 +683,8 @@ def _parse(data: dict) -> Scene:
     tissue = Tissue(**t["tissue"])
     f = {
         section: {
-            k: _field(f"{section}.{k}", t[section].get(k, d), tissue.width) for k, d in kd.items()
+            k: _field(f"{section}.{k}", t[section].get(k, d), tissue.width, tissue.height)
+            for k, d in kd.items()
         }
         for section, kd in _FIELD_DEFAULTS.items()
     }
