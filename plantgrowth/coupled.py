@@ -111,7 +111,7 @@ class MacroModel:
             log.info("skipped: %s", line)
 
     def initial_growth(self) -> np.ndarray:
-        return np.tile(np.array(self.scene.growth.Fg0, dtype=float), (self.problem.n_cells, 1, 1))
+        return self.scene.growth.initial(*self.problem.midpoints[:, :2].T)
 
     def check_growth(self, Fg: np.ndarray) -> None:
         points = self.problem.midpoints[:, :2]

@@ -26,6 +26,7 @@ expression has the constant gradient of the equivalent ``{from, to}`` field to r
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Iterator
@@ -41,11 +42,21 @@ MAX_LENGTH = 1000
 MAX_DEPTH = 50
 """Deepest accepted nesting of parentheses, calls and operators."""
 
-UNARY = {"exp": np.exp, "log": np.log, "sqrt": np.sqrt, "sin": np.sin, "cos": np.cos,
-         "tanh": np.tanh, "abs": np.abs}  # fmt: skip
+UNARY = ("exp", "log", "sqrt", "sin", "cos", "tanh", "abs")
 FUNCTIONS = (*UNARY, "min", "max", "where")
-COMPARISONS = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
-               "==": np.equal, "!=": np.not_equal}  # fmt: skip
+COMPARISONS = ("<", "<=", ">", ">=", "==", "!=")
+NUMPY = {
+    "+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "**": np.power,
+    "neg": np.negative, "exp": np.exp, "log": np.log, "sqrt": np.sqrt, "sin": np.sin,
+    "cos": np.cos, "tanh": np.tanh, "abs": np.abs, "min": np.minimum, "max": np.maximum,
+    "where": lambda c, a, b: np.where(np.asarray(c) != 0.0, a, b),
+    **{op: lambda a, b, f=f: f(a, b).astype(float) for op, f in zip(COMPARISONS, (
+        np.less, np.less_equal, np.greater, np.greater_equal, np.equal, np.not_equal),
+        strict=True)},
+}  # fmt: skip
+"""The operations an expression's tree is evaluated with (numpy; another table, e.g. UFL's, can
+be passed to :meth:`Expression.evaluate`): binary operators, "neg", the functions (min and max
+binary) and the comparisons, which give 1.0 or 0.0."""
 _TOKEN = re.compile(
     r"\s*(?:(?P<number>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_]\w*)"
     r"|(?P<op>\*\*|<=|>=|==|!=|[-+*/(),<>]))"
@@ -201,35 +212,24 @@ def _fold(tree: Node) -> Node:
         tree = (tree[0], *(_fold(a) for a in tree[1:]))
         children = tree[1:]
     if all(c[0] == "num" for c in children):
-        return ("num", float(_evaluate(tree, {})))
+        return ("num", float(_evaluate(tree, {}, NUMPY)))
     return tree
 
 
-def _evaluate(tree: Node, values: dict[str, Any]) -> Any:
+def _evaluate(tree: Node, values: dict[str, Any], ops: dict[str, Any]) -> Any:
     kind = tree[0]
     if kind == "num":
         return tree[1]
     if kind == "var":
         return values[tree[1]]
     if kind == "neg":
-        return -_evaluate(tree[1], values)
+        return ops["neg"](_evaluate(tree[1], values, ops))
     if kind == "call":
-        args = [_evaluate(a, values) for a in tree[2]]
-        name = tree[1]
-        if name in UNARY:
-            return UNARY[name](args[0])
-        if name == "where":
-            return np.where(np.asarray(args[0]) != 0.0, args[1], args[2])
-        reduce = np.minimum if name == "min" else np.maximum
-        out = args[0]
-        for a in args[1:]:
-            out = reduce(out, a)
-        return out
-    a, b = _evaluate(tree[1], values), _evaluate(tree[2], values)
-    if kind in COMPARISONS:
-        return COMPARISONS[kind](a, b).astype(float)
-    return {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide,
-            "**": np.power}[kind](np.asarray(a, dtype=float), b)  # fmt: skip
+        args = [_evaluate(a, values, ops) for a in tree[2]]
+        if tree[1] in ("min", "max"):  # of two or more arguments
+            return functools.reduce(ops[tree[1]], args)
+        return ops[tree[1]](*args)
+    return ops[kind](_evaluate(tree[1], values, ops), _evaluate(tree[2], values, ops))
 
 
 # --- symbolic derivative, with the simplifications that keep linear trees exact ---------------
@@ -335,8 +335,13 @@ class Expression:
         arrays = {k: np.asarray(v, dtype=float) for k, v in values.items()}
         shape = np.broadcast_shapes(*(a.shape for a in arrays.values()))
         with np.errstate(all="ignore"):
-            out = _evaluate(self.tree, arrays)
+            out = _evaluate(self.tree, arrays, NUMPY)
         return np.broadcast_to(np.asarray(out, dtype=float), shape).copy()
+
+    def evaluate(self, ops: dict[str, Any], **values: Any) -> Any:
+        """The tree evaluated with another table of operations (keys as :data:`NUMPY`), e.g.
+        UFL's to make a form coefficient of the expression."""
+        return _evaluate(self.tree, values, ops)
 
     def derivative(self, name: str) -> Expression:
         """d/d(name), symbolic (text: the derivative's tree is not written back)."""

@@ -21,7 +21,9 @@ from petsc4py import PETSc
 
 from plantgrowth.forms import macro
 from plantgrowth.forms.elasticity import boundary_traction
+from plantgrowth.forms.expressions import UFL_OPS
 from plantgrowth.linear import SolveReport, assemble_and_solve, cg_gamg_solver, lu_solver
+from plantgrowth.loads import ALONG
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -53,6 +55,15 @@ def rectangle_mesh(scene: Scene, comm: MPI.Comm) -> mesh.Mesh:
     nx, ny = max(1, round(t.width / t.h)), max(1, round(t.height / t.h))
     corners = [np.zeros(2), np.array([t.width, t.height])]
     return mesh.create_rectangle(comm, corners, [nx, ny], mesh.CellType.triangle)
+
+
+def _traction(msh: mesh.Mesh, edge: str, f: tuple) -> ufl.core.expr.Expr:
+    """The traction on an edge: a Constant, or a UFL vector of its expressions of s, the
+    coordinate along the edge (plantgrowth/loads.py)."""
+    if all(isinstance(c, float) for c in f):
+        return fem.Constant(msh, np.asarray(f, dtype=PETSc.ScalarType))
+    s = ufl.SpatialCoordinate(msh)[ALONG[edge]]
+    return ufl.as_vector([c if isinstance(c, float) else c.evaluate(UFL_OPS, s=s) for c in f])
 
 
 class MacroProblem:
@@ -151,9 +162,8 @@ class MacroProblem:
         )
         ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
         n = ufl.FacetNormal(msh)
-        for tag, (_, f) in enumerate(sorted(scene.loads.items()), start=1):
-            traction = fem.Constant(msh, np.asarray(f, dtype=PETSc.ScalarType))
-            terms += boundary_traction(traction, psi, self.Fg, n, ds(tag))
+        for tag, (name, f) in enumerate(sorted(scene.loads.items()), start=1):
+            terms += boundary_traction(_traction(msh, name, f), psi, self.Fg, n, ds(tag))
         return terms
 
     def _boundary_conditions(self) -> list:

@@ -168,7 +168,7 @@ class MicroModel:
         ]
 
     def initial_growth(self) -> np.ndarray:
-        return np.tile(np.array(self.scene.growth.Fg0, dtype=float), (self.layout.n_cells, 1, 1))
+        return self.scene.growth.initial(*self.layout.centres.T)
 
     def step(self, Fg: np.ndarray) -> StepResult:
         t0 = time.perf_counter()

@@ -86,8 +86,11 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from plantgrowth import loads as edge_loads
 from plantgrowth.errors import InputError, SceneError, check_growth_tensor, check_number
-from plantgrowth.expression import parse_expression
+from plantgrowth.expression import Expression, parse_expression
 from plantgrowth.fields import AXES, AnyField, ExprField, Field
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.meshes.tissue import MAX_NX as TISSUE_MAX_NX
@@ -125,6 +128,8 @@ RANGES = {
     "growth.tau": (0.0, BIG, False, False),
 }
 """Each field's interval (low, high, low end open, high end open), checked wherever it is used."""
+FG0_RANGE = (-MAX_LENGTH, MAX_LENGTH, False, False)
+"""The interval of each entry of growth.Fg0 (and det Fg0 > 0)."""
 IDENTITY = ((1.0, 0.0), (0.0, 1.0))
 REFERENCE_WIDTH = 4.0 * math.sqrt(3.0)  # = 8 cos(30 deg), exactly rounded
 """Reference tissue width 8c = 6.928203230275509 (MODEL.md section 9)."""
@@ -284,7 +289,7 @@ class Growth:
     eta: AnyField
     tau: AnyField
     clamp: float = 1.0
-    Fg0: tuple[tuple[float, float], tuple[float, float]] = IDENTITY
+    Fg0: tuple[tuple[float | AnyField, ...], ...] = IDENTITY  # entries: numbers or fields
 
     def __post_init__(self) -> None:
         _choice("growth.law", self.law, LAWS)
@@ -293,16 +298,52 @@ class Growth:
         _set(self, clamp=_range("growth.clamp", self.clamp, 0.0, BIG, hi_open=False))
         rows = tuple(
             tuple(
-                _range(f"growth.Fg0[{i}][{j}]", x, -MAX_LENGTH, MAX_LENGTH, False, False)
+                _Fg0_entry(f"growth.Fg0[{i}][{j}]", x)
                 for j, x in enumerate(_array(f"growth.Fg0[{i}]", row, 2))
             )
             for i, row in enumerate(_array("growth.Fg0", self.Fg0, 2))
         )
+        _set(self, Fg0=rows)
+        if self.Fg0_fields():
+            return  # det Fg0 > 0 is checked where Fg0 is used (plantgrowth.field_checks)
         try:
             check_growth_tensor("growth.Fg0", rows)  # det > 0
         except InputError as e:
             raise SceneError(str(e)) from None
-        _set(self, Fg0=rows)
+
+    def Fg0_fields(self) -> dict[str, AnyField]:
+        """The entries of Fg0 that are fields, by dotted key (``growth.Fg0[0][1]``)."""
+        return {
+            f"growth.Fg0[{i}][{j}]": x
+            for i, row in enumerate(self.Fg0)
+            for j, x in enumerate(row)
+            if not isinstance(x, float)
+        }
+
+    def initial(self, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+        """(n, 2, 2) initial growth tensors Fg0 at the points (x1, x2)."""
+        x1, x2 = np.broadcast_arrays(np.asarray(x1, dtype=float), np.asarray(x2, dtype=float))
+        out = np.empty((x1.size, 2, 2))
+        for i, row in enumerate(self.Fg0):
+            for j, x in enumerate(row):
+                out[:, i, j] = x if isinstance(x, float) else x(x1.ravel(), x2.ravel())
+        return out
+
+    def over(self, width: float, height: float) -> Growth:
+        """The growth fields across a tissue of another extent (MODEL.md 7)."""
+        Fg0 = tuple(tuple(x if isinstance(x, float) else x.over(width, height) for x in row)
+                    for row in self.Fg0)  # fmt: skip
+        return replace(
+            self, eta=self.eta.over(width, height), tau=self.tau.over(width, height), Fg0=Fg0
+        )
+
+
+def _Fg0_entry(key: str, x: object) -> float | AnyField:
+    """An entry of Fg0: a number or a field, finite and of magnitude <= MAX_LENGTH."""
+    if isinstance(x, (Field, ExprField)):
+        x.check(key, *FG0_RANGE)
+        return x
+    return _range(key, x, *FG0_RANGE)
 
 
 @dataclass(frozen=True)
@@ -416,7 +457,7 @@ class Scene:
     P1: AnyField
     growth: Growth
     time: Time
-    loads: dict[str, tuple[float, float]] = field(default_factory=dict)
+    loads: dict[str, tuple[edge_loads.Component, ...]] = field(default_factory=dict)
     output: Output = Output()
     accuracy: Accuracy = Accuracy()
     micro_nx: int = 16
@@ -426,7 +467,7 @@ class Scene:
     def __post_init__(self) -> None:
         _choice("model", self.model, MODELS)
         self.P1.check("pressure.P1", *RANGES["pressure.P1"])
-        for key, f in self.parameter_fields().items():
+        for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
             if isinstance(f, Field) and f.width != self.tissue.width:
                 raise SceneError(f"{key}: field width {f.width!r} != tissue.width")
             if isinstance(f, Field) and f.height != self.tissue.height:
@@ -435,8 +476,9 @@ class Scene:
         for edge, f in self.loads.items():
             _check_edge(edge)
             pair = _array(f"loads.{edge}", f, 2)
+            length = edge_loads.edge_length(edge, self.tissue.width, self.tissue.height)
             pair = tuple(
-                _range(f"loads.{edge}[{i}]", x, -BIG, BIG, False, False) for i, x in enumerate(pair)
+                _load_component(f"loads.{edge}[{i}]", x, length) for i, x in enumerate(pair)
             )
             if pair != (0.0, 0.0):  # only non-zero loads are kept
                 loads[edge] = pair
@@ -492,13 +534,11 @@ class Scene:
         def over(f: AnyField) -> AnyField:
             return f.over(width, height)
 
-        cell = CellGeometry(*(over(getattr(self.cell, k)) for k in ("l1", "l2", "theta", "w")))
+        cell = CellGeometry(*(over(f) for f in self.cell.fields()))
         material = Material(over(self.material.E), over(self.material.nu))
-        growth = replace(self.growth, eta=over(self.growth.eta), tau=over(self.growth.tau))
         return replace(
             self, tissue=replace(self.tissue, width=width, height=height), cell=cell,
-            material=material,
-            P1=over(self.P1), growth=growth,
+            material=material, P1=over(self.P1), growth=self.growth.over(width, height),
         )  # fmt: skip
 
     def parameter_fields(self) -> dict[str, AnyField]:
@@ -521,11 +561,12 @@ class Scene:
             section, name = key.split(".")
             out.setdefault(section, {})[name] = f.to_toml()
         g, t = self.growth, self.time
-        out["growth"] = {"law": g.law, **out["growth"], "clamp": g.clamp, "Fg0": g.Fg0}
+        Fg0 = [[x if isinstance(x, float) else x.to_toml() for x in row] for row in g.Fg0]
+        out["growth"] = {"law": g.law, **out["growth"], "clamp": g.clamp, "Fg0": Fg0}
         out["time"] = {
             "t_max": t.t_max, "dt": t.dt, "integrator": t.integrator, "tolerance": t.tolerance
         }  # fmt: skip
-        out["loads"] = dict(self.loads)
+        out["loads"] = {edge: [edge_loads.to_toml(c) for c in f] for edge, f in self.loads.items()}
         out["output"] = {f.name: getattr(self.output, f.name) for f in fields(self.output)}
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
         out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
@@ -588,6 +629,19 @@ _FIELD_DEFAULTS = {
     "pressure": {"P1": 0.001},
     "growth": {"eta": 1.0, "tau": 0.0},
 }
+
+
+def _load_component(key: str, x: object, length: float) -> edge_loads.Component:
+    """A number, or {expr = "..."} of s (plantgrowth/loads.py), checked along the edge."""
+    if isinstance(x, dict):
+        _check_keys(x, f"{key}.", ("expr",))
+        if "expr" not in x:
+            raise SceneError(f'{key}: a load component is a number or {{expr = "..."}} of s')
+        x = parse_expression(f"{key}.expr", x["expr"], edge_loads.VARIABLES)
+    if not isinstance(x, Expression):
+        return _range(key, x, -BIG, BIG, False, False)
+    edge_loads.check_component(key, x, length, BIG)
+    return x
 
 
 def _check_edge(edge: str) -> None:
@@ -690,6 +744,18 @@ def _parse(data: dict) -> Scene:
     }
     if "law" not in t["growth"]:
         raise SceneError(f"growth.law is required: one of {', '.join(map(repr, LAWS))}")
+    if isinstance(Fg0 := t["growth"].get("Fg0"), list):  # tables in it are fields
+        f["growth"]["Fg0"] = [
+            [
+                _field(f"growth.Fg0[{i}][{j}]", x, tissue.width, tissue.height)
+                if isinstance(x, dict)
+                else x
+                for j, x in enumerate(row)
+            ]
+            if isinstance(row, list)
+            else row
+            for i, row in enumerate(Fg0)
+        ]
     return Scene(
         model=data.get("model", "macro"),
         tissue=tissue,

@@ -282,6 +282,41 @@ def test_the_cli_refuses_a_bad_interior_value_before_writing(tmp_path_factory, c
     assert code == 2
 
 
+# --- Fg0 per component, loads along their edge -------------------------------------------------
+
+
+def test_Fg0_entries_may_be_fields_and_det_is_checked_where_used():
+    Fg0 = [[{"expr": "1 + 0.1 * x2"}, 0], [0, {"from": 1, "to": 2}]]
+    s = scene(SMALL | {"growth": {"law": "stress", "Fg0": Fg0}})
+    Fg0 = s.growth.initial(np.array([0.0, REFERENCE_WIDTH]), np.array([0.0, 3.0]))
+    np.testing.assert_allclose(Fg0, [[[1.0, 0.0], [0.0, 1.0]], [[1.3, 0.0], [0.0, 2.0]]])
+    assert parse_scene(tomllib.loads(s.to_toml())) == s
+    check_used_values(s, MPI.COMM_WORLD)
+    s = scene(SMALL | {"growth": {"law": "stress", "Fg0": [[{"from": 1, "to": -1}, 0], [0, 1]]}})
+    with pytest.raises(SceneError) as caught:  # both ends are fine, det < 0 past the middle
+        check_used_values(s, MPI.COMM_WORLD)
+    text = str(caught.value)
+    assert text.startswith("growth.Fg0: det = -0.0") and "(fine cell midpoint)" in text
+    assert text.endswith("is out of range: it must be finite and in (0, inf)")
+    with pytest.raises(SceneError, match=r"^growth\.Fg0\[1\]\[0\]\.expr: unknown name 'y'"):
+        scene({"growth": {"law": "stress", "Fg0": [[1, 0], [{"expr": "y"}, 1]]}})
+
+
+def test_loads_may_vary_along_their_edge():
+    s = scene({"growth": {"law": "none"},
+               "loads": {"right": [{"expr": "1e-4 * s / 3"}, 0], "left": [-5e-5, 0]}})  # fmt: skip
+    assert s.to_dict()["loads"]["right"] == [{"expr": "1e-4 * s / 3"}, 0.0]
+    assert parse_scene(tomllib.loads(s.to_toml())) == s
+    with pytest.raises(SceneError, match=r"^loads: net x1 force .*\(integrals over the edges"):
+        scene({"growth": {"law": "none"}, "loads": {"right": [{"expr": "1e-4 * s"}, 0]}})
+    with pytest.raises(SceneError, match=r"^loads\.top\[1\]\.expr: unknown name 'x1' at pos"):
+        scene({"growth": {"law": "none"}, "loads": {"top": [0, {"expr": "x1"}]}})
+    with pytest.raises(SceneError, match=r"^loads\.top\[1\] = nan at s = 0 is out of range"):
+        scene({"growth": {"law": "none"}, "loads": {"top": [0, {"expr": "log(s - 1)"}]}})
+    with pytest.raises(SceneError, match=r"^unknown key 'loads\.top\[1\]\.from'"):
+        scene({"growth": {"law": "none"}, "loads": {"top": [0, {"from": 1, "to": 2}]}})
+
+
 # --- runs ----------------------------------------------------------------------------------------
 
 RUN = SMALL | {
@@ -291,8 +326,8 @@ RUN = SMALL | {
 }
 
 
-def run(directory, name: str, tables: dict, capsys) -> tuple[list[dict], dict[str, np.ndarray]]:
-    """Run a small macro scene through the CLI: its summary rows and last step's fields."""
+def run(directory, name: str, tables: dict, capsys, step=2) -> tuple[list, dict[str, np.ndarray]]:
+    """Run a small macro scene through the CLI: its summary rows and that step's fields."""
     merged = {k: dict(v) for k, v in RUN.items()}
     for key, entries in tables.items():
         merged.setdefault(key, {}).update(entries)
@@ -301,7 +336,7 @@ def run(directory, name: str, tables: dict, capsys) -> tuple[list[dict], dict[st
     outdir = directory / name
     code, _, err = call(["run", path, "-o", outdir], capsys)
     assert code == 0, err
-    with h5py.File(step_file(outdir, 2), "r") as f:
+    with h5py.File(step_file(outdir, step), "r") as f:
         fields = {name: f[name][...] for name in ("u", "G")}
     return read_summary(outdir), fields
 
@@ -320,16 +355,21 @@ def runs(tmp_path_factory):
 
 
 def test_an_expression_equal_to_linear_fields_gives_the_same_run(runs, capsys):
-    """P1 along x1 (grad P1, P2 terms) and E along x2, as {from, to} and as expressions: the
-    same cell inputs (key_tolerance rounds them alike), the same forms: equal to 1e-12
-    (round-off of the field values, ~1e-16, amplified by the solves)."""
+    """P1 along x1 (grad P1, P2 terms), E along x2, an Fg0 entry along x1 and a load, as
+    numbers or {from, to} and as expressions: the same cell inputs (key_tolerance rounds them
+    alike), the same forms: equal to 1e-12 (round-off of the field values, ~1e-16, amplified
+    by the solves)."""
     directory, _ = runs
+    W = REFERENCE_WIDTH
     linear = {"pressure": {"P1": {"from": 0.0005, "to": 0.002}},
               "material": {"E": {"from": 0.5, "to": 2.0, "along": "x2"}},
-              "growth": {"law": "stress"}}  # fmt: skip
-    expr = {"pressure": {"P1": {"expr": f"0.0005 + 0.0015 * x1 / {REFERENCE_WIDTH!r}"}},
+              "growth": {"law": "stress", "Fg0": [[{"from": 1.0, "to": 1.1}, 0], [0, 1]]},
+              "loads": {"right": [0.0005, 0.0002], "left": [-0.0005, 0.0]}}  # fmt: skip
+    expr = {"pressure": {"P1": {"expr": f"0.0005 + 0.0015 * x1 / {W!r}"}},
             "material": {"E": {"expr": "0.5 + 1.5 * x2 / 3"}},
-            "growth": {"law": "stress"}}  # fmt: skip
+            "growth": {"law": "stress", "Fg0": [[{"expr": f"1 + 0.1 * x1 / {W!r}"}, 0], [0, 1]]},
+            "loads": {"right": [{"expr": "0.0005 + 0 * s"}, 0.0002],
+                      "left": [-0.0005, 0.0]}}  # fmt: skip
     rows_a, fields_a = run(directory, "linear", linear, capsys)
     rows_b, fields_b = run(directory, "expr", expr, capsys)
     for a, b in zip(rows_a, rows_b, strict=True):
@@ -356,6 +396,31 @@ def test_a_pressure_gradient_along_x2_grows_the_top_faster(runs, capsys):
     assert trace[top].mean() > 2.5 * trace[bottom].mean() > 0.0
     left, right = midpoints[:, 0] < REFERENCE_WIDTH / 2, midpoints[:, 0] > REFERENCE_WIDTH / 2
     assert trace[left].mean() == pytest.approx(trace[right].mean(), rel=0.05)
+
+
+def test_a_load_growing_along_the_edge_stretches_the_top_more(runs, capsys):
+    """Static solve (law none): f1 = +-4e-5 s / 3 on the right and left edges (balanced: equal
+    and opposite; small, as E_hom ~ 2e-3) against the constant load of the same resultant
+    (+-2e-5): the linear load opens the tissue more at the top and less at the bottom."""
+    directory, _ = runs
+    fields = {}
+    for name, f in (("load_s", {"expr": "4e-5 * s / 3"}), ("load_constant", 2e-5)):
+        minus = {"expr": "-4e-5 * s / 3"} if name == "load_s" else -2e-5
+        tables = {"growth": {"law": "none"}, "loads": {"right": [f, 0.0], "left": [minus, 0.0]},
+                  "pressure": {"P1": 0.0}}  # fmt: skip
+        fields[name] = run(directory, name, tables, capsys, step=0)[1]["u"]
+    with h5py.File(directory / "load_s" / "fields.h5", "r") as f:
+        points = f["Mesh/geometry"][...]
+    W = REFERENCE_WIDTH
+
+    def opening(u, x2):  # u1(right) - u1(left) at height x2
+        at = np.isclose(points[:, 1], x2)
+        right, left = at & np.isclose(points[:, 0], W), at & np.isclose(points[:, 0], 0.0)
+        return float(u[right, 0][0] - u[left, 0][0])
+
+    s_top, s_bottom = opening(fields["load_s"], 3.0), opening(fields["load_s"], 0.0)
+    c_top, c_bottom = opening(fields["load_constant"], 3.0), opening(fields["load_constant"], 0.0)
+    assert s_top > c_top > 0.0 and 0.0 < s_bottom < c_bottom
 
 
 def _cell_midpoints(outdir) -> np.ndarray:
