@@ -29,7 +29,8 @@ inclined wall length l2 = 1)::
     eta = 1.0                  # extensibility, >= 0
     tau = 0.0                  # yield threshold, >= 0
     clamp = 1.0                # M: G is clipped component-wise to [-M, M], M > 0
-    Fg0 = [[1.0, 0.0], [0.0, 1.0]]  # initial growth tensor, finite entries, det > 0
+    Fg0 = [[1.0, 0.0], [0.0, 1.0]]  # initial growth tensor, finite entries (numbers or
+                               # fields), det > 0 wherever it is used
     [time]
     t_max = 60.0               # end time, a whole number (<= 1e6) of steps dt
     dt = 1.0                   # (preset) time step, > 0
@@ -38,7 +39,8 @@ inclined wall length l2 = 1)::
                                # doubling (below)
     tolerance = 1e-3           # adaptive: largest relative local error of Fg per step, (0, 0.1]
     [loads]                    # traction f on an edge (default none); "bottom" cannot be loaded
-    right = [0.0, 0.0]         # also "left", "top"
+    right = [0.0, 0.0]         # also "left", "top"; a component may be {expr = "..."} of s,
+                               # the coordinate along the edge (x2 on left/right, x1 on top)
     [output]
     fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these and "eps_hom"
     every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has
@@ -63,13 +65,25 @@ Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/presets.
 shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped
 to the tissue (``h <= min(width, height)/2``, ``h <= H <= max(width, height)``).
 
-The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta`` and ``growth.tau`` are
-*fields*: a number, or ``{from = a, to = b}`` for a value linear in x1 from a at x1 = 0 to b at
-the right end of the tissue simulated (MODEL.md sections 7, 9): x1 = width for the macro
-rectangle, the cellular tissue's own x1 extent for micro runs and the macro side of ``both`` and
-``compare``, so a field never leaves [a, b]. A field's range is checked at both ends, and the cell
-geometry at x1 = 0, width/2 and width. Magnitudes above 1e12 (1e6 for lengths and Fg0) are
-rejected as typos: the model is non-dimensional with reference values of order 1.
+The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta``, ``growth.tau`` and each
+entry of ``growth.Fg0`` are *fields* (docs/fields.md):
+
+- a number;
+- ``{from = a, to = b}`` (``along = "x1"``, the default) or ``{from = a, to = b, along = "x2"}``:
+  linear from a at 0 to b at the end of the tissue simulated along that axis (MODEL.md sections
+  7, 9): the macro rectangle's width or height, the cellular tissue's own extent for micro runs
+  and the macro side of ``both`` and ``compare``, so a field never leaves [a, b];
+- ``{expr = "..."}``: an expression of x1 and x2 (plantgrowth/expression.py: numbers, pi,
+  ``+ - * / **``, parentheses, comparisons, exp log sqrt sin cos tanh abs min max and
+  ``where(cond, a, b)``; never Python's eval), in absolute coordinates.
+
+A number's and a linear field's range is checked at its ends when the scene is built, the cell
+geometry at the ends and middle of each axis a field varies along. A non-constant expression, or
+a varying Fg0, is checked where the run uses it (plantgrowth/field_checks.py): at every coarse node
+and fine cell of the macro domain and at every cell centre of a micro tissue, before anything is
+written; the error names the key, the place (x1, x2) and the range. Magnitudes above 1e12 (1e6
+for lengths and Fg0) are rejected as typos: the model is non-dimensional with reference values of
+order 1.
 
 Load with :func:`load_scene` (a file) or :func:`parse_scene` (a dict); ``Scene.to_toml()``
 writes the fully resolved scene, which loads back to an equal ``Scene``.
