@@ -220,9 +220,11 @@ def _cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 
 def _validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from plantgrowth.field_checks import check_used_values
     from plantgrowth.scene import load_scene
 
     scene = load_scene(args.scene)
+    check_used_values(scene, comm)
     _warn_about(scene)
     if comm.rank == 0:
         print(
@@ -234,6 +236,7 @@ def _validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 def _compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.compare import run_compare
+    from plantgrowth.field_checks import check_used_values
     from plantgrowth.meshes.tissue import TissueLayout, check_nx, wall_mesh_size
     from plantgrowth.micro import scene_cell
     from plantgrowth.scene import load_scene
@@ -244,6 +247,7 @@ def _compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         layout = TissueLayout(scene_cell(scene), check_nx("--nx", nx))
         if args.resolution is not None:
             wall_mesh_size(layout, args.resolution, "--resolution")
+        check_used_values(scene, comm, nx)
     outdir = args.output or Path("results") / f"compare_{args.scene.stem}"
     with _run_directory(outdir, scene, comm, overwrite=args.overwrite):
         log.info("plantgrowth compare %s -> %s on %d rank(s)", args.scene, outdir, comm.size)
@@ -305,16 +309,19 @@ def run_scene(
     write scene.toml and run.log (its first line names the run as ``what``), warn, run.
 
     Raises:
-        InputError: the directory is busy, holds an earlier run, or cannot be resumed.
+        InputError: a field is out of range where the run uses it (SceneError), the directory
+            is busy, holds an earlier run, or cannot be resumed.
         RunError: a step failed (logged in run.log).
         Interrupted: SIGINT stopped the run after a completed step (logged in run.log).
     """
     from plantgrowth.coupled import run_macro
+    from plantgrowth.field_checks import check_used_values
     from plantgrowth.micro import run_micro
     from plantgrowth.output import prepare_directory
     from plantgrowth.rundir import check_resumable
     from plantgrowth.timeloop import Interrupted
 
+    check_used_values(scene, comm)  # before anything is written
     extends = resume and check_resumable(outdir, scene)
     with _run_directory(outdir, scene, comm, resume, overwrite):
         log.info("%s -> %s on %d rank(s)", what, outdir, comm.size)

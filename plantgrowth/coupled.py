@@ -86,14 +86,13 @@ class MacroModel:
         self.grid = CoarseGrid.with_edge(width, height, scene.tissue.H)
         nodes = self.grid.nodes
         self.W = self.grid.interpolation_matrix(problem.midpoints[:, :2])
-        x1_nodes, x1 = nodes[:, 0], problem.midpoints[:, 0]
-        cell = scene.cell
-        self.geometry = np.column_stack(
-            [f(x1_nodes) for f in (cell.l1, cell.l2, cell.theta, cell.w)]
-        )
-        self.E_nodes, self.nu_nodes = scene.material.E(x1_nodes), scene.material.nu(x1_nodes)
-        self.P1, self.eta, self.tau = scene.P1(x1), scene.growth.eta(x1), scene.growth.tau(x1)
-        self.grad_P1 = np.array([scene.P1.gradient, 0.0])
+        at_nodes, at_cells = (nodes[:, 0], nodes[:, 1]), problem.midpoints[:, :2].T
+        self.geometry = np.column_stack([f(*at_nodes) for f in scene.cell.fields()])
+        self.E_nodes = scene.material.E(*at_nodes)
+        self.nu_nodes = scene.material.nu(*at_nodes)
+        self.P1 = scene.P1(*at_cells)
+        self.eta, self.tau = scene.growth.eta(*at_cells), scene.growth.tau(*at_cells)
+        self.grad_P1 = scene.P1.gradient(*at_cells)  # (n_cells, 2): MODEL.md 6, P2 = -grad P1 . y
         self.strain_averages = scene.growth.law == "strain" or "eps_hom" in scene.output.fields
         self.homogenizer = Homogenizer(
             scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
@@ -112,7 +111,7 @@ class MacroModel:
             log.info("skipped: %s", line)
 
     def initial_growth(self) -> np.ndarray:
-        return np.tile(np.array(self.scene.growth.Fg0, dtype=float), (self.problem.n_cells, 1, 1))
+        return self.scene.growth.initial(*self.problem.midpoints[:, :2].T)
 
     def check_growth(self, Fg: np.ndarray) -> None:
         points = self.problem.midpoints[:, :2]
@@ -160,9 +159,8 @@ class MacroModel:
         if K is not None:
             problem.set_cell_values(problem.K, K)
         if problem.P2vec is not None:
-            problem.set_cell_values(
-                problem.P2vec, self._to_cells(nt.P2_matrix @ self.grad_P1, (2,))
-            )
+            P2_matrix = self._to_cells(nt.P2_matrix, (2, 2))
+            problem.set_cell_values(problem.P2vec, np.einsum("nij,nj->ni", P2_matrix, self.grad_P1))
         t1 = time.perf_counter()
         report = problem.solve()
         t2 = time.perf_counter()
@@ -227,12 +225,12 @@ class MacroModel:
 def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> tuple[Scene, Mesh]:
     """The scene and fine mesh of the macro model: the scene's rectangle, or, next to a micro
     tissue of ``nx`` cells per row (``model = "both"``: the scene's micro.nx), the region its
-    cells cover, with the scene's fields spanning that region's x1 extent (MODEL.md 7)."""
+    cells cover, with the scene's fields spanning that region's extent (MODEL.md 7)."""
     if nx is None and scene.model != "both":
         return scene, rectangle_mesh(scene, comm)
-    layout = TissueLayout(scene.cell.at(0.0), scene.micro_nx if nx is None else nx)
+    layout = TissueLayout(scene.cell.at(0.0, 0.0), scene.micro_nx if nx is None else nx)
     mesh = build_outline_mesh(layout, scene.tissue.h, comm)[0]
-    return scene.over_width(layout.bounding_box[0]), mesh
+    return scene.over_extent(*layout.bounding_box), mesh
 
 
 def run_macro(

@@ -15,6 +15,10 @@ class InputError(ValueError):
     """Bad user input; the message names the field and its valid range."""
 
 
+class SceneError(InputError):
+    """Bad scene input; the message starts with the dotted key (or the file name)."""
+
+
 class RunError(RuntimeError):
     """A run that failed numerically; the message names the step, time, place and cause."""
 

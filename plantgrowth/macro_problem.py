@@ -21,7 +21,9 @@ from petsc4py import PETSc
 
 from plantgrowth.forms import macro
 from plantgrowth.forms.elasticity import boundary_traction
+from plantgrowth.forms.expressions import UFL_OPS
 from plantgrowth.linear import SolveReport, assemble_and_solve, cg_gamg_solver, lu_solver
+from plantgrowth.loads import ALONG
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -39,12 +41,29 @@ EDGES = {"left": (0, 0.0), "right": (0, None), "top": (1, None)}
 """Loadable edges: (coordinate index, position; None = the far side of the rectangle)."""
 
 
+def mesh_bounding_box(msh: mesh.Mesh) -> tuple[float, float]:
+    """Collective: (width, height) of the mesh, whose bounding box starts at the origin."""
+    x = msh.geometry.x
+    top = [float(x[:, i].max()) if len(x) else 0.0 for i in range(2)]
+    width, height = (msh.comm.allreduce(v, op=MPI.MAX) for v in top)
+    return width, height
+
+
 def rectangle_mesh(scene: Scene, comm: MPI.Comm) -> mesh.Mesh:
     """The stand-alone macro domain ``[0, width] x [0, height]`` with edges about ``h``."""
     t = scene.tissue
     nx, ny = max(1, round(t.width / t.h)), max(1, round(t.height / t.h))
     corners = [np.zeros(2), np.array([t.width, t.height])]
     return mesh.create_rectangle(comm, corners, [nx, ny], mesh.CellType.triangle)
+
+
+def _traction(msh: mesh.Mesh, edge: str, f: tuple) -> ufl.core.expr.Expr:
+    """The traction on an edge: a Constant, or a UFL vector of its expressions of s, the
+    coordinate along the edge (plantgrowth/loads.py)."""
+    if all(isinstance(c, float) for c in f):
+        return fem.Constant(msh, np.asarray(f, dtype=PETSc.ScalarType))
+    s = ufl.SpatialCoordinate(msh)[ALONG[edge]]
+    return ufl.as_vector([c if isinstance(c, float) else c.evaluate(UFL_OPS, s=s) for c in f])
 
 
 class MacroProblem:
@@ -74,10 +93,7 @@ class MacroProblem:
         areas = fem.petsc.assemble_vector(area_form)
         self.areas = areas.array[self.Q0.dofmap.list.array[: self.n_owned]].copy()
         self.total_area = comm.allreduce(self.areas.sum(), op=MPI.SUM)
-        x = msh.geometry.x
-        self.bounding_box = tuple(
-            comm.allreduce(float(x[:, i].max()) if len(x) else 0.0, op=MPI.MAX) for i in range(2)
-        )
+        self.bounding_box = mesh_bounding_box(msh)
 
         u, psi = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
         dx = ufl.dx
@@ -85,15 +101,18 @@ class MacroProblem:
         rhs = macro.macro_growth_rhs(psi, self.Fg, self.C, dx)
         self.K = None
         self.P2vec = None
-        if not (scene.P1.is_constant and scene.P1.start == 0.0):
+        at_cells = self.midpoints[:, 0], self.midpoints[:, 1]
+        if not (scene.P1.is_constant and float(scene.P1(0.0, 0.0)) == 0.0):
             self.K = fem.Function(self.T0, name="K")
-            x = ufl.SpatialCoordinate(msh)
-            P1 = fem.Constant(msh, scene.P1.start) + fem.Constant(msh, scene.P1.gradient) * x[0]
+            # P1 at the cell midpoints: the one-point rule integrates a linear P1 exactly
+            P1 = fem.Function(self.Q0)
+            self.set_cell_values(P1, scene.P1(*at_cells))
             rhs += macro.macro_pressure_rhs(psi, self.Fg, self.K, self.phi_w, P1, dx)
             self.active_terms.append("pressure")
             if not scene.P1.is_constant:
                 self.P2vec = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)), name="P2vec")
-                grad_P1 = ufl.as_vector([fem.Constant(msh, scene.P1.gradient), 0.0])
+                grad_P1 = fem.Function(self.P2vec.function_space)
+                self.set_cell_values(grad_P1, scene.P1.gradient(*at_cells))
                 rhs += macro.macro_pressure_gradient_rhs(
                     psi, self.Fg, self.phi_w, grad_P1, self.P2vec, dx
                 )
@@ -143,9 +162,8 @@ class MacroProblem:
         )
         ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
         n = ufl.FacetNormal(msh)
-        for tag, (_, f) in enumerate(sorted(scene.loads.items()), start=1):
-            traction = fem.Constant(msh, np.asarray(f, dtype=PETSc.ScalarType))
-            terms += boundary_traction(traction, psi, self.Fg, n, ds(tag))
+        for tag, (name, f) in enumerate(sorted(scene.loads.items()), start=1):
+            terms += boundary_traction(_traction(msh, name, f), psi, self.Fg, n, ds(tag))
         return terms
 
     def _boundary_conditions(self) -> list:

@@ -34,8 +34,7 @@ log = logging.getLogger("plantgrowth")
 
 def scene_cell(scene: Scene) -> HoneycombCell:
     """The (constant) unit cell of a micro scene."""
-    c = scene.cell
-    return HoneycombCell(c.l1.start, c.l2.start, c.theta.start, c.w.start)
+    return scene.cell.at(0.0, 0.0)
 
 
 class MicroModel:
@@ -53,7 +52,7 @@ class MicroModel:
     ) -> None:
         layout = TissueLayout(scene_cell(scene), scene.micro_nx if nx is None else nx)
         self.layout = layout
-        self.scene = scene = scene.over_width(layout.bounding_box[0])  # fields span this tissue
+        self.scene = scene = scene.over_extent(*layout.bounding_box)  # fields span this tissue
         self.comm = comm
         msh, cell_tags, facet_tags = build_walls_mesh(
             layout, scene.micro_resolution if resolution is None else resolution, comm
@@ -68,14 +67,14 @@ class MicroModel:
         owned = cell_tags.indices < n_owned
         self.cell_id[cell_tags.indices[owned]] = cell_tags.values[owned] - 1
 
-        x1 = layout.centres[:, 0]
-        self.eta, self.tau = scene.growth.eta(x1), scene.growth.tau(x1)
-        self.pressure = scene.P1(x1)
+        centres = layout.centres[:, 0], layout.centres[:, 1]  # P1 etc. at the cell centres
+        self.eta, self.tau = scene.growth.eta(*centres), scene.growth.tau(*centres)
+        self.pressure = scene.P1(*centres)
         self.u = fem.Function(self.V, name="u")
         self.Fg = fem.Function(T0, name="Fg")
         E, nu, P = (fem.Function(Q0) for _ in range(3))
-        self._set(E, scene.material.E(x1))
-        self._set(nu, scene.material.nu(x1))
+        self._set(E, scene.material.E(*centres))
+        self._set(nu, scene.material.nu(*centres))
         self._set(P, self.pressure)
 
         dx = ufl.dx(domain=msh)
@@ -169,7 +168,7 @@ class MicroModel:
         ]
 
     def initial_growth(self) -> np.ndarray:
-        return np.tile(np.array(self.scene.growth.Fg0, dtype=float), (self.layout.n_cells, 1, 1))
+        return self.scene.growth.initial(*self.layout.centres.T)
 
     def step(self, Fg: np.ndarray) -> StepResult:
         t0 = time.perf_counter()

@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from mpi4py import MPI
 
+from plantgrowth.loads import edge_length, resultant
+
 if TYPE_CHECKING:
     from plantgrowth.scene import Scene
     from plantgrowth.timeloop import StepResult
@@ -30,21 +32,26 @@ LOAD_BALANCE_TOLERANCE = 1e-6
 """Largest accepted net x1 force, relative to the largest single edge force along x1."""
 
 
-def unbalanced_load(loads: dict[str, tuple[float, float]], width: float, height: float) -> str:
+def unbalanced_load(loads: dict[str, tuple], width: float, height: float) -> str:
     """Why the tractions (MODEL.md 4) leave a net x1 force on the reference rectangle ('' if
     they do not). The bottom edge is a symmetry plane that carries x2 forces; along x1 only the
     pinned origin holds the tissue, so the x1 forces must balance:
-    ``f_left[0] height + f_right[0] height + f_top[0] width = 0``."""
-    lengths = {"left": height, "right": height, "top": width}
-    forces = {edge: f[0] * lengths[edge] for edge, f in loads.items()}
+    ``f_left[0] height + f_right[0] height + f_top[0] width = 0`` (for a load that varies along
+    its edge, the integral of f[0] over the edge: plantgrowth.loads.resultant)."""
+    forces = {edge: resultant(f[0], edge_length(edge, width, height)) for edge, f in loads.items()}
     net = sum(forces.values())
     largest = max((abs(v) for v in forces.values()), default=0.0)
     if abs(net) <= LOAD_BALANCE_TOLERANCE * largest:
         return ""
+    varying = any(not isinstance(c, float) for f in loads.values() for c in f)
     left = loads.get("left", (0.0, 0.0))
-    fix = f"loads.left = [{left[0] - net / height:.10g}, {left[1]:.10g}]"
+    if isinstance(left[0], float) and isinstance(left[1], float):
+        fix = f"loads.left = [{left[0] - net / height:.10g}, {left[1]:.10g}]"
+    else:
+        fix = f"add {-net / height:.10g} to loads.left[0]"
     return (
-        f"loads: net x1 force f_left[0] * height + f_right[0] * height + f_top[0] * width = "
+        f"loads: net x1 force f_left[0] * height + f_right[0] * height + f_top[0] * width"
+        f"{' (integrals over the edges for the expressions)' if varying else ''} = "
         f"{net:.6g}, not 0 (relative tolerance {LOAD_BALANCE_TOLERANCE:g}): only the pinned "
         f"origin holds the tissue along x1 and would carry it; balance the x1 components, "
         f"e.g. {fix} (x2 loads are carried by the symmetry plane x2 = 0)"
@@ -52,9 +59,12 @@ def unbalanced_load(loads: dict[str, tuple[float, float]], width: float, height:
 
 
 def scene_warnings(scene: Scene) -> list[str]:
-    """Warnings about a scene's parameters (P1 / E, theta), before anything runs."""
-    ends = (0.0, scene.tissue.width)
-    ratios = [float(scene.P1(x) / scene.material.E(x)) for x in ends if float(scene.P1(x)) != 0.0]
+    """Warnings about a scene's parameters (P1 / E, theta) at the tissue's corners, before
+    anything runs."""
+    x1, x2 = np.array(scene.corners()).T
+    with np.errstate(all="ignore"):  # an expression may be undefined at a corner never used
+        P1, E, theta = scene.P1(x1, x2), scene.material.E(x1, x2), scene.cell.theta(x1, x2)
+    ratios = [float(p / e) for p, e in zip(P1, E, strict=True) if p != 0.0 and np.isfinite(p / e)]
     out = []
     low, high = P1_OVER_E
     outside = [r for r in ratios if not low <= r <= high]
@@ -64,7 +74,7 @@ def scene_warnings(scene: Scene) -> list[str]:
             "model is non-dimensional (wall E = 1, reference turgor P1 = 0.001); are P1 and E "
             "in the same units?"
         )
-    theta = min(float(scene.cell.theta(x)) for x in ends)
+    theta = float(np.nanmin(theta))
     if theta < MIN_THETA:
         out.append(
             f"cell.theta = {theta:g} degrees is below {MIN_THETA:g}: theta is in degrees "

@@ -29,7 +29,8 @@ inclined wall length l2 = 1)::
     eta = 1.0                  # extensibility, >= 0
     tau = 0.0                  # yield threshold, >= 0
     clamp = 1.0                # M: G is clipped component-wise to [-M, M], M > 0
-    Fg0 = [[1.0, 0.0], [0.0, 1.0]]  # initial growth tensor, finite entries, det > 0
+    Fg0 = [[1.0, 0.0], [0.0, 1.0]]  # initial growth tensor, finite entries (numbers or
+                               # fields), det > 0 wherever it is used
     [time]
     t_max = 60.0               # end time, a whole number (<= 1e6) of steps dt
     dt = 1.0                   # (preset) time step, > 0
@@ -38,7 +39,8 @@ inclined wall length l2 = 1)::
                                # doubling (below)
     tolerance = 1e-3           # adaptive: largest relative local error of Fg per step, (0, 0.1]
     [loads]                    # traction f on an edge (default none); "bottom" cannot be loaded
-    right = [0.0, 0.0]         # also "left", "top"
+    right = [0.0, 0.0]         # also "left", "top"; a component may be {expr = "..."} of s,
+                               # the coordinate along the edge (x2 on left/right, x1 on top)
     [output]
     fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these and "eps_hom"
     every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has
@@ -63,13 +65,25 @@ Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/presets.
 shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped
 to the tissue (``h <= min(width, height)/2``, ``h <= H <= max(width, height)``).
 
-The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta`` and ``growth.tau`` are
-*fields*: a number, or ``{from = a, to = b}`` for a value linear in x1 from a at x1 = 0 to b at
-the right end of the tissue simulated (MODEL.md sections 7, 9): x1 = width for the macro
-rectangle, the cellular tissue's own x1 extent for micro runs and the macro side of ``both`` and
-``compare``, so a field never leaves [a, b]. A field's range is checked at both ends, and the cell
-geometry at x1 = 0, width/2 and width. Magnitudes above 1e12 (1e6 for lengths and Fg0) are
-rejected as typos: the model is non-dimensional with reference values of order 1.
+The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta``, ``growth.tau`` and each
+entry of ``growth.Fg0`` are *fields* (docs/fields.md):
+
+- a number;
+- ``{from = a, to = b}`` (``along = "x1"``, the default) or ``{from = a, to = b, along = "x2"}``:
+  linear from a at 0 to b at the end of the tissue simulated along that axis (MODEL.md sections
+  7, 9): the macro rectangle's width or height, the cellular tissue's own extent for micro runs
+  and the macro side of ``both`` and ``compare``, so a field never leaves [a, b];
+- ``{expr = "..."}``: an expression of x1 and x2 (plantgrowth/expression.py: numbers, pi,
+  ``+ - * / **``, parentheses, comparisons, exp log sqrt sin cos tanh abs min max and
+  ``where(cond, a, b)``; never Python's eval), in absolute coordinates.
+
+A number's and a linear field's range is checked at its ends when the scene is built, the cell
+geometry at the ends and middle of each axis a field varies along. A non-constant expression, or
+a varying Fg0, is checked where the run uses it (plantgrowth/field_checks.py): at every coarse node
+and fine cell of the macro domain and at every cell centre of a micro tissue, before anything is
+written; the error names the key, the place (x1, x2) and the range. Magnitudes above 1e12 (1e6
+for lengths and Fg0) are rejected as typos: the model is non-dimensional with reference values of
+order 1.
 
 Load with :func:`load_scene` (a file) or :func:`parse_scene` (a dict); ``Scene.to_toml()``
 writes the fully resolved scene, which loads back to an equal ``Scene``.
@@ -88,7 +102,10 @@ from typing import Any
 
 import numpy as np
 
-from plantgrowth.errors import InputError, check_growth_tensor, check_number
+from plantgrowth import loads as edge_loads
+from plantgrowth.errors import InputError, SceneError, check_growth_tensor, check_number
+from plantgrowth.expression import Expression, parse_expression
+from plantgrowth.fields import AXES, AnyField, ExprField, Field
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.meshes.tissue import MAX_NX as TISSUE_MAX_NX
 from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
@@ -113,13 +130,23 @@ step meets LU's on the E-gradient scene, 1 rank (measured 1.96e5; scripts/scalin
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 EDGES = ("left", "right", "top")
+RANGES = {
+    "cell.l1": (0.0, MAX_LENGTH, True, False),
+    "cell.l2": (0.0, MAX_LENGTH, True, False),
+    "cell.theta": (0.0, 90.0, True, True),
+    "cell.w": (0.0, MAX_LENGTH, True, False),
+    "material.E": (0.0, BIG, True, False),
+    "material.nu": (-1.0, 0.5, True, True),
+    "pressure.P1": (0.0, BIG, False, False),
+    "growth.eta": (0.0, BIG, False, False),
+    "growth.tau": (0.0, BIG, False, False),
+}
+"""Each field's interval (low, high, low end open, high end open), checked wherever it is used."""
+FG0_RANGE = (-MAX_LENGTH, MAX_LENGTH, False, False)
+"""The interval of each entry of growth.Fg0 (and det Fg0 > 0)."""
 IDENTITY = ((1.0, 0.0), (0.0, 1.0))
 REFERENCE_WIDTH = 4.0 * math.sqrt(3.0)  # = 8 cos(30 deg), exactly rounded
 """Reference tissue width 8c = 6.928203230275509 (MODEL.md section 9)."""
-
-
-class SceneError(InputError):
-    """Bad scene input; the message starts with the dotted key (or the file name)."""
 
 
 # --- checks shared by the dataclasses and the loader ----------------------------------------------
@@ -185,48 +212,6 @@ def _set(obj: object, **values: object) -> None:
 
 
 @dataclass(frozen=True)
-class Field:
-    """A scene parameter: constant, or linear in x1 across the tissue (MODEL.md section 9).
-
-    Ranges are checked by the owner (:meth:`check`), which knows the key.
-    """
-
-    start: float  # value at x1 = 0
-    end: float  # value at x1 = width (== start for a constant)
-    width: float  # tissue width
-
-    def __post_init__(self) -> None:
-        _set(self, start=_number("field.start", self.start), end=_number("field.end", self.end))
-        _set(self, width=_range("field.width", self.width, 0.0, math.inf))
-
-    @property
-    def is_constant(self) -> bool:
-        return self.start == self.end
-
-    @property
-    def gradient(self) -> float:
-        """d/dx1 = (end - start) / width."""
-        return (self.end - self.start) / self.width
-
-    def __call__(self, x1: np.ndarray) -> np.ndarray:
-        """Values at the points x1 (vectorised): start + gradient * x1."""
-        return self.start + self.gradient * np.asarray(x1, dtype=float)
-
-    def to_toml(self) -> float | dict[str, float]:
-        """A number for a constant, else the inline table {from = start, to = end}."""
-        return self.start if self.is_constant else {"from": self.start, "to": self.end}
-
-    def check(self, key: str, low: float, high: float, lo_open=True, hi_open=True) -> None:
-        """SceneError unless both ends lie in the interval (the extremes of a linear field)."""
-        same = self.is_constant or (math.isnan(self.start) and math.isnan(self.end))
-        ends = (
-            [(key, self.start)] if same else [(f"{key}.from", self.start), (f"{key}.to", self.end)]
-        )
-        for name, value in ends:
-            _range(name, value, low, high, lo_open, hi_open)
-
-
-@dataclass(frozen=True)
 class Tissue:
     """The tissue rectangle [0, width] x [0, height] and the fine (h) / coarse (H) mesh sizes."""
 
@@ -253,42 +238,58 @@ class Tissue:
 class CellGeometry:
     """Honeycomb cell parameters (MODEL.md section 2); theta in degrees."""
 
-    l1: Field
-    l2: Field
-    theta: Field
-    w: Field
+    l1: AnyField
+    l2: AnyField
+    theta: AnyField
+    w: AnyField
 
     def __post_init__(self) -> None:
-        self.l1.check("cell.l1", 0.0, MAX_LENGTH, hi_open=False)
-        self.l2.check("cell.l2", 0.0, MAX_LENGTH, hi_open=False)
-        self.theta.check("cell.theta", 0.0, 90.0)
-        self.w.check("cell.w", 0.0, MAX_LENGTH, hi_open=False)
-        constant = all(f.is_constant for f in (self.l1, self.l2, self.theta, self.w))
-        # w_max is not linear in x1: check the ends and the middle
-        for x1 in (0.0, self.w.width / 2, self.w.width):
-            try:
-                self.at(x1)
-            except GeometryError as e:  # its message starts with the parameter's name
-                msg = str(e) if str(e).startswith(("l1", "l2", "theta", "w")) else f"w: {e}"
-                raise SceneError(
-                    f"cell.{msg}" + ("" if constant else f" (at x1 = {x1:g})")
-                ) from None
+        for key in ("l1", "l2", "theta", "w"):
+            getattr(self, key).check(f"cell.{key}", *RANGES[f"cell.{key}"])
+        if self.by_expression:
+            return  # checked at the coarse nodes (plantgrowth.field_checks)
+        linear = [f for f in self.fields() if not f.is_constant]
+        # w_max is not linear in x1, x2: check the ends and the middle along each axis used
+        width, height = (linear[0].width, linear[0].height) if linear else (1.0, 1.0)
+        axes = {f.along for f in linear}
+        x1s = (0.0, width / 2, width) if "x1" in axes else (0.0,)
+        x2s = (0.0, height / 2, height) if "x2" in axes else (0.0,)
+        for x1 in x1s:
+            for x2 in x2s:
+                place = f"x1 = {x1:g}" if axes == {"x1"} else f"x1 = {x1:g}, x2 = {x2:g}"
+                self.check_at(x1, x2, "" if not linear else f" (at {place})")
 
-    def at(self, x1: float) -> HoneycombCell:
-        """The unit cell at x1 (GeometryError if impossible there)."""
-        return HoneycombCell(*(float(f(x1)) for f in (self.l1, self.l2, self.theta, self.w)))
+    def fields(self) -> tuple[AnyField, ...]:
+        return (self.l1, self.l2, self.theta, self.w)
+
+    @property
+    def by_expression(self) -> bool:
+        """True if some parameter is a non-constant expression."""
+        return any(isinstance(f, ExprField) and not f.is_constant for f in self.fields())
+
+    def check_at(self, x1: float, x2: float, place: str) -> HoneycombCell:
+        """The unit cell at (x1, x2), else SceneError naming the parameter and ``place``."""
+        try:
+            return self.at(x1, x2)
+        except GeometryError as e:  # its message starts with the parameter's name
+            msg = str(e) if str(e).startswith(("l1", "l2", "theta", "w")) else f"w: {e}"
+            raise SceneError(f"cell.{msg}{place}") from None
+
+    def at(self, x1: float, x2: float) -> HoneycombCell:
+        """The unit cell at (x1, x2) (GeometryError if impossible there)."""
+        return HoneycombCell(*(float(f(x1, x2)) for f in self.fields()))
 
 
 @dataclass(frozen=True)
 class Material:
     """Wall Young modulus E > 0 and Poisson ratio -1 < nu < 0.5 (MODEL.md section 1)."""
 
-    E: Field
-    nu: Field
+    E: AnyField
+    nu: AnyField
 
     def __post_init__(self) -> None:
-        self.E.check("material.E", 0.0, BIG, hi_open=False)
-        self.nu.check("material.nu", -1.0, 0.5)
+        self.E.check("material.E", *RANGES["material.E"])
+        self.nu.check("material.nu", *RANGES["material.nu"])
 
 
 @dataclass(frozen=True)
@@ -299,28 +300,64 @@ class Growth:
     """
 
     law: str
-    eta: Field
-    tau: Field
+    eta: AnyField
+    tau: AnyField
     clamp: float = 1.0
-    Fg0: tuple[tuple[float, float], tuple[float, float]] = IDENTITY
+    Fg0: tuple[tuple[float | AnyField, ...], ...] = IDENTITY  # entries: numbers or fields
 
     def __post_init__(self) -> None:
         _choice("growth.law", self.law, LAWS)
-        self.eta.check("growth.eta", 0.0, BIG, lo_open=False, hi_open=False)
-        self.tau.check("growth.tau", 0.0, BIG, lo_open=False, hi_open=False)
+        self.eta.check("growth.eta", *RANGES["growth.eta"])
+        self.tau.check("growth.tau", *RANGES["growth.tau"])
         _set(self, clamp=_range("growth.clamp", self.clamp, 0.0, BIG, hi_open=False))
         rows = tuple(
             tuple(
-                _range(f"growth.Fg0[{i}][{j}]", x, -MAX_LENGTH, MAX_LENGTH, False, False)
+                _Fg0_entry(f"growth.Fg0[{i}][{j}]", x)
                 for j, x in enumerate(_array(f"growth.Fg0[{i}]", row, 2))
             )
             for i, row in enumerate(_array("growth.Fg0", self.Fg0, 2))
         )
+        _set(self, Fg0=rows)
+        if self.Fg0_fields():
+            return  # det Fg0 > 0 is checked where Fg0 is used (plantgrowth.field_checks)
         try:
             check_growth_tensor("growth.Fg0", rows)  # det > 0
         except InputError as e:
             raise SceneError(str(e)) from None
-        _set(self, Fg0=rows)
+
+    def Fg0_fields(self) -> dict[str, AnyField]:
+        """The entries of Fg0 that are fields, by dotted key (``growth.Fg0[0][1]``)."""
+        return {
+            f"growth.Fg0[{i}][{j}]": x
+            for i, row in enumerate(self.Fg0)
+            for j, x in enumerate(row)
+            if not isinstance(x, float)
+        }
+
+    def initial(self, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+        """(n, 2, 2) initial growth tensors Fg0 at the points (x1, x2)."""
+        x1, x2 = np.broadcast_arrays(np.asarray(x1, dtype=float), np.asarray(x2, dtype=float))
+        out = np.empty((x1.size, 2, 2))
+        for i, row in enumerate(self.Fg0):
+            for j, x in enumerate(row):
+                out[:, i, j] = x if isinstance(x, float) else x(x1.ravel(), x2.ravel())
+        return out
+
+    def over(self, width: float, height: float) -> Growth:
+        """The growth fields across a tissue of another extent (MODEL.md 7)."""
+        Fg0 = tuple(tuple(x if isinstance(x, float) else x.over(width, height) for x in row)
+                    for row in self.Fg0)  # fmt: skip
+        return replace(
+            self, eta=self.eta.over(width, height), tau=self.tau.over(width, height), Fg0=Fg0
+        )
+
+
+def _Fg0_entry(key: str, x: object) -> float | AnyField:
+    """An entry of Fg0: a number or a field, finite and of magnitude <= MAX_LENGTH."""
+    if isinstance(x, (Field, ExprField)):
+        x.check(key, *FG0_RANGE)
+        return x
+    return _range(key, x, *FG0_RANGE)
 
 
 @dataclass(frozen=True)
@@ -431,10 +468,10 @@ class Scene:
     tissue: Tissue
     cell: CellGeometry
     material: Material
-    P1: Field
+    P1: AnyField
     growth: Growth
     time: Time
-    loads: dict[str, tuple[float, float]] = field(default_factory=dict)
+    loads: dict[str, tuple[edge_loads.Component, ...]] = field(default_factory=dict)
     output: Output = Output()
     accuracy: Accuracy = Accuracy()
     micro_nx: int = 16
@@ -443,16 +480,19 @@ class Scene:
 
     def __post_init__(self) -> None:
         _choice("model", self.model, MODELS)
-        self.P1.check("pressure.P1", 0.0, BIG, lo_open=False, hi_open=False)
-        for key, f in self.parameter_fields().items():
-            if f.width != self.tissue.width:
+        self.P1.check("pressure.P1", *RANGES["pressure.P1"])
+        for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
+            if isinstance(f, Field) and f.width != self.tissue.width:
                 raise SceneError(f"{key}: field width {f.width!r} != tissue.width")
+            if isinstance(f, Field) and f.height != self.tissue.height:
+                raise SceneError(f"{key}: field height {f.height!r} != tissue.height")
         loads = {}
         for edge, f in self.loads.items():
             _check_edge(edge)
             pair = _array(f"loads.{edge}", f, 2)
+            length = edge_loads.edge_length(edge, self.tissue.width, self.tissue.height)
             pair = tuple(
-                _range(f"loads.{edge}[{i}]", x, -BIG, BIG, False, False) for i, x in enumerate(pair)
+                _load_component(f"loads.{edge}[{i}]", x, length) for i, x in enumerate(pair)
             )
             if pair != (0.0, 0.0):  # only non-zero loads are kept
                 loads[edge] = pair
@@ -460,10 +500,10 @@ class Scene:
         if _integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
             raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
         _integer("micro.resolution", self.micro_resolution, 1, MAX_RESOLUTION)
-        try:  # the unit-cell meshes at the cell geometry's ends must be affordable
-            for x1 in (0.0, self.tissue.width):
+        try:  # the unit-cell meshes at the corners must be affordable (expressions: field_checks)
+            for x1, x2 in [] if self.cell.by_expression else self.corners():
                 mesh_size(
-                    self.cell.at(x1), self.accuracy.cell_resolution, "accuracy.cell_resolution"
+                    self.cell.at(x1, x2), self.accuracy.cell_resolution, "accuracy.cell_resolution"
                 )
         except GeometryError as e:
             raise SceneError(str(e)) from None
@@ -471,6 +511,10 @@ class Scene:
             self.check_micro()
         if unbalanced := unbalanced_load(self.loads, self.tissue.width, self.tissue.height):
             raise SceneError(unbalanced)
+
+    def corners(self) -> list[tuple[float, float]]:
+        """The tissue rectangle's corners (x1, x2)."""
+        return [(x1, x2) for x1 in (0.0, self.tissue.width) for x2 in (0.0, self.tissue.height)]
 
     def check_micro(self) -> None:
         """The micro model needs a constant cell geometry (a gradient of w, l1, l2 or theta has no
@@ -487,29 +531,31 @@ class Scene:
                 "straight left/right/top edges; use model = 'macro'"
             )
         try:  # the walls mesh must be affordable
-            wall_mesh_size(TissueLayout(self.cell.at(0.0), self.micro_nx), self.micro_resolution)
+            wall_mesh_size(
+                TissueLayout(self.cell.at(0.0, 0.0), self.micro_nx), self.micro_resolution
+            )
         except GeometryError as e:
             raise SceneError(str(e)) from None
 
-    def over_width(self, width: float) -> Scene:
-        """This scene on a tissue whose x1 extent is [0, width] (a micro tissue, or the macro
-        side of a micro-macro comparison): every field runs from its ``from`` value at x1 = 0 to
-        its ``to`` value at x1 = width, never extrapolated (MODEL.md section 7). Revalidated."""
-        if width == self.tissue.width:
+    def over_extent(self, width: float, height: float) -> Scene:
+        """This scene on a tissue of extent [0, width] x [0, height] (a micro tissue, or the
+        macro side of a micro-macro comparison): every linear field runs from its ``from`` value
+        at 0 to its ``to`` value at the extent along its axis, never extrapolated (MODEL.md
+        section 7); expressions are unchanged. Revalidated."""
+        if (width, height) == (self.tissue.width, self.tissue.height):
             return self
 
-        def over(f: Field) -> Field:
-            return replace(f, width=width)
+        def over(f: AnyField) -> AnyField:
+            return f.over(width, height)
 
-        cell = CellGeometry(*(over(getattr(self.cell, k)) for k in ("l1", "l2", "theta", "w")))
+        cell = CellGeometry(*(over(f) for f in self.cell.fields()))
         material = Material(over(self.material.E), over(self.material.nu))
-        growth = replace(self.growth, eta=over(self.growth.eta), tau=over(self.growth.tau))
         return replace(
-            self, tissue=replace(self.tissue, width=width), cell=cell, material=material,
-            P1=over(self.P1), growth=growth,
+            self, tissue=replace(self.tissue, width=width, height=height), cell=cell,
+            material=material, P1=over(self.P1), growth=self.growth.over(width, height),
         )  # fmt: skip
 
-    def parameter_fields(self) -> dict[str, Field]:
+    def parameter_fields(self) -> dict[str, AnyField]:
         """All spatially varying parameters by dotted key."""
         cell, mat, g = self.cell, self.material, self.growth
         out = {f"cell.{k}": getattr(cell, k) for k in ("l1", "l2", "theta", "w")}
@@ -522,18 +568,19 @@ class Scene:
         }
 
     def to_dict(self) -> dict[str, Any]:
-        """The fully resolved scene as plain TOML/JSON data (fields as numbers or {from, to})."""
+        """The fully resolved scene as plain TOML/JSON data (fields as numbers or tables)."""
         out: dict[str, Any] = {"model": self.model}
         out["tissue"] = {f.name: getattr(self.tissue, f.name) for f in fields(self.tissue)}
         for key, f in self.parameter_fields().items():
             section, name = key.split(".")
             out.setdefault(section, {})[name] = f.to_toml()
         g, t = self.growth, self.time
-        out["growth"] = {"law": g.law, **out["growth"], "clamp": g.clamp, "Fg0": g.Fg0}
+        Fg0 = [[x if isinstance(x, float) else x.to_toml() for x in row] for row in g.Fg0]
+        out["growth"] = {"law": g.law, **out["growth"], "clamp": g.clamp, "Fg0": Fg0}
         out["time"] = {
             "t_max": t.t_max, "dt": t.dt, "integrator": t.integrator, "tolerance": t.tolerance
         }  # fmt: skip
-        out["loads"] = dict(self.loads)
+        out["loads"] = {edge: [edge_loads.to_toml(c) for c in f] for edge, f in self.loads.items()}
         out["output"] = {f.name: getattr(self.output, f.name) for f in fields(self.output)}
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
         out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
@@ -598,6 +645,19 @@ _FIELD_DEFAULTS = {
 }
 
 
+def _load_component(key: str, x: object, length: float) -> edge_loads.Component:
+    """A number, or {expr = "..."} of s (plantgrowth/loads.py), checked along the edge."""
+    if isinstance(x, dict):
+        _check_keys(x, f"{key}.", ("expr",))
+        if "expr" not in x:
+            raise SceneError(f'{key}: a load component is a number or {{expr = "..."}} of s')
+        x = parse_expression(f"{key}.expr", x["expr"], edge_loads.VARIABLES)
+    if not isinstance(x, Expression):
+        return _range(key, x, -BIG, BIG, False, False)
+    edge_loads.check_component(key, x, length, BIG)
+    return x
+
+
 def _check_edge(edge: str) -> None:
     if edge == "bottom":
         raise SceneError(
@@ -630,16 +690,25 @@ def _table(data: dict, name: str) -> dict:
     return table
 
 
-def _field(key: str, raw: object, width: float) -> Field:
-    """A field value: a number or {from = a, to = b}."""
+def _field(key: str, raw: object, width: float, height: float) -> AnyField:
+    """A field value: a number, {from = a, to = b[, along = "x1" | "x2"]} or {expr = "..."}."""
     if isinstance(raw, dict):
-        _check_keys(raw, f"{key}.", ("from", "to"))
-        if len(raw) != 2:
+        _check_keys(raw, f"{key}.", ("from", "to", "along", "expr"))
+        if "expr" in raw:
+            if len(raw) != 1:
+                raise SceneError(f'{key}: an expression field is {{expr = "..."}} alone')
+            return ExprField(parse_expression(f"{key}.expr", raw["expr"], AXES))
+        if "from" not in raw or "to" not in raw:
             raise SceneError(f"{key}: a linear field needs both ends, {{from = a, to = b}}")
-        return Field(_number(f"{key}.from", raw["from"]), _number(f"{key}.to", raw["to"]), width)
+        along = _choice(f"{key}.along", raw.get("along", "x1"), AXES)
+        start, end = _number(f"{key}.from", raw["from"]), _number(f"{key}.to", raw["to"])
+        return Field(start, end, width, height, along)
     if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-        raise SceneError(f"{key}: expected a number or {{from = a, to = b}}, got {_show(raw)}")
-    return Field(_number(key, raw), _number(key, raw), width)
+        raise SceneError(
+            f'{key}: expected a number, {{from = a, to = b}} or {{expr = "..."}}, got '
+            f"{_show(raw)}"
+        )
+    return Field(_number(key, raw), _number(key, raw), width, height)
 
 
 def _with_preset(tables: dict[str, dict]) -> dict[str, dict]:
@@ -682,12 +751,25 @@ def _parse(data: dict) -> Scene:
     tissue = Tissue(**t["tissue"])
     f = {
         section: {
-            k: _field(f"{section}.{k}", t[section].get(k, d), tissue.width) for k, d in kd.items()
+            k: _field(f"{section}.{k}", t[section].get(k, d), tissue.width, tissue.height)
+            for k, d in kd.items()
         }
         for section, kd in _FIELD_DEFAULTS.items()
     }
     if "law" not in t["growth"]:
         raise SceneError(f"growth.law is required: one of {', '.join(map(repr, LAWS))}")
+    if isinstance(Fg0 := t["growth"].get("Fg0"), list):  # tables in it are fields
+        f["growth"]["Fg0"] = [
+            [
+                _field(f"growth.Fg0[{i}][{j}]", x, tissue.width, tissue.height)
+                if isinstance(x, dict)
+                else x
+                for j, x in enumerate(row)
+            ]
+            if isinstance(row, list)
+            else row
+            for i, row in enumerate(Fg0)
+        ]
     return Scene(
         model=data.get("model", "macro"),
         tissue=tissue,

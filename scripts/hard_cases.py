@@ -317,7 +317,7 @@ def collect(results: list[dict], scene_dir: Path) -> dict:
         if r["case"] in EXTRA and r["variant"] == "base"
     ]  # fmt: skip
     long_run = hc.to_scene(hc.read_scene_data(scene_dir / "long_run.toml"))
-    phi_w = long_run.cell.at(0.0).phi_w
+    phi_w = long_run.cell.at(0.0, 0.0).phi_w
     exact = 2 * (1 - long_run.material.nu.start) * (1 - phi_w) / phi_w * long_run.P1.start
     return {
         "cases": cases,

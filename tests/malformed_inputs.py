@@ -3,7 +3,8 @@
 ``generate(seed, n)`` returns ``n`` :class:`Case` objects mixing the classes of :data:`CLASSES` at
 random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, sizes <= 0, nu out of
 (-1, 0.5), walls too thick for the cell, bad angles and time steps, empty/binary/invalid TOML, huge
-numbers, bad {from, to} fields and loads, bad micro scenes), bad command lines and output paths
+numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
+the tissue, bad micro scenes), bad command lines and output paths
 that cannot be written. Every case must end with exit code 2 and a one-line
 ``plantgrowth: error: ...`` naming the field (``Case.expect``), before anything is written.
 
@@ -453,6 +454,59 @@ def _bad_loads(rng: random.Random, scene: dict):
     return scene, f"loads.{edge}"
 
 
+BAD_SYNTAX = [  # malformed expressions: each a named error with its position
+    "x1 +", "(x1", "x1)", "x1 + y", "__import__('os')", "x1.real", "2x1", "sin(x1, x2)",
+    "where(x1, 1)", "max(x1)", "1 < x1 < 2", "", "  ", "exp", "lambda: 0", "x1 = 1",
+    "open('f')", "[x1]", "1 +* 2", "x1 ** ", "x1 $ 2", "1" * 1001, "(" * 80 + "x1" + ")" * 80,
+    "-" * 80 + "x1", "s + 1", "os.system('true')", "x1 if x2 else 1", "{x1}",
+]  # fmt: skip
+INTERIOR = [  # valid expressions whose values leave the key's range inside the tissue
+    ("material", "nu", "where(x1 > 0.5, 0.6, 0.3)"),
+    ("material", "E", "1 - x1"),
+    ("pressure", "P1", "0.001 * log(x1 - 0.5)"),
+    ("growth", "eta", "where(x2 > 0.2, -1, 1)"),
+    ("growth", "tau", "0.001 / (x1 - x1)"),
+    ("cell", "w", "where(x1 > 0.5, 5, 0.02)"),
+    ("cell", "theta", "30 + 100 * x1"),
+]
+
+
+def _bad_expression(rng: random.Random, scene: dict):
+    """Expression fields, Fg0 entries and loads: malformed, or valid but out of range at some
+    place the run uses (coarse node, fine cell, cell centre), or unbalanced along an edge."""
+    what = rng.choice(["syntax", "syntax", "not_string", "mixed", "interior", "interior",
+                       "Fg0", "load_syntax", "load_unbalanced", "load_nan"])  # fmt: skip
+    if what == "interior":
+        scene.pop("loads", None)  # so that compare reaches the field check
+        table, key, text = rng.choice(INTERIOR)
+        _set(scene, table, key, {"expr": text})
+        return scene, f"{table}.{key}"
+    if what == "Fg0":
+        scene.pop("loads", None)
+        scene.setdefault("growth", {})["Fg0"] = [[{"expr": "where(x1 > 0.5, -1, 1)"}, 0], [0, 1]]
+        return scene, "growth.Fg0"
+    if what.startswith("load"):
+        scene["model"] = "macro"
+        edge, i, pair = rng.choice(SCHEMA["loads"]), rng.randint(0, 1), [0.0, 0.0]
+        if what == "load_unbalanced":
+            pair[0] = {"expr": "1e-4 * (1 + s)"}
+            scene["loads"] = {edge: pair}
+            return scene, "loads: net x1 force"
+        pair[i] = {"expr": rng.choice(BAD_SYNTAX[:12] + ["x1 + s"])}
+        if what == "load_nan":
+            pair[i] = {"expr": "log(s - 1)"}
+        scene["loads"] = {edge: pair}
+        return scene, f"loads.{edge}[{i}]"
+    table, key = rng.choice(_pairs(FIELD_KEYS))
+    value = {
+        "syntax": {"expr": rng.choice(BAD_SYNTAX)},
+        "not_string": {"expr": rng.choice([1.5, True, [1]])},
+        "mixed": {"expr": "1", "from": 1},
+    }[what]
+    _set(scene, table, key, value)
+    return scene, f"{table}.{key}" + (".expr" if what != "mixed" else "")
+
+
 def _micro_scene(rng: random.Random, scene: dict):
     scene = base_scene(rng, micro=True)
     what = rng.choice(["field", "field", "loads", "nx_odd", "nx_range", "resolution"])
@@ -522,6 +576,7 @@ SCENE_MAKERS = {
     "huge_number": _huge,
     "bad_field": _bad_field,
     "bad_loads": _bad_loads,
+    "bad_expression": _bad_expression,
     "micro_scene": _micro_scene,
     "bad_choice": _bad_choice,
 }

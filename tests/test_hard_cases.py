@@ -118,7 +118,7 @@ def test_homogeneous_strain_rate_is_exact(run, name):
     r = run(name, PASSING[name])
     scene = hc.to_scene(hc.read_scene_data(SCENES / f"{name}.toml"))
     nu, E, P1 = scene.material.nu.start, scene.material.E.start, scene.P1.start
-    phi_w = scene.cell.at(0.0).phi_w
+    phi_w = scene.cell.at(0.0, 0.0).phi_w
     g = min(scene.growth.clamp, scene.growth.eta.start * (1 - nu) / E * (1 - phi_w) / phi_w * P1)
     assert r["growth_rate_final"] == pytest.approx(2 * g, rel=1e-5)
     assert r["G_abs_max"] == pytest.approx(g, rel=1e-5)
@@ -179,7 +179,7 @@ def test_lagged_coupling_needs_the_adaptive_integrator(run):
     'adaptive' re-evaluates G within the step and keeps the exact rate to t = 600 (to the cell
     inputs' rounding, 1e-6)."""
     scene = hc.to_scene(hc.read_scene_data(SCENES / "long_run.toml"))
-    phi_w = scene.cell.at(0.0).phi_w
+    phi_w = scene.cell.at(0.0, 0.0).phi_w
     exact = 2 * (1 - 0.3) * (1 - phi_w) / phi_w * scene.P1.start
     lagged = run("long_run", (600.0, 10.0), integrator="exp")
     assert lagged["growth_rate_final"] > 1.2 * exact

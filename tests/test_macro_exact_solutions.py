@@ -44,7 +44,7 @@ def macro_model(scene) -> MacroModel:
 def cell_tensors(scene, Fg: np.ndarray):
     """E_hom (Voigt), K_hom, dbar of the scene's (homogeneous) cell at Fg, solved on COMM_SELF."""
     material = scene.material
-    solver = CellSolver(scene.cell.at(0.0), scene.accuracy.cell_resolution, MPI.COMM_SELF)
+    solver = CellSolver(scene.cell.at(0.0, 0.0), scene.accuracy.cell_resolution, MPI.COMM_SELF)
     return solver.solve(Fg, material.E.start, material.nu.start)
 
 
@@ -202,10 +202,10 @@ def test_gradient_E_coefficients_are_E_times_the_reference_cell():
     problem = model.problem
     solver = CellSolver(HoneycombCell(), 1, MPI.COMM_SELF)
     r = solver.solve(np.eye(2), 1.0, scene.material.nu.start)
-    x1 = problem.midpoints[: problem.n_cells, 0]
-    expected = scene.material.E(x1)[:, None, None] * voigt_matrix(r.E_hom)[None]
+    x1, x2 = problem.midpoints[: problem.n_cells, :2].T
+    expected = scene.material.E(x1, x2)[:, None, None] * voigt_matrix(r.E_hom)[None]
     C = problem.cell_values(problem.C).reshape(-1, 3, 3)
-    E = scene.material.E(x1)
+    E = scene.material.E(x1, x2)
     spread = model.comm.allreduce(E.max(), op=MPI.MAX) - model.comm.allreduce(E.min(), op=MPI.MIN)
     assert spread > 1.0  # the field does vary over the cells
     assert _relative(C, expected, model.comm) < ROUND_OFF

@@ -200,7 +200,7 @@ def runs(tmp_path_factory) -> _Runs:
 def analytic_stress_rate(scene: Scene) -> float:
     """eta [(1 - phi_w)/phi_w P1 - tau]_+ (MODEL.md section 4, consistency check)."""
     g = scene.growth
-    phi_w = scene.cell.at(0.0).phi_w  # the HoneycombCell of a homogeneous scene
+    phi_w = scene.cell.at(0.0, 0.0).phi_w  # the HoneycombCell of a homogeneous scene
     return g.eta.start * max((1.0 - phi_w) / phi_w * scene.P1.start - g.tau.start, 0.0)
 
 
@@ -313,7 +313,7 @@ def test_pressure_gradient_body_forces_cancel_in_the_macro_problem(tmp_path_fact
     interpolated phi_w and P2vec), the assembled body-force vector of
     ``macro_pressure_gradient_rhs`` vanishes to round-off, both relative to the pressure-term
     vector and to the grad(P1) term alone; cell by cell, P2vec = (1 - phi_w) grad(P1).
-    Tolerance 1e-12: P2vec = W (P2_matrix grad P1) and phi_w = W phi_w(nodes) use the same
+    Tolerance 1e-12: P2vec = (W P2_matrix) grad P1 and phi_w = W phi_w(nodes) use the same
     interpolation weights, which sum to 1, so the cancellation is exact up to round-off.
     """
     measured: dict[str, float] = {}
@@ -321,7 +321,7 @@ def test_pressure_gradient_body_forces_cancel_in_the_macro_problem(tmp_path_fact
     def inspect(problem: MacroProblem, scene: Scene) -> None:
         msh = problem.mesh
         psi = ufl.TestFunction(problem.V)
-        gradient = scene.P1.gradient
+        gradient = scene.P1.slope
         grad_P1 = ufl.as_vector([fem.Constant(msh, gradient), 0.0])
         x = ufl.SpatialCoordinate(msh)
         P1 = fem.Constant(msh, scene.P1.start) + fem.Constant(msh, gradient) * x[0]

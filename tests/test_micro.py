@@ -362,10 +362,11 @@ def test_pressure_gradient_makes_growth_rise_along_x1():
     layout = model.layout
     rate = np.trace(G, axis1=1, axis2=2).reshape(layout.nx // 2, layout.nx)
     x1 = layout.centres[:, 0].reshape(rate.shape)
+    x2 = layout.centres[:, 1].reshape(rate.shape)
     assert np.all(np.diff(x1, axis=1) > 0)
     assert np.all(np.diff(rate, axis=1) > 0)
     phi_w = scene_cell(scene).phi_w
-    local = 2.0 * (1.0 - phi_w) / phi_w * model.scene.P1(x1)  # P1 over the tissue's extent
+    local = 2.0 * (1.0 - phi_w) / phi_w * model.scene.P1(x1, x2)  # P1 over the tissue's extent
     np.testing.assert_allclose(rate[:, 1:-1], local[:, 1:-1], rtol=0.01)
 
 
@@ -378,11 +379,11 @@ def test_fields_run_between_the_ends_of_the_simulated_micro_tissue():
         pressure={"P1": {"from": 0.0005, "to": 0.002}},
     )
     model = MicroModel(scene, MPI.COMM_WORLD, 4, 1)
-    x1 = model.layout.centres[:, 0]
+    x1, x2 = model.layout.centres.T
     extent = model.layout.bounding_box[0]
     assert extent == pytest.approx(8 * HoneycombCell().c * (1 + 1 / 8), rel=1e-12)
     np.testing.assert_allclose(model.pressure, 0.0005 + 0.0015 * x1 / extent, rtol=1e-14)
-    E, nu = model.scene.material.E(x1), model.scene.material.nu(x1)
+    E, nu = model.scene.material.E(x1, x2), model.scene.material.nu(x1, x2)
     assert E.min() > 0.1 and E.max() < 1.0
     assert nu.min() > 0.0 and nu.max() < 0.45
 

@@ -104,24 +104,29 @@ def test_defaults():
 
 
 def test_field_evaluation():
-    constant = Field(2.0, 2.0, 4.0)
-    assert constant.is_constant and constant.gradient == 0.0
-    np.testing.assert_array_equal(constant(np.array([0.0, 1.0, 4.0])), [2.0, 2.0, 2.0])
+    constant = Field(2.0, 2.0, 4.0, 2.0)
+    x1, x2 = np.linspace(0.0, 4.0, 5), np.linspace(0.0, 2.0, 5)
+    assert constant.is_constant and np.all(constant.gradient(x1, x2) == 0.0)
+    np.testing.assert_array_equal(constant(np.array([0.0, 1.0, 4.0]), 0.0), [2.0, 2.0, 2.0])
     assert constant.to_toml() == 2.0
-    linear = Field(1.0, 3.0, 4.0)
-    assert not linear.is_constant and linear.gradient == 0.5
-    x1 = np.linspace(0.0, 4.0, 5)
-    np.testing.assert_allclose(linear(x1), 1.0 + 0.5 * x1, rtol=0, atol=1e-15)
-    assert linear(x1).shape == (5,)
-    assert linear(np.zeros((2, 3))).shape == (2, 3)
+    linear = Field(1.0, 3.0, 4.0, 2.0)
+    assert not linear.is_constant and linear.slope == 0.5
+    np.testing.assert_array_equal(linear.gradient(x1, x2), np.tile([0.5, 0.0], (5, 1)))
+    np.testing.assert_allclose(linear(x1, x2), 1.0 + 0.5 * x1, rtol=0, atol=1e-15)
+    assert linear(x1, x2).shape == (5,)
+    assert linear(np.zeros((2, 3)), 0.0).shape == (2, 3)
     assert linear.to_toml() == {"from": 1.0, "to": 3.0}
+    vertical = Field(1.0, 3.0, 4.0, 2.0, along="x2")  # from x2 = 0 to x2 = height
+    np.testing.assert_allclose(vertical(x1, x2), 1.0 + x2, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(vertical.gradient(x1, x2), np.tile([0.0, 1.0], (5, 1)))
+    assert vertical.to_toml() == {"from": 1.0, "to": 3.0, "along": "x2"}
 
 
 def test_linear_field_from_toml():
     scene = parse("[material]\nE = {from = 0.5, to = 2}\n")
     E = scene.material.E
     assert (E.start, E.end, E.width) == (0.5, 2.0, scene.tissue.width)
-    assert E(np.array([scene.tissue.width]))[0] == pytest.approx(2.0, rel=1e-15)
+    assert E(np.array([scene.tissue.width]), 0.0)[0] == pytest.approx(2.0, rel=1e-15)
 
 
 def test_integers_accepted_and_loads_normalised():
@@ -338,7 +343,7 @@ def test_scene_error_is_an_input_error():
 def test_dataclasses_validate_on_construction():
     width = 4.0
     with pytest.raises(SceneError, match=r"^material\.nu = 0\.5"):
-        Material(Field(1.0, 1.0, width), Field(0.5, 0.5, width))
+        Material(Field(1.0, 1.0, width, 1.0), Field(0.5, 0.5, width, 1.0))
     with pytest.raises(SceneError, match=r"^time\.t_max = 10\.5"):
         Time(t_max=10.5, dt=1.0)
     scene = parse(LAW)
@@ -349,7 +354,7 @@ def test_dataclasses_validate_on_construction():
             type(scene.tissue)(width=5.0),
             type(scene.cell)(**fields),
             scene.material,
-            Field(0.001, 0.001, 5.0),
+            Field(0.001, 0.001, 5.0, scene.tissue.height),
             scene.growth,
             scene.time,
         )
