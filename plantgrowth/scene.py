@@ -95,6 +95,7 @@ from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.plausibility import unbalanced_load
 from plantgrowth.presets import DEFAULT_PRESET, PRESETS, knob
+from plantgrowth.shapes import Shape, mesh_shape, outline_points, outline_shape, unloadable
 
 BIG = 1e12
 """Largest magnitude accepted for a non-dimensional parameter without a natural bound."""
@@ -228,25 +229,67 @@ class Field:
 
 @dataclass(frozen=True)
 class Tissue:
-    """The tissue rectangle [0, width] x [0, height] and the fine (h) / coarse (H) mesh sizes."""
+    """The tissue: the rectangle [0, width] x [0, height], or an ``outline`` polygon or a
+    ``mesh`` file whose bounding box sets width and height (plantgrowth/shapes.py); the fine (h)
+    and coarse (H) mesh sizes."""
 
     width: float = REFERENCE_WIDTH
     height: float = 3.0
     h: float = knob(DEFAULT_PRESET, "tissue", "h")
     H: float = knob(DEFAULT_PRESET, "tissue", "H")
+    outline: tuple[tuple[float, float], ...] | None = None
+    mesh: str | None = None
+    shape: Shape | None = field(default=None, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
+        if self.outline is not None and self.mesh is not None:
+            raise SceneError("tissue.mesh: not with tissue.outline: give one tissue shape")
+        try:
+            if self.outline is not None:
+                _set(self, outline=outline_points(self.outline))
+                _set(self, shape=outline_shape(self.outline))
+            elif self.mesh is not None:
+                _set(self, shape=mesh_shape(self.mesh))
+        except InputError as e:
+            raise SceneError(str(e)) from None
+        if self.shape is not None:  # the bounding box
+            _set(self, width=self.shape.width, height=self.shape.height)
         W = _range("tissue.width", self.width, 0.0, MAX_LENGTH, hi_open=False)
         Ht = _range("tissue.height", self.height, 0.0, MAX_LENGTH, hi_open=False)
         h = _range("tissue.h", self.h, 0.0, min(W, Ht) / 2, hi_open=False)
         H = _range("tissue.H", self.H, h, max(W, Ht), lo_open=False, hi_open=False)
-        cells = 2.0 * math.ceil(W / h) * math.ceil(Ht / h)
+        given = self.shape.triangles if self.shape is not None else None
+        cells = 2.0 * math.ceil(W / h) * math.ceil(Ht / h) if given is None else given
         if cells > MAX_CELLS:
             raise SceneError(
-                f"tissue.h = {h!r} is too small: the fine mesh would have about {cells:.3g} "
+                f"tissue.mesh has {cells} triangles (limit {MAX_CELLS:g})"
+                if given is not None
+                else f"tissue.h = {h!r} is too small: the fine mesh would have about {cells:.3g} "
                 f"triangles (limit {MAX_CELLS:g}); use h >= {math.sqrt(2 * W * Ht / MAX_CELLS):.3g}"
             )
         _set(self, width=W, height=Ht, h=h, H=H)
+
+    def edge_lengths(self) -> dict[str, tuple[float, str]]:
+        """Loadable edge -> (reference length, its name in the load-balance formula)."""
+        if self.shape is None:
+            return {
+                "left": (self.height, "height"), "right": (self.height, "height"),
+                "top": (self.width, "width"),
+            }  # fmt: skip
+        return {edge: (length, f"{length:.6g}") for edge, length in self.shape.edges.items()}
+
+    @property
+    def pin(self) -> tuple[float, float]:
+        """The vertex where u1 = 0: the origin of the rectangle, else the shape's."""
+        return (0.0, 0.0) if self.shape is None else self.shape.pin
+
+    def to_toml(self) -> dict[str, Any]:
+        """The keys that reproduce this tissue (the bounding box is not written for a shape)."""
+        if self.outline is not None:
+            return {"outline": [list(p) for p in self.outline], "h": self.h, "H": self.H}
+        if self.mesh is not None:
+            return {"mesh": self.mesh, "h": self.h, "H": self.H}
+        return {"width": self.width, "height": self.height, "h": self.h, "H": self.H}
 
 
 @dataclass(frozen=True)
@@ -449,7 +492,7 @@ class Scene:
                 raise SceneError(f"{key}: field width {f.width!r} != tissue.width")
         loads = {}
         for edge, f in self.loads.items():
-            _check_edge(edge)
+            _check_edge(edge, self.tissue.shape)
             pair = _array(f"loads.{edge}", f, 2)
             pair = tuple(
                 _range(f"loads.{edge}[{i}]", x, -BIG, BIG, False, False) for i, x in enumerate(pair)
@@ -469,12 +512,22 @@ class Scene:
             raise SceneError(str(e)) from None
         if self.model != "macro":
             self.check_micro()
-        if unbalanced := unbalanced_load(self.loads, self.tissue.width, self.tissue.height):
+        lengths = self.tissue.edge_lengths()
+        # suggest balancing on the rectangle's left edge, else on an edge not loaded yet
+        fix = "left" if "left" in lengths else next((e for e in lengths if e not in loads), "")
+        fix = fix or next(iter(lengths))
+        if unbalanced := unbalanced_load(self.loads, lengths, self.tissue.pin, fix):
             raise SceneError(unbalanced)
 
     def check_micro(self) -> None:
         """The micro model needs a constant cell geometry (a gradient of w, l1, l2 or theta has no
-        well-defined cellular tissue: MODEL.md section 7, paper section 5.3) and has no loads."""
+        well-defined cellular tissue: MODEL.md section 7, paper section 5.3), builds its own
+        tissue (no outline or mesh) and has no loads."""
+        if self.tissue.shape is not None:
+            raise SceneError(
+                f"{self.tissue.shape.key}: the micro model builds its own honeycomb tissue "
+                f'(MODEL.md section 7); use model = "macro"'
+            )
         for key in ("l1", "l2", "theta", "w"):
             if not getattr(self.cell, key).is_constant:
                 raise SceneError(
@@ -524,7 +577,7 @@ class Scene:
     def to_dict(self) -> dict[str, Any]:
         """The fully resolved scene as plain TOML/JSON data (fields as numbers or {from, to})."""
         out: dict[str, Any] = {"model": self.model}
-        out["tissue"] = {f.name: getattr(self.tissue, f.name) for f in fields(self.tissue)}
+        out["tissue"] = self.tissue.to_toml()
         for key, f in self.parameter_fields().items():
             section, name = key.split(".")
             out.setdefault(section, {})[name] = f.to_toml()
@@ -578,7 +631,7 @@ def _toml_value(v: Any) -> str:
 # --- loader ---------------------------------------------------------------------------------------
 
 _TABLES = {
-    "tissue": ("width", "height", "h", "H"),
+    "tissue": ("width", "height", "h", "H", "outline", "mesh"),
     "cell": ("l1", "l2", "theta", "w"),
     "material": ("E", "nu"),
     "pressure": ("P1",),
@@ -598,7 +651,12 @@ _FIELD_DEFAULTS = {
 }
 
 
-def _check_edge(edge: str) -> None:
+def _check_edge(edge: str, shape: Shape | None) -> None:
+    """SceneError unless ``loads.<edge>`` names a loadable edge of the tissue."""
+    if shape is not None:
+        if why := unloadable(shape, edge):
+            raise SceneError(why)
+        return
     if edge == "bottom":
         raise SceneError(
             "loads.bottom: the bottom edge x2 = 0 is the symmetry plane (u2 = 0, no tangential "
@@ -623,11 +681,41 @@ def _table(data: dict, name: str) -> dict:
     table = data.get(name, {})
     if not isinstance(table, dict):
         raise SceneError(f"{name}: expected a table [{name}], got {_show(table)}")
-    if name == "loads":
-        for edge in table:
-            _check_edge(edge)
-    _check_keys(table, f"{name}.", _TABLES[name])
+    if name != "loads":  # the loadable edges depend on the tissue: Scene checks them
+        _check_keys(table, f"{name}.", _TABLES[name])
     return table
+
+
+def _tissue_box(tissue: dict) -> tuple[float, float]:
+    """(width, height) of a tissue table: the rectangle's, or the bounding box of its outline
+    or mesh (which may not be given with width or height)."""
+    shapes = [key for key in ("outline", "mesh") if key in tissue]
+    if not shapes:
+        width = tissue.get("width", REFERENCE_WIDTH)
+        return (
+            _range("tissue.width", width, 0.0, MAX_LENGTH, hi_open=False),
+            _range("tissue.height", tissue.get("height", 3.0), 0.0, MAX_LENGTH, hi_open=False),
+        )
+    for key in ("width", "height"):
+        if key in tissue:
+            raise SceneError(
+                f"tissue.{key}: not with tissue.{shapes[0]}: its bounding box "
+                "[0, width] x [0, height] sets the tissue's width and height"
+            )
+    if len(shapes) == 2:
+        raise SceneError("tissue.mesh: not with tissue.outline: give one tissue shape")
+    if "outline" in tissue:
+        shape = outline_shape(outline_points(tissue["outline"]))
+    else:
+        shape = mesh_shape(tissue["mesh"])
+    return shape.width, shape.height
+
+
+def _mesh_path(value: object, directory: Path) -> str:
+    """``tissue.mesh`` as an absolute path (a relative one is relative to ``directory``)."""
+    if not isinstance(value, str):
+        raise SceneError(f"tissue.mesh: expected a string (a .msh file path), got {_show(value)}")
+    return os.path.abspath(directory / value)
 
 
 def _field(key: str, raw: object, width: float) -> Field:
@@ -653,10 +741,7 @@ def _with_preset(tables: dict[str, dict]) -> dict[str, dict]:
         for key, value in knobs.items():
             out[section].setdefault(key, value)
     tissue, given = out["tissue"], tables["tissue"]
-    width = _range(
-        "tissue.width", tissue.get("width", REFERENCE_WIDTH), 0.0, MAX_LENGTH, hi_open=False
-    )
-    height = _range("tissue.height", tissue.get("height", 3.0), 0.0, MAX_LENGTH, hi_open=False)
+    width, height = _tissue_box(tissue)
     if "h" not in given:
         tissue["h"] = min(tissue["h"], min(width, height) / 2)
     if "H" not in given:
@@ -665,20 +750,28 @@ def _with_preset(tables: dict[str, dict]) -> dict[str, dict]:
     return out
 
 
-def parse_scene(data: dict, source: str = "<scene>") -> Scene:
-    """Validate parsed TOML data into a Scene; error messages end with ``(in source)``."""
+def parse_scene(
+    data: dict, source: str = "<scene>", directory: str | os.PathLike | None = None
+) -> Scene:
+    """Validate parsed TOML data into a Scene; error messages end with ``(in source)``. A
+    relative ``tissue.mesh`` is relative to ``directory`` (default: the current directory)."""
     try:
-        return _parse(data)
+        return _parse(data, Path.cwd() if directory is None else Path(directory))
     except (InputError, GeometryError) as e:
         suffix = "" if source == "<scene>" else f" (in {source})"
         raise SceneError(f"{e}{suffix}") from None
 
 
-def _parse(data: dict) -> Scene:
+def _parse(data: dict, directory: Path) -> Scene:
     if not isinstance(data, dict):
         raise SceneError(f"scene: expected a table of tables, got {_show(data)}")
     _check_keys(data, "", ("model", *_TABLES))
-    t = _with_preset({name: _table(data, name) for name in _TABLES})
+    tables = {name: _table(data, name) for name in _TABLES}
+    if "mesh" in tables["tissue"]:
+        tables["tissue"] = tables["tissue"] | {
+            "mesh": _mesh_path(tables["tissue"]["mesh"], directory)
+        }
+    t = _with_preset(tables)
     tissue = Tissue(**t["tissue"])
     f = {
         section: {
@@ -730,4 +823,4 @@ def load_scene(path: str | os.PathLike) -> Scene:
         data = tomllib.loads(text)
     except ValueError as e:  # TOMLDecodeError, or an integer literal of > 4300 digits
         raise SceneError(f"{name}: invalid TOML: {e}") from None
-    return parse_scene(data, source=name)
+    return parse_scene(data, source=name, directory=Path(name).parent)
