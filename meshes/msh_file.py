@@ -88,10 +88,12 @@ def _inspect() -> MshInfo:
                 raise MshError(f"curve {entity} is in both groups {owner[entity]!r} and {name!r}")
             owner[entity] = name
         lines = _elements(1, tag, LINE, f"curve group {name!r}")
+        if len(lines) == 0:
+            raise MshError(f"the curve group {name!r} has no line elements")
         ends = x[index[lines]]
         length = float(np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1).sum())
         x2 = ends[:, :, 1]
-        curves[name] = (tag, length, float(x2.min(initial=0.0)), float(x2.max(initial=0.0)))
+        curves[name] = (tag, length, float(x2.min()), float(x2.max()))
     points = _groups(0)
     if PINNED not in points:
         raise MshError(f"no point group {PINNED!r} (the point where u1 = 0)")

@@ -515,8 +515,8 @@ class Scene:
         lengths = self.tissue.edge_lengths()
         # suggest balancing on the rectangle's left edge, else on an edge not loaded yet
         fix = "left" if "left" in lengths else next((e for e in lengths if e not in loads), "")
-        fix = fix or next(iter(lengths))
-        if unbalanced := unbalanced_load(self.loads, lengths, self.tissue.pin, fix):
+        fix = fix or next(iter(loads), "")
+        if loads and (unbalanced := unbalanced_load(loads, lengths, self.tissue.pin, fix)):
             raise SceneError(unbalanced)
 
     def check_micro(self) -> None:

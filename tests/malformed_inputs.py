@@ -203,6 +203,24 @@ def _name(rng: random.Random, valid: tuple[str, ...] = ()) -> str:
             return first + rest
 
 
+def square_msh(groups: dict[str, tuple[int, ...]]) -> str:
+    """A gmsh 2.2 .msh text of the square [0, 2]^2 (nodes 1-4 counter-clockwise from the origin,
+    two triangles in the surface group "tissue") with the named groups: name -> its node
+    numbers, one node for a point group, two for a curve group (one line)."""
+    names, elements = ['2 1 "tissue"'], []
+    for tag, (name, nodes) in enumerate(groups.items(), start=1):
+        dim = len(nodes) - 1
+        names.append(f'{dim} {tag} "{name}"')
+        elements.append(f"{(15, 1)[dim]} 2 {tag} {tag} {' '.join(map(str, nodes))}")
+    elements += ["2 2 1 1 1 2 3", "2 2 1 1 1 3 4"]
+    numbered = [f"{i} {e}" for i, e in enumerate(elements, start=1)]
+    return "\n".join([
+        "$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$PhysicalNames", str(len(names)), *names,
+        "$EndPhysicalNames", "$Nodes", "4", "1 0 0 0", "2 2 0 0", "3 2 2 0", "4 0 2 0",
+        "$EndNodes", "$Elements", str(len(numbered)), *numbered, "$EndElements", "",
+    ])  # fmt: skip
+
+
 # --- the classes --------------------------------------------------------------------------------
 # Each maker returns (kind, files, argv, expect) or, for scene classes, (scene dict or text, key).
 
