@@ -10,6 +10,13 @@ inclined wall length l2 = 1)::
     [tissue]                   # the rectangle [0, width] x [0, height]; x2 = 0 is a symmetry plane
     width = 6.928203230275509  # 8 cos(30 deg), at most 1e6
     height = 3.0               # at most 1e6
+    # or outline = [[x1, x2], ...]: a simple polygon (3 to 500 points, either orientation, in
+    #   [0, 1e6]^2) with at least one edge on x2 = 0; edge i runs from point i to point i + 1
+    #   and is loaded as loads.edge<i> (not the edges on x2 = 0)
+    # or mesh = "file.msh": a gmsh mesh (relative to the scene file) with the curve group
+    #   "symmetry" on x2 = 0, the point group "pinned" and named curve groups, loaded as
+    #   loads.<name>
+    # (docs/shapes.md; not with width or height: the shape's bounding box sets them)
     h = 0.1                    # (preset) fine-mesh edge: 0 < h <= min(width, height)/2,
                                # at most 4e6 cells
     H = 0.5                    # (preset) coarse-mesh edge (cell-problem nodes):
@@ -38,7 +45,7 @@ inclined wall length l2 = 1)::
                                # doubling (below)
     tolerance = 1e-3           # adaptive: largest relative local error of Fg per step, (0, 0.1]
     [loads]                    # traction f on an edge (default none); "bottom" cannot be loaded
-    right = [0.0, 0.0]         # also "left", "top"
+    right = [0.0, 0.0]         # also "left", "top"; an outline's "edge<i>", a mesh's group names
     [output]
     fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these and "eps_hom"
     every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has
@@ -58,6 +65,12 @@ inclined wall length l2 = 1)::
     macro = "auto"             # "direct" (LU), "iterative" (CG + GAMG, true relative residual
                                # <= 1e-10) or "auto": iterative from macro_threshold fine dofs on
     macro_threshold = 200000   # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
+
+The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
+holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is
+0 to a relative 1e-6. With an outline or mesh the pinned point is the bottom-left-most vertex on
+x2 = 0 or the mesh's "pinned" point, coarse nodes outside the tissue get no cell problem, and
+only ``model = "macro"`` is possible (the micro model builds its own honeycomb tissue).
 
 Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/presets.py; the values
 shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped
