@@ -1,9 +1,11 @@
 """The coarse mesh M of the coupled algorithm (MODEL.md section 5): cell problems live at its nodes.
 
-A structured triangulation of the tissue rectangle (each rectangle split along the diagonal
-from its lower-right to its upper-left corner). It is small and replicated on every rank; fine
-mesh data meet it through P1 interpolation weights (coarse -> fine) and their transpose, a
-lumped L2 projection (fine -> coarse), both plain sparse matrices.
+A structured triangulation of the tissue's bounding box [0, width] x [0, height] (each rectangle
+split along the diagonal from its lower-right to its upper-left corner). It is small and
+replicated on every rank; fine mesh data meet it through P1 interpolation weights (coarse ->
+fine) and their transpose, a lumped L2 projection (fine -> coarse), both plain sparse matrices.
+On a tissue that does not fill the box, only the :func:`active_nodes` take part (a node outside
+the tissue weighs no fine cell, so no cell problem is solved there).
 """
 
 from __future__ import annotations
@@ -70,6 +72,14 @@ class CoarseGrid:
         rows = np.repeat(np.arange(len(points)), 3)
         n_nodes = (self.nx + 1) * (self.ny + 1)
         return sp.csr_matrix((weights.ravel(), (rows, cols.ravel())), shape=(len(points), n_nodes))
+
+
+def active_nodes(W: sp.csr_matrix, comm: MPI.Comm) -> np.ndarray:
+    """Coarse nodes with a non-zero interpolation weight at some fine cell midpoint of some rank
+    (a boolean mask). Every fine value is interpolated from these nodes alone, so the cell
+    problems of the others are never used."""
+    local = (np.asarray(abs(W).sum(axis=0)).ravel() > 0.0).astype(np.int64)
+    return comm.allreduce(local, op=MPI.SUM) > 0
 
 
 def project_to_nodes(

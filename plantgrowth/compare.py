@@ -21,7 +21,7 @@ from matplotlib.tri import TrapezoidMapTriFinder, Triangulation
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
-from plantgrowth.coupled import MacroModel, macro_domain
+from plantgrowth.coupled import macro_model
 from plantgrowth.gather import MeshGather
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.micro import MicroModel, scene_cell
@@ -177,7 +177,7 @@ def compare_one(
 
     start = time.perf_counter()
     prepare_directory(outdir / "macro", comm)
-    macro = MacroModel(*macro_domain(scene, comm, nx), comm)
+    macro = macro_model(scene, comm, nx)
     macro_rows = run_model(
         macro, scene, outdir / "macro", comm, n_steps, keep_macro, label=f"Nx = {nx}, macro"
     )

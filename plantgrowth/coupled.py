@@ -18,7 +18,8 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from plantgrowth import diagnostics, growth, plausibility
-from plantgrowth.coarse import CoarseGrid, project_to_nodes
+from plantgrowth.boundary import Boundary, shape_domain
+from plantgrowth.coarse import CoarseGrid, active_nodes, project_to_nodes
 from plantgrowth.errors import RunError
 from plantgrowth.gather import MeshGather
 from plantgrowth.homogenization import Homogenizer
@@ -73,19 +74,26 @@ class MacroModel:
 
     Args:
         scene: the scene.
-        mesh: the fine mesh m (the scene's rectangle, or the outline of a micro tissue).
+        mesh: the fine mesh m (the scene's rectangle, outline or mesh file, or the outline of a
+            micro tissue).
         comm: communicator of the fine mesh; it also shares the cell problems.
+        boundary: the fine mesh's boundary (default: the scene's rectangle).
     """
 
-    def __init__(self, scene: Scene, mesh, comm: MPI.Comm) -> None:
+    def __init__(self, scene: Scene, mesh, comm: MPI.Comm, boundary: Boundary | None = None):
         self.scene = scene
         self.comm = comm
-        self.problem = problem = MacroProblem(scene, mesh)
+        self.problem = problem = MacroProblem(scene, mesh, boundary)
         self.mesh = problem.mesh
         width, height = problem.bounding_box
         self.grid = CoarseGrid.with_edge(width, height, scene.tissue.H)
         nodes = self.grid.nodes
         self.W = self.grid.interpolation_matrix(problem.midpoints[:, :2])
+        # cell problems only at the nodes the fine cells see; the others show (coarse.xdmf) the
+        # values of their nearest active node
+        self.active = active_nodes(self.W, comm)
+        self._W_active = self.W[:, self.active]
+        self._nearest = cKDTree(nodes[self.active]).query(nodes)[1]  # into the active nodes
         at_nodes, at_cells = (nodes[:, 0], nodes[:, 1]), problem.midpoints[:, :2].T
         self.geometry = np.column_stack([f(*at_nodes) for f in scene.cell.fields()])
         self.E_nodes = scene.material.E(*at_nodes)
@@ -104,8 +112,8 @@ class MacroModel:
         self.output_space = problem.V
         self._gather = MeshGather(problem.V)
         log.info(
-            "macro: %d fine dofs, %d coarse nodes, terms: %s",
-            problem.ndofs, len(nodes), ", ".join(problem.active_terms),
+            "macro: %d fine dofs, %d coarse nodes (%d in the tissue), terms: %s",
+            problem.ndofs, len(nodes), self.active.sum(), ", ".join(problem.active_terms),
         )  # fmt: skip
         for line in _pruning_report(problem, scene, self.strain_averages):
             log.info("skipped: %s", line)
@@ -135,9 +143,9 @@ class MacroModel:
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def _to_cells(self, node_values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-        """P1 interpolation of coarse-node values to the fine cells' midpoints."""
+        """P1 interpolation of active-node values to the fine cells' midpoints."""
         n = node_values.shape[0]
-        return (self.W @ node_values.reshape(n, -1)).reshape(-1, *shape)
+        return (self._W_active @ node_values.reshape(n, -1)).reshape(-1, *shape)
 
     def step(self, Fg: np.ndarray) -> StepResult:
         problem, law = self.problem, self.scene.growth.law
@@ -146,10 +154,11 @@ class MacroModel:
         Fg_nodes = project_to_nodes(
             self.W[:n_owned], problem.areas, Fg[:n_owned].reshape(-1, 4), self.comm
         )
+        a = self.active
         nt = self.homogenizer.homogenize(
-            self.geometry, self.E_nodes, self.nu_nodes, Fg_nodes.reshape(-1, 2, 2)
+            self.geometry[a], self.E_nodes[a], self.nu_nodes[a], Fg_nodes[a].reshape(-1, 2, 2)
         )
-        diagnostics.stop_if(diagnostics.stiffness_problems(nt.C, self.grid.nodes), self.comm)
+        diagnostics.stop_if(diagnostics.stiffness_problems(nt.C, self.grid.nodes[a]), self.comm)
         C = self._to_cells(nt.C, (3, 3))
         phi_w = self._to_cells(nt.phi_w, ())
         K = None if nt.K is None else self._to_cells(nt.K, (2, 2))
@@ -190,7 +199,7 @@ class MacroModel:
             problem.set_cell_values(self.out.eps, eps_hom)
         if self.coarse_output.names:
             for name, (i, j) in zip(VOIGT_NAMES, VOIGT_POSITIONS, strict=True):
-                self.coarse_output.values[name] = nt.C[:, i, j]
+                self.coarse_output.values[name] = nt.C[self._nearest, i, j]
         t3 = time.perf_counter()
         n, M = problem.n_owned, self.scene.growth.clamp
         return StepResult(
@@ -222,15 +231,26 @@ class MacroModel:
         }
 
 
-def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> tuple[Scene, Mesh]:
-    """The scene and fine mesh of the macro model: the scene's rectangle, or, next to a micro
-    tissue of ``nx`` cells per row (``model = "both"``: the scene's micro.nx), the region its
-    cells cover, with the scene's fields spanning that region's extent (MODEL.md 7)."""
+def macro_domain(
+    scene: Scene, comm: MPI.Comm, nx: int | None = None
+) -> tuple[Scene, Mesh, Boundary | None]:
+    """The scene, fine mesh and boundary (None: the rectangle's) of the macro model: the
+    scene's rectangle, outline or mesh file, or, next to a micro tissue of ``nx`` cells per row
+    (``model = "both"``: the scene's micro.nx), the region its cells cover, with the scene's
+    fields spanning that region's extent (MODEL.md 7)."""
     if nx is None and scene.model != "both":
-        return scene, rectangle_mesh(scene, comm)
+        if scene.tissue.shape is not None:
+            return scene, *shape_domain(scene, comm)
+        return scene, rectangle_mesh(scene, comm), None
     layout = TissueLayout(scene.cell.at(0.0, 0.0), scene.micro_nx if nx is None else nx)
     mesh = build_outline_mesh(layout, scene.tissue.h, comm)[0]
-    return scene.over_extent(*layout.bounding_box), mesh
+    return scene.over_extent(*layout.bounding_box), mesh, None
+
+
+def macro_model(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroModel:
+    """The MacroModel on :func:`macro_domain` (its scene, mesh and boundary)."""
+    scene, mesh, boundary = macro_domain(scene, comm, nx)
+    return MacroModel(scene, mesh, comm, boundary)
 
 
 def run_macro(
@@ -243,6 +263,6 @@ def run_macro(
     Returns the summary rows of the steps run (all rows are in ``outdir/summary.csv``).
     """
     start = time.perf_counter()
-    model = MacroModel(*macro_domain(scene, comm), comm)
+    model = macro_model(scene, comm)
     log.info("set-up: %.2f s", time.perf_counter() - start)
     return run_model(model, scene, outdir, comm, resume=resume)

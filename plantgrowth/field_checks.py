@@ -22,7 +22,7 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
-from plantgrowth.coarse import CoarseGrid
+from plantgrowth.coarse import CoarseGrid, active_nodes
 from plantgrowth.coupled import macro_domain
 from plantgrowth.errors import SceneError
 from plantgrowth.fields import ExprField, check_value
@@ -108,11 +108,13 @@ def check_macro_domain(scene: Scene, msh: mesh.Mesh) -> None:
     """Collective: the fields at the coarse nodes and fine cells of a macro domain ``msh``
     (``scene`` spanning its extent, as :func:`plantgrowth.coupled.macro_domain` returns)."""
     width, height = mesh_bounding_box(msh)
-    nodes = CoarseGrid.with_edge(width, height, scene.tissue.H).nodes
-    check_ranges(scene, nodes, "coarse node", MPI.COMM_SELF, numbered=True, growth=False)
-    check_geometry(scene, nodes)
+    grid = CoarseGrid.with_edge(width, height, scene.tissue.H)
     owned = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
     midpoints = mesh.compute_midpoints(msh, 2, owned)[:, :2]
+    # the nodes that take part (a non-rectangular tissue leaves some out: coarse.active_nodes)
+    nodes = grid.nodes[active_nodes(grid.interpolation_matrix(midpoints), msh.comm)]
+    check_ranges(scene, nodes, "coarse node", MPI.COMM_SELF, numbered=True, growth=False)
+    check_geometry(scene, nodes)
     check_ranges(scene, midpoints, "fine cell midpoint", msh.comm)
 
 
@@ -130,6 +132,6 @@ def check_used_values(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> No
     if not needs_place_checks(scene):
         return
     if nx is not None or scene.model in ("macro", "both"):
-        check_macro_domain(*macro_domain(scene, comm, nx))
+        check_macro_domain(*macro_domain(scene, comm, nx)[:2])
     if nx is not None or scene.model in ("micro", "both"):
         check_micro_tissue(scene, scene.micro_nx if nx is None else nx)

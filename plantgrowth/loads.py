@@ -25,10 +25,6 @@ GAUSS_POINTS = 5
 Component = float | Expression
 
 
-def edge_length(edge: str, width: float, height: float) -> float:
-    return width if ALONG[edge] == 0 else height
-
-
 def _quadrature(length: float) -> tuple[np.ndarray, np.ndarray]:
     """Points s and weights of the composite Gauss-Legendre rule on [0, length]."""
     t, w = np.polynomial.legendre.leggauss(GAUSS_POINTS)

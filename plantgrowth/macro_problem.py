@@ -2,9 +2,10 @@
 
 P1 displacement; every coefficient (Fg, E_hom, K_hom, phi_w, P2vec) is piecewise constant on
 the fine cells, so the forms are integrated exactly by one-point quadrature. Only the terms
-the scene activates are assembled. Boundary conditions: ``u2 = 0`` on the bottom edge
-(symmetry plane, no tangential traction) and ``u1 = 0`` at the origin (removes the remaining
-rigid translation); the other edges carry the scene's tractions or none. The operator is
+the scene activates are assembled. Boundary conditions (plantgrowth/boundary.py): ``u2 = 0`` on
+the symmetry edges x2 = 0 (no tangential traction) and ``u1 = 0`` at the pinned vertex (the
+origin of the rectangle; removes the remaining rigid translation); the other edges carry the
+scene's tractions or none. The operator is
 symmetric positive definite after these conditions, so large systems are solved by CG + GAMG
 (``solver.macro``), small ones by LU.
 """
@@ -19,6 +20,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from plantgrowth.boundary import Boundary, pinned_vertices, rectangle_boundary
 from plantgrowth.forms import macro
 from plantgrowth.forms.elasticity import boundary_traction
 from plantgrowth.forms.expressions import UFL_OPS
@@ -36,9 +38,6 @@ MACRO_MAX_IT = 2000
 """CG's iteration limit: about 100 iterations at any size on the shipped scenes, 700 on the
 thinnest-walled hard case (w = 0.005); a solve that needs more stops with a RunError."""
 PREFIX = "plantgrowth_macro_"
-
-EDGES = {"left": (0, 0.0), "right": (0, None), "top": (1, None)}
-"""Loadable edges: (coordinate index, position; None = the far side of the rectangle)."""
 
 
 def mesh_bounding_box(msh: mesh.Mesh) -> tuple[float, float]:
@@ -71,11 +70,14 @@ class MacroProblem:
 
     Args:
         scene: the scene (pressure field, loads).
-        msh: the fine mesh, with its bottom edge on x2 = 0 and a vertex at the origin.
+        msh: the fine mesh.
+        boundary: its symmetry facets, pinned vertex and loadable edges; default: the scene's
+            rectangle (bottom edge on x2 = 0, a vertex at the origin).
     """
 
-    def __init__(self, scene: Scene, msh: mesh.Mesh) -> None:
+    def __init__(self, scene: Scene, msh: mesh.Mesh, boundary: Boundary | None = None) -> None:
         self.mesh = msh
+        self.boundary = boundary or rectangle_boundary(msh, scene.tissue.width, scene.tissue.height)
         comm = msh.comm
         self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 1))
         self.Q0 = fem.FunctionSpace(msh, ("DG", 0))
@@ -145,34 +147,19 @@ class MacroProblem:
         if not scene.loads:
             return terms
         msh = self.mesh
-        far = {0: scene.tissue.width, 1: scene.tissue.height}
-        facets, values = [], []
-        for tag, name in enumerate(sorted(scene.loads), start=1):
-            axis, position = EDGES[name]
-            at = far[axis] if position is None else position
-            found = mesh.locate_entities_boundary(
-                msh, 1, lambda x, a=axis, p=at: np.isclose(x[a], p)
-            )
-            facets.append(found)
-            values.append(np.full(len(found), tag, dtype=np.int32))
-            self.active_terms.append(f"traction on {name}")
-        order = np.argsort(np.concatenate(facets))
-        tags = mesh.meshtags(
-            msh, 1, np.concatenate(facets)[order].astype(np.int32), np.concatenate(values)[order]
-        )
-        ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=self.boundary.facets)
         n = ufl.FacetNormal(msh)
-        for tag, (name, f) in enumerate(sorted(scene.loads.items()), start=1):
-            terms += boundary_traction(_traction(msh, name, f), psi, self.Fg, n, ds(tag))
+        for name, f in sorted(scene.loads.items()):
+            traction = _traction(msh, name, f)
+            terms += boundary_traction(traction, psi, self.Fg, n, ds(self.boundary.edges[name]))
+            self.active_terms.append(f"traction on {name}")
         return terms
 
     def _boundary_conditions(self) -> list:
-        msh = self.mesh
-        bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
-        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, bottom)
-        origin = mesh.locate_entities_boundary(
-            msh, 0, lambda x: np.isclose(x[0], 0.0) & np.isclose(x[1], 0.0)
-        )
+        facets = self.boundary.facets
+        bottom = np.concatenate([facets.find(tag) for tag in self.boundary.symmetry])
+        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, np.sort(bottom))
+        origin = pinned_vertices(self.mesh, self.boundary.pin)
         origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
         zero = PETSc.ScalarType(0.0)
         return [

@@ -10,6 +10,13 @@ inclined wall length l2 = 1)::
     [tissue]                   # the rectangle [0, width] x [0, height]; x2 = 0 is a symmetry plane
     width = 6.928203230275509  # 8 cos(30 deg), at most 1e6
     height = 3.0               # at most 1e6
+    # or outline = [[x1, x2], ...]: a simple polygon (3 to 500 points, either orientation, in
+    #   [0, 1e6]^2) with at least one edge on x2 = 0; edge i runs from point i to point i + 1
+    #   and is loaded as loads.edge<i> (not the edges on x2 = 0)
+    # or mesh = "file.msh": a gmsh mesh (relative to the scene file) with the curve group
+    #   "symmetry" on x2 = 0, the point group "pinned" and named curve groups, loaded as
+    #   loads.<name>
+    # (docs/shapes.md; not with width or height: the shape's bounding box sets them)
     h = 0.1                    # (preset) fine-mesh edge: 0 < h <= min(width, height)/2,
                                # at most 4e6 cells
     H = 0.5                    # (preset) coarse-mesh edge (cell-problem nodes):
@@ -39,8 +46,9 @@ inclined wall length l2 = 1)::
                                # doubling (below)
     tolerance = 1e-3           # adaptive: largest relative local error of Fg per step, (0, 0.1]
     [loads]                    # traction f on an edge (default none); "bottom" cannot be loaded
-    right = [0.0, 0.0]         # also "left", "top"; a component may be {expr = "..."} of s,
-                               # the coordinate along the edge (x2 on left/right, x1 on top)
+    right = [0.0, 0.0]         # also "left", "top"; an outline's "edge<i>", a mesh's group names;
+                               # on left/right/top a component may be {expr = "..."} of s, the
+                               # coordinate along the edge (x2 on left/right, x1 on top)
     [output]
     fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these and "eps_hom"
     every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has
@@ -60,6 +68,12 @@ inclined wall length l2 = 1)::
     macro = "auto"             # "direct" (LU), "iterative" (CG + GAMG, true relative residual
                                # <= 1e-10) or "auto": iterative from macro_threshold fine dofs on
     macro_threshold = 200000   # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
+
+The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
+holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is
+0 to a relative 1e-6. With an outline or mesh the pinned point is the bottom-left-most vertex on
+x2 = 0 or the mesh's "pinned" point, coarse nodes outside the tissue get no cell problem, and
+only ``model = "macro"`` is possible (the micro model builds its own honeycomb tissue).
 
 Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/presets.py; the values
 shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped
@@ -112,6 +126,7 @@ from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.plausibility import unbalanced_load
 from plantgrowth.presets import DEFAULT_PRESET, PRESETS, knob
+from plantgrowth.shapes import Shape, mesh_shape, outline_points, outline_shape, unloadable
 
 BIG = 1e12
 """Largest magnitude accepted for a non-dimensional parameter without a natural bound."""
@@ -213,25 +228,67 @@ def _set(obj: object, **values: object) -> None:
 
 @dataclass(frozen=True)
 class Tissue:
-    """The tissue rectangle [0, width] x [0, height] and the fine (h) / coarse (H) mesh sizes."""
+    """The tissue: the rectangle [0, width] x [0, height], or an ``outline`` polygon or a
+    ``mesh`` file whose bounding box sets width and height (plantgrowth/shapes.py); the fine (h)
+    and coarse (H) mesh sizes."""
 
     width: float = REFERENCE_WIDTH
     height: float = 3.0
     h: float = knob(DEFAULT_PRESET, "tissue", "h")
     H: float = knob(DEFAULT_PRESET, "tissue", "H")
+    outline: tuple[tuple[float, float], ...] | None = None
+    mesh: str | None = None
+    shape: Shape | None = field(default=None, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
+        if self.outline is not None and self.mesh is not None:
+            raise SceneError("tissue.mesh: not with tissue.outline: give one tissue shape")
+        try:
+            if self.outline is not None:
+                _set(self, outline=outline_points(self.outline))
+                _set(self, shape=outline_shape(self.outline))
+            elif self.mesh is not None:
+                _set(self, shape=mesh_shape(self.mesh))
+        except InputError as e:
+            raise SceneError(str(e)) from None
+        if self.shape is not None:  # the bounding box
+            _set(self, width=self.shape.width, height=self.shape.height)
         W = _range("tissue.width", self.width, 0.0, MAX_LENGTH, hi_open=False)
         Ht = _range("tissue.height", self.height, 0.0, MAX_LENGTH, hi_open=False)
         h = _range("tissue.h", self.h, 0.0, min(W, Ht) / 2, hi_open=False)
         H = _range("tissue.H", self.H, h, max(W, Ht), lo_open=False, hi_open=False)
-        cells = 2.0 * math.ceil(W / h) * math.ceil(Ht / h)
+        given = self.shape.triangles if self.shape is not None else None
+        cells = 2.0 * math.ceil(W / h) * math.ceil(Ht / h) if given is None else given
         if cells > MAX_CELLS:
             raise SceneError(
-                f"tissue.h = {h!r} is too small: the fine mesh would have about {cells:.3g} "
+                f"tissue.mesh has {cells} triangles (limit {MAX_CELLS:g})"
+                if given is not None
+                else f"tissue.h = {h!r} is too small: the fine mesh would have about {cells:.3g} "
                 f"triangles (limit {MAX_CELLS:g}); use h >= {math.sqrt(2 * W * Ht / MAX_CELLS):.3g}"
             )
         _set(self, width=W, height=Ht, h=h, H=H)
+
+    def edge_lengths(self) -> dict[str, tuple[float, str]]:
+        """Loadable edge -> (reference length, its name in the load-balance formula)."""
+        if self.shape is None:
+            return {
+                "left": (self.height, "height"), "right": (self.height, "height"),
+                "top": (self.width, "width"),
+            }  # fmt: skip
+        return {edge: (length, f"{length:.6g}") for edge, length in self.shape.edges.items()}
+
+    @property
+    def pin(self) -> tuple[float, float]:
+        """The vertex where u1 = 0: the origin of the rectangle, else the shape's."""
+        return (0.0, 0.0) if self.shape is None else self.shape.pin
+
+    def to_toml(self) -> dict[str, Any]:
+        """The keys that reproduce this tissue (the bounding box is not written for a shape)."""
+        if self.outline is not None:
+            return {"outline": [list(p) for p in self.outline], "h": self.h, "H": self.H}
+        if self.mesh is not None:
+            return {"mesh": self.mesh, "h": self.h, "H": self.H}
+        return {"width": self.width, "height": self.height, "h": self.h, "H": self.H}
 
 
 @dataclass(frozen=True)
@@ -487,12 +544,14 @@ class Scene:
             if isinstance(f, Field) and f.height != self.tissue.height:
                 raise SceneError(f"{key}: field height {f.height!r} != tissue.height")
         loads = {}
+        lengths = self.tissue.edge_lengths()
         for edge, f in self.loads.items():
-            _check_edge(edge)
+            _check_edge(edge, self.tissue.shape)
             pair = _array(f"loads.{edge}", f, 2)
-            length = edge_loads.edge_length(edge, self.tissue.width, self.tissue.height)
+            along = edge in edge_loads.ALONG  # s is defined on the rectangle's edges only
             pair = tuple(
-                _load_component(f"loads.{edge}[{i}]", x, length) for i, x in enumerate(pair)
+                _load_component(f"loads.{edge}[{i}]", x, lengths[edge][0], along)
+                for i, x in enumerate(pair)
             )
             if pair != (0.0, 0.0):  # only non-zero loads are kept
                 loads[edge] = pair
@@ -509,7 +568,10 @@ class Scene:
             raise SceneError(str(e)) from None
         if self.model != "macro":
             self.check_micro()
-        if unbalanced := unbalanced_load(self.loads, self.tissue.width, self.tissue.height):
+        # suggest balancing on the rectangle's left edge, else on an edge not loaded yet
+        fix = "left" if "left" in lengths else next((e for e in lengths if e not in loads), "")
+        fix = fix or next(iter(loads), "")
+        if loads and (unbalanced := unbalanced_load(loads, lengths, self.tissue.pin, fix)):
             raise SceneError(unbalanced)
 
     def corners(self) -> list[tuple[float, float]]:
@@ -518,7 +580,13 @@ class Scene:
 
     def check_micro(self) -> None:
         """The micro model needs a constant cell geometry (a gradient of w, l1, l2 or theta has no
-        well-defined cellular tissue: MODEL.md section 7, paper section 5.3) and has no loads."""
+        well-defined cellular tissue: MODEL.md section 7, paper section 5.3), builds its own
+        tissue (no outline or mesh) and has no loads."""
+        if self.tissue.shape is not None:
+            raise SceneError(
+                f"{self.tissue.shape.key}: the micro model builds its own honeycomb tissue "
+                f'(MODEL.md section 7); use model = "macro"'
+            )
         for key in ("l1", "l2", "theta", "w"):
             if not getattr(self.cell, key).is_constant:
                 raise SceneError(
@@ -570,7 +638,7 @@ class Scene:
     def to_dict(self) -> dict[str, Any]:
         """The fully resolved scene as plain TOML/JSON data (fields as numbers or tables)."""
         out: dict[str, Any] = {"model": self.model}
-        out["tissue"] = {f.name: getattr(self.tissue, f.name) for f in fields(self.tissue)}
+        out["tissue"] = self.tissue.to_toml()
         for key, f in self.parameter_fields().items():
             section, name = key.split(".")
             out.setdefault(section, {})[name] = f.to_toml()
@@ -625,7 +693,7 @@ def _toml_value(v: Any) -> str:
 # --- loader ---------------------------------------------------------------------------------------
 
 _TABLES = {
-    "tissue": ("width", "height", "h", "H"),
+    "tissue": ("width", "height", "h", "H", "outline", "mesh"),
     "cell": ("l1", "l2", "theta", "w"),
     "material": ("E", "nu"),
     "pressure": ("P1",),
@@ -645,9 +713,15 @@ _FIELD_DEFAULTS = {
 }
 
 
-def _load_component(key: str, x: object, length: float) -> edge_loads.Component:
-    """A number, or {expr = "..."} of s (plantgrowth/loads.py), checked along the edge."""
+def _load_component(key: str, x: object, length: float, along: bool) -> edge_loads.Component:
+    """A number, or (on an edge of the rectangle, ``along``) {expr = "..."} of s
+    (plantgrowth/loads.py), checked along the edge."""
     if isinstance(x, dict):
+        if not along:
+            raise SceneError(
+                f"{key}: a load on an outline or mesh edge is a number; expressions of s, the "
+                "coordinate along the edge, are defined on the rectangle's left, right and top"
+            )
         _check_keys(x, f"{key}.", ("expr",))
         if "expr" not in x:
             raise SceneError(f'{key}: a load component is a number or {{expr = "..."}} of s')
@@ -658,7 +732,12 @@ def _load_component(key: str, x: object, length: float) -> edge_loads.Component:
     return x
 
 
-def _check_edge(edge: str) -> None:
+def _check_edge(edge: str, shape: Shape | None) -> None:
+    """SceneError unless ``loads.<edge>`` names a loadable edge of the tissue."""
+    if shape is not None:
+        if why := unloadable(shape, edge):
+            raise SceneError(why)
+        return
     if edge == "bottom":
         raise SceneError(
             "loads.bottom: the bottom edge x2 = 0 is the symmetry plane (u2 = 0, no tangential "
@@ -683,11 +762,41 @@ def _table(data: dict, name: str) -> dict:
     table = data.get(name, {})
     if not isinstance(table, dict):
         raise SceneError(f"{name}: expected a table [{name}], got {_show(table)}")
-    if name == "loads":
-        for edge in table:
-            _check_edge(edge)
-    _check_keys(table, f"{name}.", _TABLES[name])
+    if name != "loads":  # the loadable edges depend on the tissue: Scene checks them
+        _check_keys(table, f"{name}.", _TABLES[name])
     return table
+
+
+def _tissue_box(tissue: dict) -> tuple[float, float]:
+    """(width, height) of a tissue table: the rectangle's, or the bounding box of its outline
+    or mesh (which may not be given with width or height)."""
+    shapes = [key for key in ("outline", "mesh") if key in tissue]
+    if not shapes:
+        width = tissue.get("width", REFERENCE_WIDTH)
+        return (
+            _range("tissue.width", width, 0.0, MAX_LENGTH, hi_open=False),
+            _range("tissue.height", tissue.get("height", 3.0), 0.0, MAX_LENGTH, hi_open=False),
+        )
+    for key in ("width", "height"):
+        if key in tissue:
+            raise SceneError(
+                f"tissue.{key}: not with tissue.{shapes[0]}: its bounding box "
+                "[0, width] x [0, height] sets the tissue's width and height"
+            )
+    if len(shapes) == 2:
+        raise SceneError("tissue.mesh: not with tissue.outline: give one tissue shape")
+    if "outline" in tissue:
+        shape = outline_shape(outline_points(tissue["outline"]))
+    else:
+        shape = mesh_shape(tissue["mesh"])
+    return shape.width, shape.height
+
+
+def _mesh_path(value: object, directory: Path) -> str:
+    """``tissue.mesh`` as an absolute path (a relative one is relative to ``directory``)."""
+    if not isinstance(value, str):
+        raise SceneError(f"tissue.mesh: expected a string (a .msh file path), got {_show(value)}")
+    return os.path.abspath(directory / value)
 
 
 def _field(key: str, raw: object, width: float, height: float) -> AnyField:
@@ -722,10 +831,7 @@ def _with_preset(tables: dict[str, dict]) -> dict[str, dict]:
         for key, value in knobs.items():
             out[section].setdefault(key, value)
     tissue, given = out["tissue"], tables["tissue"]
-    width = _range(
-        "tissue.width", tissue.get("width", REFERENCE_WIDTH), 0.0, MAX_LENGTH, hi_open=False
-    )
-    height = _range("tissue.height", tissue.get("height", 3.0), 0.0, MAX_LENGTH, hi_open=False)
+    width, height = _tissue_box(tissue)
     if "h" not in given:
         tissue["h"] = min(tissue["h"], min(width, height) / 2)
     if "H" not in given:
@@ -734,20 +840,28 @@ def _with_preset(tables: dict[str, dict]) -> dict[str, dict]:
     return out
 
 
-def parse_scene(data: dict, source: str = "<scene>") -> Scene:
-    """Validate parsed TOML data into a Scene; error messages end with ``(in source)``."""
+def parse_scene(
+    data: dict, source: str = "<scene>", directory: str | os.PathLike | None = None
+) -> Scene:
+    """Validate parsed TOML data into a Scene; error messages end with ``(in source)``. A
+    relative ``tissue.mesh`` is relative to ``directory`` (default: the current directory)."""
     try:
-        return _parse(data)
+        return _parse(data, Path.cwd() if directory is None else Path(directory))
     except (InputError, GeometryError) as e:
         suffix = "" if source == "<scene>" else f" (in {source})"
         raise SceneError(f"{e}{suffix}") from None
 
 
-def _parse(data: dict) -> Scene:
+def _parse(data: dict, directory: Path) -> Scene:
     if not isinstance(data, dict):
         raise SceneError(f"scene: expected a table of tables, got {_show(data)}")
     _check_keys(data, "", ("model", *_TABLES))
-    t = _with_preset({name: _table(data, name) for name in _TABLES})
+    tables = {name: _table(data, name) for name in _TABLES}
+    if "mesh" in tables["tissue"]:
+        tables["tissue"] = tables["tissue"] | {
+            "mesh": _mesh_path(tables["tissue"]["mesh"], directory)
+        }
+    t = _with_preset(tables)
     tissue = Tissue(**t["tissue"])
     f = {
         section: {
@@ -812,4 +926,4 @@ def load_scene(path: str | os.PathLike) -> Scene:
         data = tomllib.loads(text)
     except ValueError as e:  # TOMLDecodeError, or an integer literal of > 4300 digits
         raise SceneError(f"{name}: invalid TOML: {e}") from None
-    return parse_scene(data, source=name)
+    return parse_scene(data, source=name, directory=Path(name).parent)

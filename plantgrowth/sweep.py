@@ -164,7 +164,10 @@ def load_sweep(path: Path) -> Sweep:
     keys = _scene_keys(base_scene)
     mode = _mode(data, path)
     vary = _vary(data, keys, mode, path)
-    runs = [_run(i, values, base_data, path) for i, values in enumerate(_combinations(vary, mode))]
+    runs = [
+        _run(i, values, base_data, path, base.parent)
+        for i, values in enumerate(_combinations(vary, mode))
+    ]
     flat = base_scene.dotted()
     base_cells = {k: cell(flat[k]) if k in flat else "" for k in vary}
     return Sweep(path, base, mode, vary, runs, base_cells)
@@ -222,7 +225,8 @@ def _mode(data: dict, path: Path) -> str:
 
 def _scene_keys(scene: Scene) -> set[str]:
     """Every dotted key a scene has (``model``, ``material.nu``, ..., ``loads.right``)."""
-    return set(scene.dotted()) | {f"loads.{edge}" for edge in EDGES}
+    edges = set(EDGES) | set(scene.tissue.edge_lengths())
+    return set(scene.dotted()) | {f"loads.{edge}" for edge in edges}
 
 
 def _vary_items(table: dict, keys: set[str], prefix: str = "") -> Iterator[tuple[str, Any]]:
@@ -275,12 +279,15 @@ def _combinations(vary: dict[str, list], mode: str) -> list[dict[str, Any]]:
     return [{key: value} for key, values in vary.items() for value in values]
 
 
-def _run(index: int, values: dict[str, Any], base_data: dict, path: Path) -> Run:
+def _run(index: int, values: dict[str, Any], base_data: dict, path: Path, directory: Path) -> Run:
+    """One run: the base scene with the run's values (a relative tissue.mesh is relative to the
+    base scene's directory, ``directory``)."""
     data = {k: dict(v) if isinstance(v, dict) else v for k, v in base_data.items()}
     for key, value in values.items():
         section, _, name = key.rpartition(".")
         (data.setdefault(section, {}) if section else data)[name] = value
-    return Run(index, values, parse_scene(data, source=f"{path}: {_label(index, values)}"))
+    source = f"{path}: {_label(index, values)}"
+    return Run(index, values, parse_scene(data, source=source, directory=directory))
 
 
 # --- which runs a process takes -------------------------------------------------------------------

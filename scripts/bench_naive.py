@@ -145,7 +145,7 @@ def run_naive(scene_path: Path, outdir: Path) -> None:
     cell-problem seconds) next to the run's usual files."""
     from mpi4py import MPI
 
-    from plantgrowth.coupled import MacroModel, macro_domain
+    from plantgrowth.coupled import macro_model
     from plantgrowth.output import prepare_directory
     from plantgrowth.scene import load_scene
     from plantgrowth.timeloop import run_model
@@ -156,7 +156,7 @@ def run_naive(scene_path: Path, outdir: Path) -> None:
     scene = load_scene(scene_path)
     prepare_directory(outdir, comm)
     start = time.perf_counter()
-    model = MacroModel(*macro_domain(scene, comm), comm)
+    model = macro_model(scene, comm)
     h = model.homogenizer
     model.homogenizer = NaiveHomogenizer(h.resolution, h.pressure, h.strain_averages)
     setup = time.perf_counter() - start

@@ -204,6 +204,24 @@ def _name(rng: random.Random, valid: tuple[str, ...] = ()) -> str:
             return first + rest
 
 
+def square_msh(groups: dict[str, tuple[int, ...]]) -> str:
+    """A gmsh 2.2 .msh text of the square [0, 2]^2 (nodes 1-4 counter-clockwise from the origin,
+    two triangles in the surface group "tissue") with the named groups: name -> its node
+    numbers, one node for a point group, two for a curve group (one line)."""
+    names, elements = ['2 1 "tissue"'], []
+    for tag, (name, nodes) in enumerate(groups.items(), start=1):
+        dim = len(nodes) - 1
+        names.append(f'{dim} {tag} "{name}"')
+        elements.append(f"{(15, 1)[dim]} 2 {tag} {tag} {' '.join(map(str, nodes))}")
+    elements += ["2 2 1 1 1 2 3", "2 2 1 1 1 3 4"]
+    numbered = [f"{i} {e}" for i, e in enumerate(elements, start=1)]
+    return "\n".join([
+        "$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$PhysicalNames", str(len(names)), *names,
+        "$EndPhysicalNames", "$Nodes", "4", "1 0 0 0", "2 2 0 0", "3 2 2 0", "4 0 2 0",
+        "$EndNodes", "$Elements", str(len(numbered)), *numbered, "$EndElements", "",
+    ])  # fmt: skip
+
+
 # --- the classes --------------------------------------------------------------------------------
 # Each maker returns (kind, files, argv, expect) or, for scene classes, (scene dict or text, key).
 
@@ -562,6 +580,107 @@ def _bad_choice(rng: random.Random, scene: dict):
     return scene, "output.fields"
 
 
+OUTLINE = [[0.0, 0.0], [6.0, 0.0], [6.0, 2.0], [3.0, 4.0], [0.0, 2.0]]
+"""A valid outline whose box (6 x 4) fits every base scene's h and H."""
+SQUARE_GROUPS = {"pinned": (1,), "symmetry": (1, 2), "top": (3, 4)}
+"""The groups of a valid :func:`square_msh` (2 x 2: fits every base scene's h and H)."""
+
+
+def _on_shape(scene: dict, **shape: object) -> dict:
+    """The macro scene on a tissue shape: no width, height or (rectangle) loads."""
+    tissue = scene.get("tissue") if isinstance(scene.get("tissue"), dict) else {}
+    scene["tissue"] = {k: v for k, v in tissue.items() if k in ("h", "H")} | shape
+    scene.pop("loads", None)
+    scene["model"] = "macro"
+    return scene
+
+
+def _bad_outline(rng: random.Random, scene: dict):
+    what = rng.choice(["bow_tie", "no_bottom", "below", "few", "type", "point", "nonfinite",
+                       "repeat", "with_size", "symmetry_load", "unknown", "micro"])  # fmt: skip
+    points = [list(p) for p in OUTLINE]
+    scene = _on_shape(scene, outline=points)
+    k = rng.randrange(len(points))
+    if what == "bow_tie":
+        a, b = rng.uniform(2.0, 8.0), rng.uniform(2.0, 8.0)
+        scene["tissue"]["outline"] = [[0.0, 0.0], [a, 0.0], [0.0, b], [a, b]]
+        return scene, ("tissue.outline: edges", "intersect")
+    if what == "no_bottom":
+        lift = rng.choice([1e-9, 0.5, 3.0])
+        scene["tissue"]["outline"] = [[x, y + lift] for x, y in points]
+        return scene, ("tissue.outline: no edge lies on x2 = 0",)
+    if what == "below":
+        points[k][rng.randrange(2)] = -rng.choice([1e-9, 0.5, _magnitude(rng)])
+        return scene, ("tissue.outline[",)
+    if what == "few":
+        scene["tissue"]["outline"] = points[: rng.randint(0, 2)]
+        return scene, ("tissue.outline: expected an array",)
+    if what == "type":
+        scene["tissue"]["outline"] = Raw(rng.choice(['"abc"', "3", "{x = 1}", "true"]))
+        return scene, ("tissue.outline: expected an array",)
+    if what == "point":
+        points[k] = Raw(rng.choice(["[1.0]", "[1, 2, 3]", '"a"', "{x = 1}"]))
+        return scene, (f"tissue.outline[{k}]",)
+    if what == "nonfinite":
+        points[k][1] = Raw(rng.choice(["nan", "inf", "-inf", "1e400"]))
+        return scene, (f"tissue.outline[{k}][1]",)
+    if what == "repeat":
+        points.insert(k, list(points[k]))
+        return scene, ("tissue.outline[", "are the same point")
+    if what == "with_size":
+        key = rng.choice(["width", "height"])
+        scene["tissue"][key] = rng.uniform(1.0, 5.0)
+        return scene, (f"tissue.{key}: not with tissue.outline",)
+    if what == "symmetry_load":
+        scene["loads"] = {"edge0": [0.0, 0.001]}
+        return scene, ("loads.edge0", "symmetry plane")
+    if what == "unknown":
+        edge = rng.choice(["left", "right", "top", "bottom", "edge5", "edge-1", _name(rng)])
+        scene["loads"] = {edge: [0.0, 0.001]}
+        return scene, (f"loads.{edge}",)
+    scene["model"] = rng.choice(["micro", "both"])
+    return scene, ("tissue.outline: the micro model",)
+
+
+def _bad_mesh(rng: random.Random, scene: dict):
+    what = rng.choice(["missing", "suffix", "garbage", "no_pinned", "no_symmetry", "off_axis",
+                       "type", "with_outline", "symmetry_load", "micro"])  # fmt: skip
+    scene = _on_shape(scene, mesh="tissue.msh")
+    valid = [("tissue.msh", square_msh(SQUARE_GROUPS))]
+    if what == "missing":
+        return scene, ("tissue.mesh = ", "file not found"), []
+    if what == "suffix":
+        scene["tissue"]["mesh"] = "tissue.stl"
+        return scene, ("tissue.mesh = ", "not a .msh file"), [("tissue.stl", "solid\n")]
+    if what == "garbage":
+        text = "".join(rng.choices(string.ascii_letters + " \n$", k=rng.randint(0, 300)))
+        return (
+            scene,
+            ("tissue.mesh = ", "gmsh"),
+            [("tissue.msh", rng.choice(["", "$Nodes\n"]) + text)],
+        )
+    groups = dict(SQUARE_GROUPS)
+    if what in ("no_pinned", "no_symmetry", "off_axis"):
+        expect = {"no_pinned": "no point group 'pinned'", "no_symmetry": "no curve group",
+                  "off_axis": "is not on x2 = 0"}[what]  # fmt: skip
+        if what == "off_axis":
+            groups["symmetry"] = rng.choice([(3, 4), (2, 3), (4, 1)])
+        else:
+            groups.pop(what[3:])
+        return scene, ("tissue.mesh = ", expect), [("tissue.msh", square_msh(groups))]
+    if what == "type":
+        scene["tissue"]["mesh"] = Raw(rng.choice(["3", "true", "[1]", "{x = 1}"]))
+        return scene, ("tissue.mesh: expected a string",), valid
+    if what == "with_outline":
+        scene["tissue"]["outline"] = OUTLINE
+        return scene, ("tissue.mesh: not with tissue.outline",), valid
+    if what == "symmetry_load":
+        scene["loads"] = {"symmetry": [0.0, 0.001]}
+        return scene, ("loads.symmetry", "symmetry plane"), valid
+    scene["model"] = rng.choice(["micro", "both"])
+    return scene, ("tissue.mesh: the micro model",), valid
+
+
 SCENE_MAKERS = {
     "wrong_type": _wrong_type,
     "missing_required": _missing_required,
@@ -579,6 +698,8 @@ SCENE_MAKERS = {
     "bad_expression": _bad_expression,
     "micro_scene": _micro_scene,
     "bad_choice": _bad_choice,
+    "bad_outline": _bad_outline,
+    "bad_mesh": _bad_mesh,
 }
 
 TOML_ERRORS = [
@@ -809,11 +930,13 @@ def make_case(rng: random.Random, cls: str, index: int) -> Case:
     """One case of class ``cls``."""
     name = f"{cls}-{index:04d}"
     if cls in SCENE_MAKERS:
-        scene, key = SCENE_MAKERS[cls](rng, base_scene(rng))
-        files: list = [(SCENE, to_toml(scene))]
+        # (scene, key) or (scene, message fragments, extra files such as a tissue.mesh)
+        scene, key, *extra = SCENE_MAKERS[cls](rng, base_scene(rng))
+        expect = key if isinstance(key, tuple) else (key,)
+        files: list = [(SCENE, to_toml(scene)), *(extra[0] if extra else [])]
         argv = _scene_argv(rng, files)
-        label = key.strip("'=. ")
-        return Case(f"{name}-{label}", cls, "scene", tuple(argv), (key,), tuple(files))
+        label = key.strip("'=. ") if isinstance(key, str) else expect[0].split(" ")[0].split("[")[0]
+        return Case(f"{name}-{label}", cls, "scene", tuple(argv), expect, tuple(files))
     if cls in FILE_CLASSES:
         content, expect = _file_case(rng, cls)
         files = [(SCENE, content)]

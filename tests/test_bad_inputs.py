@@ -4,7 +4,7 @@ with no traceback and nothing written (tests/malformed_inputs.py generates them)
 In-process: 300 seeded cases through ``plantgrowth.cli.main`` (valid under mpirun: every rank calls
 ``main``, rank 0 alone prints; each case has its own directory, created on rank 0 and shared, which
 is also the working directory so that a default ``results/`` output would be seen). Then one case
-of eight classes as real subprocesses of the CLI (``skip_in_parallel``), and the three sizes that
+of nine classes as real subprocesses of the CLI (``skip_in_parallel``), and the three sizes that
 have no upper bound (``cell --resolution``, ``compare --nx``, ``compare --resolution``) with a time
 limit: they must be refused at once, not tried.
 """
@@ -57,7 +57,7 @@ def test_bad_input_in_process(case, tmp_path_factory, monkeypatch, capsys):
         assert err == "" and "Traceback" not in out
 
 
-SUBPROCESS_CLASSES = ("wrong_type", "nonfinite", "wall_too_thick", "binary_garbage",
+SUBPROCESS_CLASSES = ("wrong_type", "nonfinite", "wall_too_thick", "binary_garbage", "bad_mesh",
                       "toml_syntax", "cli_cell", "cli_parse", "output_dir")  # fmt: skip
 SUBPROCESS_CASES = mi.one_per_class(SEED, SUBPROCESS_CLASSES) + mi.unbounded_cases()
 

@@ -34,7 +34,7 @@ from mpi4py import MPI
 from plantgrowth.cell_solver import CellSolver
 from plantgrowth.cli import main
 from plantgrowth.compare import P1Snapshot
-from plantgrowth.coupled import MacroModel, macro_domain
+from plantgrowth.coupled import macro_model
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.micro import MicroModel, scene_cell
@@ -392,7 +392,7 @@ def test_macro_side_of_a_comparison_spans_the_same_tissue():
     """The macro side of ``both``/``compare`` runs on the micro tissue's outline, with the
     fields over its x1 extent: its coarse nodes reach x1 = 7.79 (Nx = 4) with E = 0.1 there."""
     scene = micro_scene(material={"E": {"from": 1.0, "to": 0.1}}, tissue={"h": 0.35})
-    macro = MacroModel(*macro_domain(scene, MPI.COMM_WORLD, 4), MPI.COMM_WORLD)
+    macro = macro_model(scene, MPI.COMM_WORLD, 4)
     x1 = macro.grid.nodes[:, 0]
     assert x1.max() == pytest.approx(TissueLayout(HoneycombCell(), 4).bounding_box[0])
     np.testing.assert_allclose(macro.E_nodes, 1.0 - 0.9 * x1 / x1.max(), rtol=1e-12)

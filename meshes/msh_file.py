@@ -1,0 +1,139 @@
+"""A tissue mesh read from a gmsh ``.msh`` file (``tissue.mesh``), with its named groups.
+
+The file holds linear triangles in one or more surface physical groups, the curve group
+``symmetry`` (on x2 = 0), the point group ``pinned`` (a vertex of the triangles) and any other
+named curve groups (loadable edges). :func:`inspect_msh` checks a file and measures it (every
+rank may call it: it reads the file into a scratch gmsh model); :func:`read_msh` builds the
+distributed mesh with gmsh on ``model_rank`` and ``gmshio.model_to_mesh``, as
+``gmshio.read_from_msh`` does, but keeping the group names (and gmsh initialised).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import gmsh
+import numpy as np
+from dolfinx.io import gmshio
+from mpi4py import MPI
+
+from .unit_cell import ensure_gmsh
+
+SYMMETRY = "symmetry"
+PINNED = "pinned"
+LINE, TRIANGLE = 1, 2  # gmsh element types of 2-node lines and 3-node triangles
+
+
+class MshError(ValueError):
+    """A file that is no usable tissue mesh; the message does not name the scene key."""
+
+
+@dataclass(frozen=True)
+class MshInfo:
+    """What a tissue .msh file holds.
+
+    Attributes:
+        curves: curve group name -> (physical tag, total length, lowest x2, highest x2).
+        pinned: coordinates of the ``pinned`` point.
+        lower: smallest (x1, x2) of the triangles' nodes.
+        upper: largest (x1, x2) of the triangles' nodes.
+        n_triangles: number of triangles.
+    """
+
+    curves: dict[str, tuple[int, float, float, float]]
+    pinned: tuple[float, float]
+    lower: tuple[float, float]
+    upper: tuple[float, float]
+    n_triangles: int
+
+
+def _groups(dim: int) -> dict[str, int]:
+    """Named physical groups of a dimension: name -> tag."""
+    model = gmsh.model
+    return {model.getPhysicalName(d, t): t for d, t in model.getPhysicalGroups(dim) if d == dim}
+
+
+def _elements(dim: int, tag: int, kind: int, what: str) -> np.ndarray:
+    """(n, nodes per element) node tags of a physical group's elements, all of type ``kind``."""
+    out = []
+    for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+        types, _, nodes = gmsh.model.mesh.getElements(dim, entity)
+        if any(t != kind for t in types):
+            raise MshError(
+                f"{what} has elements other than linear {['', 'lines', 'triangles'][dim]}"
+            )
+        out += [np.asarray(n, dtype=np.int64).reshape(-1, dim + 1) for n in nodes]
+    return np.concatenate(out) if out else np.empty((0, dim + 1), dtype=np.int64)
+
+
+def _inspect() -> MshInfo:
+    """Check and measure the current gmsh model (see :class:`MshInfo`)."""
+    surfaces = [t for d, t in gmsh.model.getPhysicalGroups(2)]
+    if not surfaces:
+        raise MshError("no surface physical group (the tissue's triangles)")
+    triangles = np.concatenate([_elements(2, t, TRIANGLE, "a surface group") for t in surfaces])
+    if len(triangles) == 0:
+        raise MshError("the surface groups hold no triangles")
+    tags, coords, _ = gmsh.model.mesh.getNodes()
+    index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
+    index[tags.astype(np.int64)] = np.arange(len(tags))
+    x = np.asarray(coords).reshape(-1, 3)[:, :2]
+    used = x[index[np.unique(triangles)]]
+    curves = {}
+    owner: dict[int, str] = {}
+    for name, tag in _groups(1).items():
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(1, tag):
+            if entity in owner:
+                raise MshError(f"curve {entity} is in both groups {owner[entity]!r} and {name!r}")
+            owner[entity] = name
+        lines = _elements(1, tag, LINE, f"curve group {name!r}")
+        if len(lines) == 0:
+            raise MshError(f"the curve group {name!r} has no line elements")
+        ends = x[index[lines]]
+        length = float(np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1).sum())
+        x2 = ends[:, :, 1]
+        curves[name] = (tag, length, float(x2.min()), float(x2.max()))
+    points = _groups(0)
+    if PINNED not in points:
+        raise MshError(f"no point group {PINNED!r} (the point where u1 = 0)")
+    pinned = gmsh.model.mesh.getNodesForPhysicalGroup(0, points[PINNED])[0]
+    if len(pinned) != 1 or pinned[0] not in set(triangles.ravel().tolist()):
+        raise MshError(f"the point group {PINNED!r} must be one vertex of the triangles")
+    p = x[index[int(pinned[0])]]
+    return MshInfo(
+        curves, (float(p[0]), float(p[1])), tuple(used.min(axis=0)), tuple(used.max(axis=0)),
+        len(triangles),
+    )  # fmt: skip
+
+
+def inspect_msh(path: str | Path) -> MshInfo:
+    """Read a .msh file into a scratch gmsh model and check it: MshError if it cannot be read,
+    has no triangles, no ``pinned`` point, or mixes element kinds."""
+    ensure_gmsh()
+    gmsh.model.add("inspect")
+    try:
+        try:
+            gmsh.merge(str(path))
+        except Exception as e:  # gmsh raises a bare Exception with its own message
+            raise MshError(f"not a readable gmsh mesh ({e})") from None
+        return _inspect()
+    finally:
+        gmsh.model.remove()
+
+
+def read_msh(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, model_rank: int = 0):
+    """The distributed mesh of a checked .msh file: ``(mesh, cell_tags, facet_tags, curves)``,
+    ``curves`` = curve group name -> facet tag (its physical tag)."""
+    ensure_gmsh()
+    names = None
+    try:
+        if comm.rank == model_rank:
+            gmsh.model.add("tissue mesh")
+            gmsh.merge(str(path))
+            names = _groups(1)
+        names = comm.bcast(names, root=model_rank)
+        return (*gmshio.model_to_mesh(gmsh.model, comm, model_rank, gdim=2), names)
+    finally:
+        if comm.rank == model_rank:
+            gmsh.model.remove()

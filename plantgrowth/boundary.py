@@ -1,0 +1,76 @@
+"""Where the macro problem's boundary conditions act (MODEL.md section 4): the symmetry facets on
+x2 = 0 (u2 = 0), the pinned vertex (u1 = 0, removes the x1 translation) and the loadable edges by
+name, as facet tags of the fine mesh; and the fine mesh of an outline or mesh-file tissue.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from dolfinx import mesh
+from mpi4py import MPI
+
+from plantgrowth.meshes import polygon
+from plantgrowth.meshes.msh_file import read_msh
+from plantgrowth.scene import Scene
+
+RECTANGLE_SIDES = {"bottom": (1, 0.0), "left": (0, 0.0), "right": (0, None), "top": (1, None)}
+"""Sides of the rectangle: (coordinate index, position; None = the far side)."""
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """The tagged boundary of a fine mesh.
+
+    Attributes:
+        facets: tags of the boundary facets.
+        symmetry: the tags of the facets on the symmetry plane x2 = 0.
+        edges: loadable edge name (the keys of ``[loads]``) -> tag.
+        pin: the vertex where u1 = 0.
+    """
+
+    facets: mesh.MeshTagsMetaClass
+    symmetry: tuple[int, ...]
+    edges: dict[str, int]
+    pin: tuple[float, float]
+
+
+def rectangle_boundary(msh: mesh.Mesh, width: float, height: float) -> Boundary:
+    """The sides of ``[0, width] x [0, height]`` found geometrically (also the bottom of a
+    micro tissue's outline, which has no loads), the origin pinned."""
+    far = {0: width, 1: height}
+    facets, values = [], []
+    for tag, (axis, position) in enumerate(RECTANGLE_SIDES.values(), start=1):
+        at = far[axis] if position is None else position
+        found = mesh.locate_entities_boundary(msh, 1, lambda x, a=axis, p=at: np.isclose(x[a], p))
+        facets.append(found)
+        values.append(np.full(len(found), tag, dtype=np.int32))
+    indices = np.concatenate(facets)
+    order = np.argsort(indices)
+    tags = mesh.meshtags(msh, 1, indices[order].astype(np.int32), np.concatenate(values)[order])
+    names = {name: tag for tag, name in enumerate(RECTANGLE_SIDES, start=1)}
+    return Boundary(tags, (names.pop("bottom"),), names, (0.0, 0.0))
+
+
+def shape_domain(scene: Scene, comm: MPI.Comm) -> tuple[mesh.Mesh, Boundary]:
+    """The fine mesh and boundary of a ``tissue.outline`` (meshed by gmsh with edges about h;
+    edge i tagged ``polygon.edge_tag(i)``) or of a ``tissue.mesh`` file (its groups' tags)."""
+    tissue = scene.tissue
+    shape = tissue.shape
+    if tissue.outline is not None:
+        msh, _, facets = polygon.build_polygon_mesh(np.array(tissue.outline), tissue.h, comm)
+        tags = {f"edge{i}": polygon.edge_tag(i) for i in range(len(tissue.outline))}
+    else:
+        msh, _, facets, tags = read_msh(tissue.mesh, comm)
+    symmetry = tuple(tags[name] for name in shape.symmetry)
+    edges = {name: tags[name] for name in shape.edges}
+    return msh, Boundary(facets, symmetry, edges, shape.pin)
+
+
+def pinned_vertices(msh: mesh.Mesh, pin: tuple[float, float]) -> np.ndarray:
+    """This rank's vertices at ``pin`` (to 1e-8 of the tissue's size: mesh round-off)."""
+    tol = 1e-8 * max(1.0, *(abs(p) for p in pin))
+    return mesh.locate_entities(
+        msh, 0, lambda x: (np.abs(x[0] - pin[0]) <= tol) & (np.abs(x[1] - pin[1]) <= tol)
+    )
