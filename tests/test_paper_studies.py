@@ -80,19 +80,26 @@ def test_exact_rate_of_the_reference_scenes():
     assert taus and all(studies.exact_rate(s) == 0.0 for s in taus)  # above the yield: no growth
 
 
+def table_row(run) -> dict[str, str]:
+    """A finished run's sweep.csv row (the columns the analysis reads), mean tr G = 1."""
+    return {"run": run.name, "status": "done", "t": "60", "growth_rate_area": "1.0"}
+
+
 def test_points_and_sensitivity_from_a_synthetic_table():
     """The analysis path on a fabricated sweep.csv: a one-at-a-time P1 triple whose rates follow
     X = P1^2 gives phi = 2; the l1 x l2 grid's diagonal is picked as the parameter l."""
     sweep = load_sweep(studies.SWEEPS_DIR / "fig2c_stress.toml")
-    rows = [{"status": "done", "t": "60", "growth_rate_area": "1.0"} for _ in sweep.runs]
+    rows = [table_row(run) for run in sweep.runs]
     for run, row in zip(sweep.runs, rows, strict=True):
         if "pressure.P1" in run.values:
             row["growth_rate_area"] = repr(run.values["pressure.P1"] ** 2)
     values = studies.points(sweep, rows)["pressure.P1"]
     x, X = (tuple(v[k] for v in values) for k in (0, 1))
     assert abs(studies.sensitivity(x, X) - 2.0) < ROUND_OFF  # central differences: exact on x^2
+    rows[-1]["status"] = "pending"  # cell.theta's last run: unfinished runs are left out
+    assert [v[0] for v in studies.points(sweep, rows)["cell.theta"]] == [28.5, 30.0]
     grid = load_sweep(studies.SWEEPS_DIR / "fig2c_l_stress.toml")
-    rows = [{"status": "done", "t": "60", "growth_rate_area": "1.0"} for _ in grid.runs]
+    rows = [table_row(run) for run in grid.runs[::-1]]  # matched by name, not by order
     diagonal = studies.points(grid, rows)["l"]
     assert [v[0] for v in diagonal] == [0.95, 1.0, 1.05]
     assert np.allclose([v[2] for v in diagonal][1], studies.exact_rate(load_scene(
