@@ -9,8 +9,10 @@ tissue shapes, the raw run directories of ``scripts/paper_studies.py``); nothing
   the micro walls (Nx = 16) over the macro outline at t_max, the initial tissue shaded, and the
   mean tr G of both versus time. Scenes not run yet are left blank with a note.
 
+``--tables`` prints the Markdown tables of docs/paper_studies.md.
+
     python scripts/plot_paper_studies.py [--json benchmarks/results/paper_studies.json]
-        [--results results/paper_studies] [--out docs/figures]
+        [--results results/paper_studies] [--out docs/figures] [--tables]
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--json", type=Path, default=ROOT / "benchmarks/results/paper_studies.json")
     parser.add_argument("--results", type=Path, default=ROOT / "results" / "paper_studies")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
+    parser.add_argument("--tables", action="store_true", help="print the Markdown tables too")
     return parser.parse_args(argv)
 
 
@@ -159,6 +162,42 @@ def plot_micro_macro(data: dict, results: Path, law: str, out: Path) -> None:
     save(fig, out)
 
 
+def tables(data: dict) -> str:
+    """The numbers of docs/paper_studies.md as Markdown tables."""
+    fig2c, scans, micro = data["fig2c"], data["fig3_scans"], data["fig3_micro_macro"]
+    keys = [k for k in LABELS if any(k in fig2c[law] for law in LAWS)]
+    lines = ["| parameter | phi strain: sweep / exact | phi stress: sweep / exact |",
+             "|---|---:|---:|"]  # fmt: skip
+    for key in keys:
+        cells = [f"{e['phi']:+.4f} / {e['phi_exact']:+.4f}" if (e := fig2c[law].get(key)) else "-"
+                 for law in LAWS]  # fmt: skip
+        lines.append(f"| {LABELS[key]} | {' | '.join(cells)} |")
+    lines += ["", "| parameter | values | max rel. diff. strain | max rel. diff. stress |",
+              "|---|---|---:|---:|"]  # fmt: skip
+    for key in REFERENCE:
+        entries = [scans[law].get(key) for law in LAWS]
+        if not any(entries):
+            continue
+        x = next(e for e in entries if e)["x"]
+        values = f"{len(x)} in [{min(x):g}, {max(x):g}]"
+        cells = [f"{e['max_relative_difference']:.1e}" if e else "-" for e in entries]
+        lines.append(f"| {LABELS[key]} | {values} | {' | '.join(cells)} |")
+    lines += [
+        "",
+        "| gradient | law | mean tr G at t_max: micro / macro | rel. diff. "
+        "| area growth: micro / macro | rel. diff. | seconds |",
+        "|---|---|---:|---:|---:|---:|---:|",
+    ]
+    for e in micro.values():
+        lines.append(
+            f"| {GRADIENTS[e['parameter']]} | {e['law']} | {e['rate_micro']:.5f} / "
+            f"{e['rate_macro']:.5f} | {e['rate_relative_difference']:.2%} | "
+            f"{e['area_growth_micro']:.3f} / {e['area_growth_macro']:.3f} | "
+            f"{e['area_growth_relative_difference']:.2%} | {e['seconds']:.0f} |"
+        )
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if not args.json.is_file():
@@ -171,6 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     for law in LAWS:
         out = args.out / f"fig3_micro_macro_{law}.png"
         plot_micro_macro(data["fig3_micro_macro"], args.results, law, out)
+    if args.tables:
+        print(tables(data))
     return 0
 
 
