@@ -178,8 +178,9 @@ def tables(data: dict) -> str:
         entries = [scans[law].get(key) for law in LAWS]
         if not any(entries):
             continue
-        x = next(e for e in entries if e)["x"]
-        values = f"{len(x)} in [{min(x):g}, {max(x):g}]"
+        ranges = dict.fromkeys(f"{len(e['x'])} in [{min(e['x']):g}, {max(e['x']):g}]"
+                               for e in entries if e)  # fmt: skip
+        values = " / ".join(ranges)
         cells = [f"{e['max_relative_difference']:.1e}" if e else "-" for e in entries]
         lines.append(f"| {LABELS[key]} | {values} | {' | '.join(cells)} |")
     lines += [
