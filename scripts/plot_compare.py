@@ -163,7 +163,7 @@ def _loops_path(points: np.ndarray, loops: list[np.ndarray]) -> MplPath:
     return MplPath(np.vstack(vertices), np.concatenate(codes))
 
 
-def _draw_tissue(ax, macro, micro, t: float) -> None:
+def draw_tissue(ax, macro, micro, t: float) -> None:
     """Initial tissue shaded, micro walls at x + u filled, macro outline at x + u as a line."""
     outline = boundary_outline(macro.points, macro.triangles)[0]
     ax.fill(*macro.points[outline].T, color="0.85", lw=0, zorder=0)
@@ -195,7 +195,7 @@ def plot_shapes(index: dict, raw: Path, nx: int, out: Path) -> None:
     fig, axes = plt.subplots(2, 2, figsize=(11, 6.2), constrained_layout=True)
     axes = axes.ravel()
     for ax, (title, law, t) in zip(axes, panels, strict=False):
-        _draw_tissue(ax, *series[law], t)
+        draw_tissue(ax, *series[law], t)
         ax.set_title(f"{title}, t = {t:g}", fontsize=10)
     # common limits for the tissue panels, so that the growth reads off directly
     corners = np.array([ax.dataLim.get_points() for ax in axes[: len(panels)]])
@@ -211,7 +211,7 @@ def plot_shapes(index: dict, raw: Path, nx: int, out: Path) -> None:
     zoom = axes[len(panels)] if len(panels) < 4 else None
     if zoom is not None:
         macro, micro = series[zoom_law]
-        _draw_tissue(zoom, macro, micro, zoom_t)
+        draw_tissue(zoom, macro, micro, zoom_t)
         x = macro.points + macro.displacement(zoom_t)
         x1, x2 = x[:, 0].max(), x[:, 1].max()
         box = (x1 - 2.2, x1 + 0.35, x2 - 1.3, x2 + 0.25)
