@@ -61,8 +61,9 @@ class PointValues:
             owned = colliding.links(i)[colliding.links(i) < n_owned]
             if len(owned):
                 cells[i] = owned.min()
-        rank = np.where(cells >= 0, self.comm.rank, self.comm.size)
-        first = self.comm.allreduce(rank, op=MPI.MIN)
+        rank = np.where(cells >= 0, self.comm.rank, self.comm.size).astype(np.int64)
+        first = np.empty_like(rank)
+        self.comm.Allreduce(rank, first, op=MPI.MIN)
         if np.any(first == self.comm.size):
             missing = self.x[np.argmax(first == self.comm.size), :2]
             raise RuntimeError(f"cell outline vertex {missing} lies outside the walls mesh")
