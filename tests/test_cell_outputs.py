@@ -160,3 +160,22 @@ def test_mpirun_writes_the_serial_cell_table_and_outlines(finished):
     assert np.array_equal(a.outlines.points, b.outlines.points)
     for t in a.times:
         assert b.outlines.deformed(t) == pytest.approx(a.outlines.deformed(t), rel=1e-8)
+
+
+def test_an_extended_run_writes_the_rows_of_a_straight_run(finished):
+    """t_max = 1 (rows of steps 0 and 1), then --resume to t_max = 3: step 1 is not on the new
+    schedule (every = 2), so its rows go; the table equals the straight run's (1e-10: the same
+    arithmetic repeated, as tests/test_interruptions.py)."""
+    directory = finished.parent
+    short, extended = directory / "short.toml", directory / "extended"
+    write(short, SCENE.replace("t_max = 3", "t_max = 1"))
+    assert main(["run", str(short), "-o", str(extended)]) == 0
+    MPI.COMM_WORLD.Barrier()
+    assert [r["step"] for r in read_csv(extended / "cells.csv")] == [0] * N_CELLS + [1] * N_CELLS
+    assert main(["run", str(directory / "micro.toml"), "--resume", str(extended)]) == 0
+    MPI.COMM_WORLD.Barrier()
+    straight, resumed = read_csv(finished / "cells.csv"), read_csv(extended / "cells.csv")
+    assert len(resumed) == len(straight)
+    for a, b in zip(straight, resumed, strict=True):
+        for key in CELL_COLUMNS:
+            assert b[key] == pytest.approx(a[key], rel=1e-10, abs=1e-14), key
