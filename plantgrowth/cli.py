@@ -1,4 +1,4 @@
-"""Command line: ``plantgrowth run | validate | cell | compare | sweep``.
+"""Command line: ``plantgrowth run | validate | cell | compare | sweep | render``.
 
 ``main(argv) -> int`` logs on rank 0 only: progress to stdout, warnings to stderr, both to the
 run's ``run.log``. Exit codes: 0 done, 2 bad input (one line naming the field and its valid
@@ -145,7 +145,41 @@ def build_parser() -> argparse.ArgumentParser:
     validate.add_argument("scene", type=Path, help="scene TOML file")
     validate.set_defaults(handler=_validate_command)
     _add_sweep_parser(sub)
+    _add_render_parser(sub)
     return parser
+
+
+def _add_render_parser(sub) -> None:
+    render = sub.add_parser(
+        "render",
+        help="draw a field of a run into a PNG (headless, matplotlib)",
+        description="Draw one written field of a run (finished or still running) on the "
+        "deformed tissue x + u(t), with the initial outline dashed and, for micro runs, the "
+        "cells' outlines: scalars and tensor components as colours, vectors as arrows "
+        "(directions as bars). Reads DIR, never writes into it; under mpirun only rank 0 draws.",
+    )
+    render.add_argument("directory", type=Path, metavar="DIR", help="a run's output directory")
+    render.add_argument(
+        "--field", required=True, metavar="NAME",
+        help="a written field: u, Fg, G, sigma_hom, eps_hom, E1111 ..., trG, growth_anisotropy, "
+        "growth_direction, stress_direction, cell_id (an unknown name lists the run's fields)",
+    )  # fmt: skip
+    render.add_argument(
+        "--time", type=float, default=None, metavar="T",
+        help="draw the written time nearest T (default: the last written time)",
+    )  # fmt: skip
+    render.add_argument(
+        "--component", default=None, metavar="K",
+        help="tensors (required): 11, 12, 21, 22, tr or det; vectors: 1, 2 or norm as colours "
+        "(default: arrows); scalars: none",
+    )  # fmt: skip
+    render.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.png",
+                        help="the picture to write (outside DIR)")  # fmt: skip
+    render.add_argument("--force", action="store_true",
+                        help="replace FILE.png if it exists (without it an existing file is "
+                        "refused)")  # fmt: skip
+    render.add_argument("--dpi", type=int, default=150, help="resolution (default 150)")
+    render.set_defaults(handler=_render_command)
 
 
 def _add_sweep_parser(sub) -> None:
@@ -216,6 +250,32 @@ def _cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
             for key, value in result.items():
                 shown = value if key == "ndofs" else f"{value:.6g}"
                 print(f"{key:<{width}}  {shown}")
+    return 0
+
+
+def _render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    """Rank 0 draws; the others wait for its outcome and fail the same way."""
+    outcome = None
+    if comm.rank == 0:
+        from plantgrowth.render import render
+
+        try:
+            if not 10 <= args.dpi <= 1200:
+                raise InputError(f"--dpi = {args.dpi} is out of range: an integer in [10, 1200]")
+            written = render(args.directory, args.field, args.output, args.time,
+                             args.component, args.force, dpi=args.dpi)  # fmt: skip
+            outcome = ("done", f"wrote {written}")
+        except USER_ERRORS as err:
+            outcome = ("error", str(err))
+        except BaseException:
+            comm.bcast(("failed", "render failed on rank 0"), root=0)
+            raise
+    kind, text = comm.bcast(outcome, root=0)
+    if kind == "error":
+        raise InputError(text)
+    if kind == "failed":
+        raise RuntimeError(text)
+    log.info("%s", text)
     return 0
 
 
@@ -474,7 +534,9 @@ def main(argv: list[str] | None = None) -> int:
         if not argv:
             if comm.rank == 0:
                 parser.print_help()
-            raise InputError("no command given: choose one of cell, run, compare, validate, sweep")
+            raise InputError(
+                "no command given: choose one of cell, run, compare, validate, sweep, render"
+            )
         args = parser.parse_args(argv)
         _quiet_broken_pipe()
         code = args.handler(args, comm)

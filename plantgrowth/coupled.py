@@ -22,10 +22,11 @@ from plantgrowth.boundary import Boundary, shape_domain
 from plantgrowth.coarse import CoarseGrid, active_nodes, project_to_nodes
 from plantgrowth.errors import RunError
 from plantgrowth.gather import MeshGather
+from plantgrowth.growth_fields import GrowthFields
 from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
-from plantgrowth.output import NodeFields
+from plantgrowth.output import SideMesh
 from plantgrowth.scene import Scene
 from plantgrowth.tensors import VOIGT_NAMES, VOIGT_POSITIONS
 from plantgrowth.timeloop import StepResult, max_abs_components, run_model
@@ -35,7 +36,7 @@ log = logging.getLogger("plantgrowth")
 
 class _Outputs:
     """The DG0/P1 functions written to fields.xdmf, only those the scene asks for (E_hom lives
-    on the coarse nodes: see :func:`coarse_output`)."""
+    on the coarse nodes: see :func:`coarse_output`; the growth outputs: :class:`GrowthFields`)."""
 
     def __init__(self, problem: MacroProblem, fields: tuple[str, ...]) -> None:
         self.fields = fields
@@ -43,15 +44,17 @@ class _Outputs:
         self.G = fem.Function(T0, name="G")
         self.sigma = fem.Function(T0, name="sigma_hom")
         self.eps = fem.Function(T0, name="eps_hom")
+        self.growth = GrowthFields(problem.mesh, fields)
         chosen = {"u": problem.u, "Fg": problem.Fg, "G": self.G, "sigma_hom": self.sigma,
-                  "eps_hom": self.eps}  # fmt: skip
+                  "eps_hom": self.eps, **self.growth.functions}  # fmt: skip
         self.functions = [chosen[name] for name in fields if name in chosen]
 
 
-def coarse_output(grid: CoarseGrid, fields: tuple[str, ...]) -> NodeFields:
+def coarse_output(grid: CoarseGrid, fields: tuple[str, ...]) -> SideMesh:
     """The coarse-node fields the scene asks for (E_hom's six components) on the coarse grid."""
     names = VOIGT_NAMES if "E_hom" in fields else ()
-    return NodeFields(grid.nodes, grid.triangles, names)
+    return SideMesh("coarse.xdmf", "CoarseMesh", "coarse", grid.nodes, grid.triangles,
+                    {name: ("Node", 1) for name in names})  # fmt: skip
 
 
 def _pruning_report(problem: MacroProblem, scene: Scene, strain_averages: bool) -> list[str]:
@@ -108,7 +111,8 @@ class MacroModel:
         )  # fmt: skip
         self.out = _Outputs(problem, scene.output.fields)
         self.outputs = self.out.functions
-        self.coarse_output = coarse_output(self.grid, scene.output.fields)
+        self.side_output = coarse_output(self.grid, scene.output.fields)
+        self.cell_table = None  # per-cell rows (cells.csv): micro only
         self.output_space = problem.V
         self._gather = MeshGather(problem.V)
         log.info(
@@ -197,9 +201,10 @@ class MacroModel:
         problem.set_cell_values(self.out.sigma, sigma)
         if eps_hom is not None:
             problem.set_cell_values(self.out.eps, eps_hom)
-        if self.coarse_output.names:
+        self.out.growth.fill(G, sigma, problem.set_cell_values)
+        if self.side_output.fields:
             for name, (i, j) in zip(VOIGT_NAMES, VOIGT_POSITIONS, strict=True):
-                self.coarse_output.values[name] = nt.C[self._nearest, i, j]
+                self.side_output.values[name] = nt.C[self._nearest, i, j]
         t3 = time.perf_counter()
         n, M = problem.n_owned, self.scene.growth.clamp
         return StepResult(

@@ -20,9 +20,12 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth import diagnostics, growth, plausibility
+from plantgrowth.cell_outlines import CellOutlines
 from plantgrowth.errors import RunError
+from plantgrowth.forms import cell_measures
 from plantgrowth.forms import micro as micro_forms
 from plantgrowth.forms.elasticity import wall_bilinear_form
+from plantgrowth.growth_fields import GrowthFields
 from plantgrowth.linear import assemble_and_solve, lu_solver
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
 from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
@@ -110,8 +113,19 @@ class MicroModel:
         ids = fem.Function(Q0, name="cell_id")
         self._set(ids, np.arange(layout.n_cells, dtype=float))
         self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
-        self.outputs = [self.u_out, self.Fg, self.G_out, ids]
-        self.coarse_output = None  # no coarse grid: every field lives on the walls mesh
+        self.growth_fields = GrowthFields(msh, scene.output.fields)
+        growth_outputs = list(self.growth_fields.functions.values())
+        self.outputs = [self.u_out, self.Fg, self.G_out, ids, *growth_outputs]
+        self.outlines = CellOutlines(layout, self.u)
+        membrane = ds(FACET_TAGS["membrane"])
+        self._measure_forms = [
+            (fem.form(form(self.u, ufl.TestFunction(space), n, dx, membrane)), space)
+            for form, space in ((cell_measures.deformed_area_form, Q0),
+                                (cell_measures.deformed_moment_form, self._vector_dg0))
+        ]  # fmt: skip
+        self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
+        self.cell_table = self.outlines  # cells.csv
+        self._E, self._nu = E, nu
         self._deformation_det = fem.Function(Q0)
         self._deformation_det_expr = fem.Expression(
             ufl.det(ufl.Identity(2) + ufl.grad(self.u)), Q0.element.interpolation_points()
@@ -176,12 +190,7 @@ class MicroModel:
         report = assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
         t1 = time.perf_counter()
         diagnostics.check_solution(report, self.u, self.comm)
-        integrals = fem.petsc.assemble_vector(self.driving)
-        T0 = self.Fg.function_space
-        means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]
-        # a cut bottom cell grows as the full cell mirrored about x2 = 0: its half-cell mean
-        # for 11 and 22, and no shear, which changes sign under the mirror (MODEL.md 7)
-        means[self.layout.cut_cells, 1:3] = 0.0
+        means = self._cell_means(self.driving)
         ones = np.ones(self.layout.n_cells)
         if self.scene.growth.law == "none":
             G = np.zeros_like(Fg)
@@ -199,6 +208,13 @@ class MicroModel:
         )
         self.last_G = G
         self._set(self.G_out, G)
+        self.outlines.update(G, *self._cell_geometry())
+        if self.growth_fields.functions:
+            stress = None
+            if self.growth_fields.needs_stress:
+                law = self.scene.growth.law
+                stress = (means if law == "stress" else self._stress_means()).reshape(-1, 2, 2)
+            self.growth_fields.fill(G, stress, self._set)
         self.u_out.interpolate(self.u)
         t2 = time.perf_counter()
         return StepResult(
@@ -209,6 +225,44 @@ class MicroModel:
                 G, self.scene.growth.clamp, self.hexagon_area, MPI.COMM_SELF
             ),  # per-cell values are the same on every rank
         )  # fmt: skip
+
+    def _cell_geometry(self) -> tuple[np.ndarray, np.ndarray]:
+        """Deformed area (n_cells,) and centroid (n_cells, 2) of each cell's walls and void
+        (forms/cell_measures.py)."""
+        sums = []
+        for form, space in self._measure_forms:
+            vector = fem.petsc.assemble_vector(form)
+            # membrane facets next to a ghost cell: their share goes to the owner
+            vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            bs = space.dofmap.index_map_bs
+            sums.append(self._per_cell(vector.array.reshape(-1, bs), space))
+        area = sums[0][:, 0]
+        return area, sums[1] / area[:, None]
+
+    def _cell_means(self, form: fem.Form) -> np.ndarray:
+        """(n_cells, 4) means of a tensor over each cell's own walls, ``form`` giving the
+        per-mesh-cell integrals; a cut bottom cell takes the full cell mirrored about x2 = 0:
+        its half-cell mean for 11 and 22, and no shear, which changes sign under the mirror
+        (MODEL.md 7)."""
+        integrals = fem.petsc.assemble_vector(form)
+        T0 = self.Fg.function_space
+        means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]
+        means[self.layout.cut_cells, 1:3] = 0.0
+        return means
+
+    @cached_property
+    def _wall_stress_form(self) -> fem.Form:
+        """Per mesh cell ``int sigma dx`` (compiled on first use: stress_direction under the
+        strain law)."""
+        tau = ufl.TestFunction(self.Fg.function_space)
+        dx = ufl.dx(domain=self.mesh)
+        return fem.form(
+            micro_forms.wall_stress_average_form(self.u, tau, self.Fg, self._E, self._nu, dx)
+        )
+
+    def _stress_means(self) -> np.ndarray:
+        """(n_cells, 4) wall stress averaged over each cell's own walls."""
+        return self._cell_means(self._wall_stress_form)
 
     @cached_property
     def _wall_strain_form(self) -> fem.Form:

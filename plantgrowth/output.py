@@ -4,10 +4,15 @@ Layout of an output directory::
 
     fields.xdmf            the fine mesh's time series ParaView opens (rewritten atomically)
     coarse.xdmf            the coarse grid's time series (macro E_hom; only if one is written)
-    fields.h5              the meshes: /Mesh/{geometry,topology}, /CoarseMesh/{geometry,topology}
-    fields/step_NNNNNN.h5  one file per written step: the fields, coarse ones under /coarse
+    cells.xdmf             micro runs: the cells' mid-line outlines (2-node lines) with u at
+                           their vertices, cell_id per line (ParaView: Warp By Vector)
+    fields.h5              the meshes: /Mesh/{geometry,topology}, /CoarseMesh/{geometry,topology},
+                           /Outlines/{geometry,topology}
+    fields/step_NNNNNN.h5  one file per written step: the fields, coarse ones under /coarse,
+                           outline ones under /outlines
     state.h5               the model state after the last two completed steps (float64, --resume)
     summary.csv            one row per completed step (flushed and fsync'ed)
+    cells.csv              micro runs: one row per biological cell and written step
 
 Fields are written at t = 0, every ``output.every``-th step and at the last step
 (:class:`Schedule`), in ``output.precision`` (float32 by default: what ParaView's XDMF reader
@@ -36,7 +41,8 @@ from mpi4py import MPI
 from plantgrowth.gather import MeshGather
 
 OUTPUT_FILES = (
-    "fields.xdmf", "coarse.xdmf", "fields.h5", "state.h5", "summary.csv", "scene.toml", "run.log"
+    "fields.xdmf", "coarse.xdmf", "cells.xdmf", "fields.h5", "state.h5", "summary.csv",
+    "cells.csv", "scene.toml", "run.log",
 )  # fmt: skip
 STEP_DIR = "fields"
 _TEMPORARY = tuple(f".{name}.tmp" for name in OUTPUT_FILES)  # a kill during an atomic write
@@ -200,13 +206,27 @@ def _pad(values: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class NodeFields:
-    """Scalar fields at the nodes of a small mesh that every rank holds whole (the coarse grid
-    of the macro model): the model puts each step's ``values`` (name -> (n_nodes,)) here."""
+class SideMesh:
+    """Fields on a second, small mesh that every rank holds whole, with its own XDMF index: the
+    macro model's coarse grid (E_hom's components at its nodes, ``coarse.xdmf``) or the micro
+    model's cell outlines (``cells.xdmf``). The model puts each step's ``values`` here.
 
-    points: np.ndarray  # (n_nodes, 2)
-    triangles: np.ndarray  # (n_triangles, 3) node numbers
-    names: tuple[str, ...]
+    Attributes:
+        index: the XDMF file name.
+        group: the mesh's group in fields.h5 (``/<group>/geometry``, ``/<group>/topology``).
+        prefix: the fields' group in each step file (``/<prefix>/<name>``).
+        points: (n_nodes, 2) node coordinates.
+        cells: (n_cells, k) node numbers: triangles (k = 3) or line segments (k = 2).
+        fields: name -> (center, components): "Node" or "Cell", 1 (scalar) or 2 (vector).
+        values: name -> this step's values, (n, components) or (n,).
+    """
+
+    index: str
+    group: str
+    prefix: str
+    points: np.ndarray
+    cells: np.ndarray
+    fields: dict[str, tuple[str, int]]
     values: dict[str, np.ndarray] = field(default_factory=dict)
 
 
@@ -239,22 +259,25 @@ class _Attribute:
 
 @dataclass(frozen=True)
 class _Mesh:
-    """A triangle mesh in fields.h5: ``/<group>/geometry`` and ``/<group>/topology``."""
+    """A mesh in fields.h5: ``/<group>/geometry`` and ``/<group>/topology`` (triangles, or
+    2-node lines)."""
 
     group: str
     n_nodes: int
     n_cells: int
+    nodes_per_cell: int = 3
 
 
 def _series_xml(mesh: _Mesh, attributes: list[_Attribute], steps: list[tuple[int, float]]) -> str:
     """XDMF 3: the mesh grid, then a temporal collection with one grid per step that includes
     the mesh's topology and geometry."""
-    group, n_nodes, n_cells = mesh.group, mesh.n_nodes, mesh.n_cells
+    group, n_nodes, n_cells, k = mesh.group, mesh.n_nodes, mesh.n_cells, mesh.nodes_per_cell
+    kind = {3: "Triangle", 2: "Polyline"}[k]
     grid = (
         f'    <Grid Name="{group}" GridType="Uniform">\n'
-        f'      <Topology TopologyType="Triangle" NumberOfElements="{n_cells}" '
-        f'NodesPerElement="3">\n'
-        f'        <DataItem Dimensions="{n_cells} 3" NumberType="Int" Precision="8" '
+        f'      <Topology TopologyType="{kind}" NumberOfElements="{n_cells}" '
+        f'NodesPerElement="{k}">\n'
+        f'        <DataItem Dimensions="{n_cells} {k}" NumberType="Int" Precision="8" '
         f'Format="HDF">fields.h5:/{group}/topology</DataItem>\n'
         f"      </Topology>\n"
         f'      <Geometry GeometryType="XY">\n'
@@ -293,21 +316,22 @@ class FieldSeries:
         functions: P1 (node) or DG0 (cell) functions, written by name.
         schedule: the steps to write.
         precision: "float32" (what ParaView's XDMF reader loads) or "float64".
-        coarse: fields on a second, coarse mesh (``coarse.xdmf``), or None.
+        side: fields on a second mesh (:class:`SideMesh`: macro ``coarse.xdmf``, micro
+            ``cells.xdmf``), or None; one without fields is not written.
         keep_until: resume: keep the steps already written up to this one that are on the
             schedule (files of the others are removed); None starts the series afresh.
     """
 
     def __init__(
         self, outdir: Path, V1: fem.FunctionSpace, functions: list[fem.Function],
-        schedule: Schedule, precision: str = "float32", coarse: NodeFields | None = None,
+        schedule: Schedule, precision: str = "float32", side: SideMesh | None = None,
         keep_until: int | None = None,
     ) -> None:  # fmt: skip
         self.outdir = outdir
         self.functions = functions
         self.schedule = schedule
         self.dtype = np.dtype(precision)
-        self.coarse = coarse if coarse is not None and coarse.names else None
+        self.side = side if side is not None and side.fields else None
         self.gather = MeshGather(V1)
         self.comm = V1.mesh.comm
         points, triangles = self.gather.points(), self.gather.triangles()
@@ -315,8 +339,8 @@ class FieldSeries:
         if self.comm.rank == 0:
             self._write_meshes(points, triangles)
             self.indexes = {"fields.xdmf": self._fine_index(points, triangles)}
-            if self.coarse is not None:
-                self.indexes["coarse.xdmf"] = self._coarse_index()
+            if self.side is not None:
+                self.indexes[self.side.index] = self._side_index()
             self._keep(keep_until)
 
     def _write_meshes(self, points: np.ndarray, triangles: np.ndarray) -> None:
@@ -325,9 +349,9 @@ class FieldSeries:
         with _atomic_h5(path) as f:
             f["Mesh/geometry"] = points
             f["Mesh/topology"] = triangles.astype(np.int64)
-            if self.coarse is not None:
-                f["CoarseMesh/geometry"] = self.coarse.points
-                f["CoarseMesh/topology"] = self.coarse.triangles.astype(np.int64)
+            if self.side is not None:
+                f[f"{self.side.group}/geometry"] = self.side.points
+                f[f"{self.side.group}/topology"] = self.side.cells.astype(np.int64)
 
     def _fine_index(
         self, points: np.ndarray, triangles: np.ndarray
@@ -344,13 +368,18 @@ class FieldSeries:
             )
         return _Mesh("Mesh", n_nodes, n_cells), attributes
 
-    def _coarse_index(self) -> tuple[_Mesh, list[_Attribute]]:
-        """The coarse mesh and its node attributes (coarse.xdmf)."""
-        n = len(self.coarse.points)
-        size = self.dtype.itemsize
-        attributes = [_Attribute(name, f"coarse/{name}", "Scalar", "Node", (n, 1), size)
-                      for name in self.coarse.names]  # fmt: skip
-        return _Mesh("CoarseMesh", n, len(self.coarse.triangles)), attributes
+    def _side_index(self) -> tuple[_Mesh, list[_Attribute]]:
+        """The second mesh and its attributes (coarse.xdmf or cells.xdmf)."""
+        side, size = self.side, self.dtype.itemsize
+        n_nodes, (n_cells, k) = len(side.points), side.cells.shape
+        attributes = []
+        for name, (center, components) in side.fields.items():
+            kind, width = _ATTRIBUTE_TYPES[components]
+            n = n_nodes if center == "Node" else n_cells
+            attributes.append(
+                _Attribute(name, f"{side.prefix}/{name}", kind, center, (n, width), size)
+            )
+        return _Mesh(side.group, n_nodes, n_cells, k), attributes
 
     def _keep(self, keep_until: int | None) -> None:
         """Index the written steps to keep, then remove the files of the others."""
@@ -373,27 +402,31 @@ class FieldSeries:
             f.attrs["step"], f.attrs["t"] = step, t
             for name, v in values.items():
                 _write_field(f, name, _pad(v), self.dtype)
-            for name in self.coarse.names if self.coarse is not None else ():
-                v = np.reshape(self.coarse.values[name], (-1, 1))
-                _write_field(f, f"coarse/{name}", v, self.dtype)
+            for name, (_, components) in self.side.fields.items() if self.side else ():
+                v = np.reshape(self.side.values[name], (-1, components))
+                _write_field(f, f"{self.side.prefix}/{name}", _pad(v), self.dtype)
         self.steps = [(s, tt) for s, tt in self.steps if s < step] + [(step, t)]
         self._write_index()
 
     def _write_index(self) -> None:
-        """fields.xdmf (and coarse.xdmf) for the steps written so far, each replaced atomically."""
+        """fields.xdmf (and coarse.xdmf or cells.xdmf) for the steps written so far, each
+        replaced atomically."""
         for name, (mesh, attributes) in self.indexes.items():
             atomic_write_text(self.outdir / name, _series_xml(mesh, attributes, self.steps))
 
 
 class SummaryWriter:
-    """``summary.csv``: one row per completed step, written by rank 0, fsync'ed at once.
+    """A CSV of rows keyed by ``step``, written by rank 0, fsync'ed at once: ``summary.csv``
+    (one row per completed step) and ``cells.csv`` (micro: one row per cell and written step).
 
-    With ``keep_until`` (resume), the rows of steps up to that one are kept, later ones dropped.
+    With ``keep_until`` (resume), the rows of steps up to that one are kept (and, given a
+    ``schedule``, only those of its steps), later ones dropped.
     """
 
     def __init__(
-        self, path: Path, columns: list[str], comm: MPI.Comm, keep_until: int | None = None
-    ) -> None:
+        self, path: Path, columns: list[str], comm: MPI.Comm, keep_until: int | None = None,
+        schedule: Schedule | None = None,
+    ) -> None:  # fmt: skip
         self.path = path
         self.columns = columns
         self.comm = comm
@@ -401,7 +434,7 @@ class SummaryWriter:
             kept = []
             if keep_until is not None and path.exists():
                 with open(path, newline="") as f:
-                    kept = [r for r in csv.DictReader(f) if int(float(r["step"])) <= keep_until]
+                    kept = [r for r in csv.DictReader(f) if _kept(r, columns, keep_until, schedule)]
             text = (
                 ",".join(columns)
                 + "\n"
@@ -410,9 +443,21 @@ class SummaryWriter:
             atomic_write_text(path, text)
 
     def write(self, row: dict[str, float]) -> None:
+        self.write_rows([row])
+
+    def write_rows(self, rows: list[dict[str, float]]) -> None:
+        """Append the rows (rank 0; the others pass through) in one write."""
         if self.comm.rank != 0:
             return
         with open(self.path, "a", newline="") as f:
-            csv.writer(f).writerow([f"{row[c]:.17g}" for c in self.columns])
+            csv.writer(f).writerows([f"{row[c]:.17g}" for c in self.columns] for row in rows)
             f.flush()
             os.fsync(f.fileno())
+
+
+def _kept(row: dict, columns: list[str], last: int, schedule: Schedule | None) -> bool:
+    """A complete row (a kill can cut the last one short) of a step to keep on resume."""
+    if any(row.get(c) in (None, "") for c in columns):
+        return False
+    step = int(float(row["step"]))
+    return step <= last and (schedule is None or step in schedule)

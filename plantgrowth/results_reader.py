@@ -11,6 +11,8 @@ run`` has written: dolfinx 0.5's (mesh at ``fields.h5:/Mesh/mesh/geometry``, fun
 - ``u``: point data at the N geometry nodes, padded to 3 components;
 - cell fields (``Fg``, ``G``, ``sigma_hom``, ...): DG0 data in topology order, tensors as 9
   row-major components of a 3 x 3 (the 2D tensor is components 0, 1, 3, 4);
+- micro runs: the cells' outlines in ``cells.xdmf`` (2-node lines over the polygon vertices,
+  u at the vertices, cell_id per line): :class:`OutlineSeries`;
 - E_hom's components (``E1111``, ...): in ``coarse.xdmf``, at the nodes of the coarse grid where
   the cell problems are solved (earlier runs wrote them on the fine cells, in ``fields.xdmf``).
   :meth:`ResultSeries.cell_field` interpolates them to the fine cells as the model does (P1 on
@@ -51,6 +53,7 @@ class ResultSeries:
         times: the output times of ``u`` (sorted).
         datasets: ``{function name: {time: (HDF5 file, dataset path)}}`` from fields.xdmf.
         coarse: the coarse grid and its node fields (from coarse.xdmf), or None.
+        outlines: the micro cells' outlines (from cells.xdmf), or None.
     """
 
     directory: Path
@@ -59,6 +62,7 @@ class ResultSeries:
     times: list[float]
     datasets: dict[str, dict[float, tuple[Path, str]]] = field(default_factory=dict)
     coarse: CoarseSeries | None = None
+    outlines: OutlineSeries | None = None
 
     @property
     def names(self) -> list[str]:
@@ -133,6 +137,29 @@ class CoarseSeries:
         return np.asarray(values)
 
 
+@dataclass
+class OutlineSeries:
+    """The outlines of a micro run's cells (``cells.xdmf``): polygon edges as lines.
+
+    Attributes:
+        points: reference vertex coordinates, (n, 2).
+        segments: the two vertices of each edge, (m, 2).
+        datasets: ``{function name: {time: (HDF5 file, dataset path)}}`` (u, cell_id).
+    """
+
+    points: np.ndarray
+    segments: np.ndarray
+    datasets: dict[str, dict[float, tuple[Path, str]]]
+
+    def deformed(self, t: float) -> np.ndarray:
+        """Vertex coordinates moved by the displacement at time t, (n, 2)."""
+        return self.points + _read_at(self.datasets["u"], "u", t)[:, :2]
+
+    def cell_ids(self, t: float) -> np.ndarray:
+        """The cell of each edge, (m,)."""
+        return _read_at(self.datasets["cell_id"], "cell_id", t).reshape(-1).astype(np.int64)
+
+
 def _read_at(series: dict[float, tuple[Path, str]], name: str, t: float) -> np.ndarray:
     """The dataset of ``series`` at time t (to round-off)."""
     key = min(series, key=lambda s: abs(s - t))
@@ -189,10 +216,12 @@ def read_series(directory: str | os.PathLike) -> ResultSeries:
         raise FileNotFoundError(f"{directory / 'fields.xdmf'} not found: not a run directory?")
     points, triangles, datasets = _index(directory / "fields.xdmf")
     times = sorted(datasets.get("u", {}) or {t for s in datasets.values() for t in s})
-    coarse = None
+    coarse = outlines = None
     if (directory / "coarse.xdmf").is_file():
         coarse = CoarseSeries(*_index(directory / "coarse.xdmf"))
-    return ResultSeries(directory, points, triangles, times, datasets, coarse)
+    if (directory / "cells.xdmf").is_file():
+        outlines = OutlineSeries(*_index(directory / "cells.xdmf"))
+    return ResultSeries(directory, points, triangles, times, datasets, coarse, outlines)
 
 
 def boundary_outline(points: np.ndarray, triangles: np.ndarray) -> list[np.ndarray]:

@@ -50,7 +50,15 @@ inclined wall length l2 = 1)::
                                # on left/right/top a component may be {expr = "..."} of s, the
                                # coordinate along the edge (x2 on left/right, x1 on top)
     [output]
-    fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these and "eps_hom"
+    fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these, "eps_hom" and the growth
+                               # outputs (docs/outputs.md), computed only when listed:
+                               # "trG" (tr G, areal growth rate), "growth_anisotropy"
+                               # ((g1 - g2)/(|g1| + |g2|) of G's principal rates g1 >= g2, in
+                               # [0, 1], 0 when both vanish), "growth_direction" (unit vector of
+                               # g1, x1 >= 0; zero vector where G is isotropic), "stress_direction"
+                               # (same for sigma_hom; micro: the cells' mean wall stress).
+                               # Micro runs write u, Fg, G, cell_id and the growth outputs
+                               # listed, plus cells.csv and cells.xdmf (cell outlines)
     every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has
                                # every step), integer in [1, 1e6]
     precision = "float32"      # of the written fields: "float32" | "float64" (the resume
@@ -142,7 +150,9 @@ MACRO_SOLVERS = ("auto", "direct", "iterative")
 MACRO_THRESHOLD = 200_000
 """Fine dofs from which ``solver.macro = "auto"`` solves iteratively: where CG + GAMG's time per
 step meets LU's on the E-gradient scene, 1 rank (measured 1.96e5; scripts/scaling.py)."""
-OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
+GROWTH_FIELDS = ("trG", "growth_anisotropy", "growth_direction", "stress_direction")
+"""Outputs derived from G and sigma_hom (plantgrowth/growth_fields.py, docs/outputs.md)."""
+OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", *GROWTH_FIELDS)
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 EDGES = ("left", "right", "top")
 RANGES = {

@@ -24,8 +24,8 @@ from plantgrowth import growth
 from plantgrowth.errors import RunError
 from plantgrowth.output import (
     FieldSeries,
-    NodeFields,
     Schedule,
+    SideMesh,
     StateFile,
     SummaryWriter,
     last_summary_step,
@@ -60,7 +60,9 @@ class GrowthModel(Protocol):
 
     output_space: fem.FunctionSpace  # P1 vector space numbering the written mesh
     outputs: list[fem.Function]
-    coarse_output: NodeFields | None  # fields on a second mesh (macro: E_hom at coarse nodes)
+    side_output: SideMesh | None  # fields on a second mesh (macro: E_hom at the coarse nodes;
+    # micro: the cell outlines)
+    cell_table: CellTable | None  # micro: one row per biological cell and written step
 
     def initial_growth(self) -> np.ndarray:
         """(n_units, 2, 2) Fg at t = 0."""
@@ -79,6 +81,15 @@ class GrowthModel(Protocol):
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """(Fg, G) of this rank's growth units from a saved state."""
+
+
+class CellTable(Protocol):
+    """Rows of ``cells.csv``: one per biological cell at a written step."""
+
+    columns: list[str]  # starting with "step", "t"
+
+    def rows(self, step: int, t: float) -> list[dict[str, float]]:
+        """The rows of the step just solved (collective; every rank gets them)."""
 
 
 class Interrupted(Exception):
@@ -192,8 +203,12 @@ def run_model(
     last = _resume_point(state, outdir, comm) if resume else None
     schedule = Schedule(scene.output.every, n_steps)
     series = FieldSeries(outdir, model.output_space, model.outputs, schedule,
-                         scene.output.precision, model.coarse_output, keep_until=last)  # fmt: skip
+                         scene.output.precision, model.side_output, keep_until=last)  # fmt: skip
     summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm, keep_until=last)
+    table = model.cell_table
+    cells = None if table is None else SummaryWriter(
+        outdir / "cells.csv", table.columns, comm, keep_until=last, schedule=schedule
+    )  # fmt: skip
     substeps = [0, 0]  # sub-steps and extra cell solves of the advance that led to this step
     if last is None:
         Fg, first = model.initial_growth(), 0
@@ -222,6 +237,8 @@ def run_model(
             t1 = time.perf_counter()
             if step in schedule:
                 series.write(step, t)
+                if cells is not None:
+                    cells.write_rows(table.rows(step, t))
             snapshot = model.state(Fg, result.G)
             t2 = time.perf_counter()
             row = model.measures(Fg, result.G)
@@ -230,8 +247,8 @@ def run_model(
                        substeps=substeps[0], **result.seconds)  # fmt: skip
             row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
                    for k, v in row.items()}  # fmt: skip
-            # fields, row, state: a kill between them leaves the state one step behind at most,
-            # and the resumed run redoes that step (its row and fields)
+            # fields (and cell rows), row, state: a kill between them leaves the state one step
+            # behind at most, and the resumed run redoes that step (its rows and fields)
             summary.write(row)
             state.write(step, t, snapshot)
             rows.append(row)

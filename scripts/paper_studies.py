@@ -130,7 +130,7 @@ def run_sweeps(args: argparse.Namespace) -> int:
 def exact_rate(scene: Scene) -> float:
     """Exact mean tr G of a homogeneous scene (module docstring; MODEL.md 4)."""
     g, m = scene.growth, scene.material
-    phi_w = scene.cell.at(0.0).phi_w
+    phi_w = scene.cell.at(0.0, 0.0).phi_w
     c = 1.0 if g.law == "stress" else (1.0 - m.nu.start) / m.E.start
     driving = c * (1.0 - phi_w) / phi_w * scene.P1.start - g.tau.start
     return 2.0 * min(g.clamp, g.eta.start * max(driving, 0.0))

@@ -108,7 +108,8 @@ SCHEMA = {
     "micro": ("nx", "resolution"),
     "solver": ("macro", "macro_threshold"),
 }
-OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom")
+OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", "trG", "growth_anisotropy",
+                 "growth_direction", "stress_direction")  # fmt: skip
 
 
 def _pairs(table: dict[str, tuple[str, ...]]) -> list[tuple[str, str]]:
@@ -165,7 +166,7 @@ def base_scene(rng: random.Random, micro: bool = False) -> dict:
                  "integrator": rng.choice(["exp", "euler"])},
         "loads": {} if micro else rng.choice([{"left": [-0.001, 0.0], "right": [0.001, 0.0]},
                                               {"top": [0.0, 0.001]}, {"right": [0.0, 0.001]}]),
-        "output": {"fields": rng.sample(OUTPUT_FIELDS, rng.randint(1, 6)),
+        "output": {"fields": rng.sample(OUTPUT_FIELDS, rng.randint(1, len(OUTPUT_FIELDS))),
                    "every": rng.randint(1, 10), "precision": rng.choice(["float32", "float64"])},
         "accuracy": {"cell_resolution": rng.randint(1, 4), "key_tolerance": 1e-6},
         "micro": {"nx": 2 * rng.randint(1, 16), "resolution": rng.randint(1, 4)},
@@ -575,7 +576,8 @@ def _bad_choice(rng: random.Random, scene: dict):
         scene.setdefault("solver", {})["macro"] = bad
         return scene, "solver.macro"
     name = rng.choice(OUTPUT_FIELDS)
-    bad = [name, name] if what == "fields_dup" else [name, rng.choice(["p", "U", "sigma", "E"])]
+    typos = ["p", "U", "sigma", "E", "trg", "tr_G", "anisotropy", "growth_dir", "direction"]
+    bad = [name, name] if what == "fields_dup" else [name, rng.choice(typos)]
     scene["output"] = {"fields": bad}
     return scene, "output.fields"
 
@@ -837,11 +839,13 @@ def _cli_case(rng: random.Random, cls: str):
             ["run", "{dir}/tiny.toml", "-o", "{dir}/a", "--resume", "{dir}/b"],
             ("--resume",),
         )
+    if cls == "cli_render":
+        return _cli_render(rng)
     # cli_parse: unknown sub-commands and flags, missing or malformed option values
     what = rng.choice(["command", "flag", "value", "int", "none", "positional"])
     if what == "command":
         name = rng.choice(["grow", "Run", "simulate", "help", _name(rng).lower()])
-        if name in ("cell", "run", "compare", "validate", "sweep"):
+        if name in ("cell", "run", "compare", "validate", "sweep", "render"):
             name = "x" + name
         return (), [name, "x"], (name,)
     if what == "flag":
@@ -859,6 +863,36 @@ def _cli_case(rng: random.Random, cls: str):
         return (), [], ("command",)
     command = rng.choice(["run", "validate", "compare"])
     return (), [command], ("scene",)
+
+
+def _cli_render(rng: random.Random):
+    """``plantgrowth render`` asked for what it cannot do, checked before any run is read: a
+    missing or non-run DIR, a picture that exists (no --force), is not a .png or lies inside
+    DIR, a malformed --time or --dpi, no --field."""
+    what = rng.choice(["no_dir", "not_a_run", "exists", "suffix", "inside", "time", "dpi",
+                       "no_field"])  # fmt: skip
+    field = rng.choice(["trG", "G", "u", "growth_direction", _name(rng)])
+    base = ["render", "{dir}/run", "--field", field]
+    if what == "no_dir":
+        return (), [*base, "-o", "{dir}/pic.png"], ("DIR", "no such directory")
+    run = (("run/keep.txt", "a user's file\n"),)
+    if what == "not_a_run":
+        return run, [*base, "-o", "{dir}/pic.png"], ("DIR", "not a run directory")
+    if what == "exists":
+        files = (*run, ("pic.png", b"\x89PNG not really"))
+        return files, [*base, "-o", "{dir}/pic.png"], ("-o", "exists", "--force")
+    if what == "suffix":
+        name = rng.choice(["pic.jpg", "pic", "pic.png.txt", "pic.PDF"])
+        return run, [*base, "-o", f"{{dir}}/{name}"], ("-o", ".png")
+    if what == "inside":
+        return run, [*base, "-o", "{dir}/run/pic.png"], ("-o", "inside the run directory")
+    if what == "time":
+        value = rng.choice(["abc", "1,5", "", "t=1"])
+        return run, [*base, "--time", value, "-o", "{dir}/pic.png"], ("--time",)
+    if what == "dpi":
+        value = rng.choice(["0", "-5", "100000", "1.5", "high"])
+        return run, [*base, "--dpi", value, "-o", "{dir}/pic.png"], ("--dpi",)
+    return run, ["render", "{dir}/run", "-o", "{dir}/pic.png"], ("--field",)
 
 
 def _setup_case(rng: random.Random):
@@ -903,12 +937,13 @@ CLASSES = {  # class -> relative weight
     "cli_cell": 4.0,
     "cli_compare": 1.5,
     "cli_run": 2.0,
+    "cli_render": 2.0,
     "cli_parse": 3.0,
     "output_dir": 2.0,
     "unbounded_size": 0.25,
 }
 FILE_CLASSES = ("empty_file", "binary_garbage", "toml_syntax")
-CLI_CLASSES = ("cli_cell", "cli_compare", "cli_run", "cli_parse")
+CLI_CLASSES = ("cli_cell", "cli_compare", "cli_run", "cli_render", "cli_parse")
 
 
 def _scene_argv(rng: random.Random, files: list) -> list[str]:

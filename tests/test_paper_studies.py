@@ -63,12 +63,12 @@ def test_sensitivity_of_power_laws(h):
 
 
 def test_exact_rate_of_the_reference_scenes():
-    """Stress law: tr G = 2 eta (1 - phi_w) P1 / phi_w (README: 0.01584 at phi_w = 0.11214);
+    """Stress law: tr G = 2 eta (1 - phi_w) P1 / phi_w (0.01584 at phi_w = 0.11214);
     strain law: the same times (1 - nu) / E; equal at nu = 0 (paper section 5)."""
     stress = load_scene(ROOT / "scenes" / "reference_stress.toml")
     strain = load_scene(ROOT / "scenes" / "reference_strain.toml")
-    phi_w = stress.cell.at(0.0).phi_w
-    assert abs(phi_w - 0.11214) < 1e-5  # README's value, rounded to 5 digits
+    phi_w = stress.cell.at(0.0, 0.0).phi_w
+    assert abs(phi_w - 0.11214) < 1e-5  # docs/unit_cell.md's value, rounded to 5 digits
     assert studies.exact_rate(stress) == pytest.approx(2 * (1 - phi_w) / phi_w * 1e-3, rel=1e-14)
     assert studies.exact_rate(strain) == pytest.approx(0.7 * studies.exact_rate(stress), rel=1e-14)
     rows = {run.values["material.nu"]: run.scene for run in
