@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
+from scipy.spatial import cKDTree
 
 
 class MeshGather:
@@ -90,3 +91,34 @@ class MeshGather:
         if u.function_space.ufl_element().degree() == 0:
             return self.cell_values(values[dofmap.list.array[: self.n_owned_cells]])
         return self.node_values(values)
+
+
+def dof_state(u: fem.Function, root: int = 0) -> dict[str, np.ndarray] | None:
+    """The owned nodal values of a blocked Lagrange function (any degree) and their points, on
+    ``root`` in a canonical order (points sorted), for a float64 resume state."""
+    n = u.function_space.dofmap.index_map.size_local
+    bs = u.function_space.dofmap.index_map_bs
+    points = u.function_space.tabulate_dof_coordinates()[:n, :2]
+    parts = u.function_space.mesh.comm.gather((points, u.x.array[: n * bs].reshape(n, bs)), root)
+    if parts is None:
+        return None
+    points = np.concatenate([p for p, _ in parts])
+    values = np.concatenate([v for _, v in parts])
+    key = np.round(points / (1e-9 * max(np.abs(points).max(), 1e-300)))
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    return {"u_points": points[order], "u": values[order]}
+
+
+def restore_dofs(u: fem.Function, state: dict[str, np.ndarray], tolerance: float) -> bool:
+    """Set u (all local nodes, ghosts included) from :func:`dof_state`'s arrays, matched by
+    point; False (u unchanged) when some node is farther than ``tolerance`` from every saved
+    point on some rank."""
+    points = u.function_space.tabulate_dof_coordinates()[:, :2]
+    distance, index = cKDTree(state["u_points"]).query(points)
+    ok = u.function_space.mesh.comm.allreduce(
+        bool(np.max(distance, initial=0.0) <= tolerance), op=MPI.LAND
+    )
+    if ok:
+        u.x.array[:] = state["u"][index].reshape(-1)
+        u.x.scatter_forward()
+    return ok

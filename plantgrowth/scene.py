@@ -7,6 +7,8 @@ of range: ...``. Integers are accepted for floats. Everything is non-dimensional
 inclined wall length l2 = 1)::
 
     model = "macro"            # "macro" | "micro" | "both"
+    kinematics = "linear"      # "linear": the paper's eps_el; "finite": F = Fe Fg, Green-Lagrange
+                               # Ee, Newton's method (MODEL.md 10, docs/finite_kinematics.md)
     [tissue]                   # the rectangle [0, width] x [0, height]; x2 = 0 is a symmetry plane
     width = 6.928203230275509  # 8 cos(30 deg), at most 1e6
     height = 3.0               # at most 1e6
@@ -106,6 +108,7 @@ MAX_NX = TISSUE_MAX_NX  # micro.nx
 LAWS = ("stress", "strain", "none")
 INTEGRATORS = ("euler", "exp", "adaptive")
 MODELS = ("macro", "micro", "both")
+KINEMATICS = ("linear", "finite")
 MACRO_SOLVERS = ("auto", "direct", "iterative")
 MACRO_THRESHOLD = 200_000
 """Fine dofs from which ``solver.macro = "auto"`` solves iteratively: where CG + GAMG's time per
@@ -440,9 +443,11 @@ class Scene:
     micro_nx: int = 16
     micro_resolution: int = 2
     solver: Solver = Solver()
+    kinematics: str = "linear"
 
     def __post_init__(self) -> None:
         _choice("model", self.model, MODELS)
+        _choice("kinematics", self.kinematics, KINEMATICS)
         self.P1.check("pressure.P1", 0.0, BIG, lo_open=False, hi_open=False)
         for key, f in self.parameter_fields().items():
             if f.width != self.tissue.width:
@@ -523,7 +528,7 @@ class Scene:
 
     def to_dict(self) -> dict[str, Any]:
         """The fully resolved scene as plain TOML/JSON data (fields as numbers or {from, to})."""
-        out: dict[str, Any] = {"model": self.model}
+        out: dict[str, Any] = {"model": self.model, "kinematics": self.kinematics}
         out["tissue"] = {f.name: getattr(self.tissue, f.name) for f in fields(self.tissue)}
         for key, f in self.parameter_fields().items():
             section, name = key.split(".")
@@ -677,7 +682,7 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
 def _parse(data: dict) -> Scene:
     if not isinstance(data, dict):
         raise SceneError(f"scene: expected a table of tables, got {_show(data)}")
-    _check_keys(data, "", ("model", *_TABLES))
+    _check_keys(data, "", ("model", "kinematics", *_TABLES))
     t = _with_preset({name: _table(data, name) for name in _TABLES})
     tissue = Tissue(**t["tissue"])
     f = {
@@ -702,6 +707,7 @@ def _parse(data: dict) -> Scene:
         micro_nx=t["micro"].get("nx", 16),
         micro_resolution=t["micro"].get("resolution", 2),
         solver=Solver(**t["solver"]),
+        kinematics=data.get("kinematics", "linear"),
     )
 
 

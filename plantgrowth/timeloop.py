@@ -40,6 +40,13 @@ SUMMARY_COLUMNS = [
     "u1_max", "u2_max", "det_Fg_min", "n_cell_solves", "residual",
     "substeps", "seconds", "seconds_cells", "seconds_solve", "seconds_growth", "seconds_io",
 ]  # fmt: skip
+NEWTON_COLUMNS = ["newton_iterations", "newton_residual"]
+"""Appended to SUMMARY_COLUMNS for ``kinematics = "finite"`` (linear runs keep those above)."""
+
+
+def summary_columns(scene: Scene) -> list[str]:
+    """The columns of a scene's summary.csv."""
+    return SUMMARY_COLUMNS + (NEWTON_COLUMNS if scene.kinematics == "finite" else [])
 
 
 @dataclass
@@ -53,6 +60,8 @@ class StepResult:
     seconds: dict[str, float] = field(default_factory=dict)  # seconds_cells, _solve, _growth
     max_elastic_strain: float | None = None  # largest principal |eps_el| over the tissue
     clamped_fraction: float | None = None  # area fraction where some |G_ij| reaches the clamp M
+    newton_iterations: int = 0  # finite kinematics: Newton iterations of the step's solve
+    newton_residual: float = 0.0  # finite kinematics: its final relative residual
 
 
 class GrowthModel(Protocol):
@@ -193,7 +202,7 @@ def run_model(
     schedule = Schedule(scene.output.every, n_steps)
     series = FieldSeries(outdir, model.output_space, model.outputs, schedule,
                          scene.output.precision, model.coarse_output, keep_until=last)  # fmt: skip
-    summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm, keep_until=last)
+    summary = SummaryWriter(outdir / "summary.csv", summary_columns(scene), comm, keep_until=last)
     substeps = [0, 0]  # sub-steps and extra cell solves of the advance that led to this step
     if last is None:
         Fg, first = model.initial_growth(), 0
@@ -227,7 +236,8 @@ def run_model(
             row = model.measures(Fg, result.G)
             row.update(step=step, t=t, n_cell_solves=result.n_cell_solves + substeps[1],
                        residual=result.residual, seconds=t2 - t0, seconds_io=t2 - t1,
-                       substeps=substeps[0], **result.seconds)  # fmt: skip
+                       substeps=substeps[0], newton_iterations=result.newton_iterations,
+                       newton_residual=result.newton_residual, **result.seconds)  # fmt: skip
             row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
                    for k, v in row.items()}  # fmt: skip
             # fields, row, state: a kill between them leaves the state one step behind at most,
