@@ -682,7 +682,7 @@ def parse_scene(data: dict, source: str = "<scene>") -> Scene:
 def _parse(data: dict) -> Scene:
     if not isinstance(data, dict):
         raise SceneError(f"scene: expected a table of tables, got {_show(data)}")
-    _check_keys(data, "", ("model", "kinematics", *_TABLES))
+    _check_keys(data, "", ("model", *_TABLES, "kinematics"))
     t = _with_preset({name: _table(data, name) for name in _TABLES})
     tissue = Tissue(**t["tissue"])
     f = {
