@@ -246,9 +246,15 @@ def run_model(
             state.write(step, t, snapshot)
             rows.append(row)
             left = (time.perf_counter() - start) / (step + 1 - first) * (n_steps - step)
+            newton = (
+                f"  Newton {result.newton_iterations} it., residual {result.newton_residual:.1e}"
+                if scene.kinematics == "finite"
+                else ""
+            )
             log.info(
-                "%sstep %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d  (%.1f s left)",
-                prefix, step, n_steps, t, row["growth_rate_area"], row["n_cell_solves"], left,
+                "%sstep %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d%s  "
+                "(%.1f s left)", prefix, step, n_steps, t, row["growth_rate_area"],
+                row["n_cell_solves"], newton, left,
             )  # fmt: skip
             for text in warnings.check(step, t, result):
                 log.warning("warning: %s%s", prefix, text)

@@ -13,6 +13,7 @@ that are exact in the continuous and the discrete problem are checked to 1e-8 re
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import h5py
@@ -21,6 +22,7 @@ import pytest
 from mpi4py import MPI
 
 from plantgrowth import newton
+from plantgrowth.cli import main
 from plantgrowth.coupled import MacroModel
 from plantgrowth.errors import RunError
 from plantgrowth.macro_problem import rectangle_mesh
@@ -207,6 +209,38 @@ def test_newton_failure_names_step_place_and_cause(mpi_tmp_path, monkeypatch):
     pattern = r"^step 0, t = 0: Newton did not converge: relative residual .* after 1 iterations"
     with pytest.raises(RunError, match=pattern + r".* largest at x = \(\d"):
         run_model(macro(sc), sc, mpi_tmp_path, MPI.COMM_WORLD)
+
+
+# --- the rest of the program ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("model", ["macro", "both"])
+def test_cli_runs_a_finite_scene_with_the_adaptive_integrator_preset_and_surrogate(
+    model, mpi_tmp_path
+):
+    """``plantgrowth run`` on a finite scene (draft preset: surrogate on; adaptive integrator;
+    eps_hom among the fields): exit 0, scene.toml records the kinematics, summary.csv has a
+    Newton count >= 1 and a residual <= 1e-10 (NEWTON_RTOL) in every row."""
+    path = mpi_tmp_path / "scene.toml"
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text(
+            f'model = "{model}"\nkinematics = "finite"\n[growth]\nlaw = "strain"\n'
+            '[time]\nt_max = 2.0\nintegrator = "adaptive"\n[accuracy]\npreset = "draft"\n'
+            "[micro]\nnx = 4\nresolution = 1\n"
+            '[output]\nfields = ["u", "Fg", "G", "sigma_hom", "eps_hom"]\n'
+        )
+    MPI.COMM_WORLD.Barrier()
+    outdir = mpi_tmp_path / "out"
+    assert main(["run", str(path), "-o", str(outdir)]) == 0
+    assert 'kinematics = "finite"' in (outdir / "scene.toml").read_text()
+    summaries = [outdir / "summary.csv"] if model == "macro" else list(outdir.glob("*/summary.csv"))
+    assert len(summaries) == (1 if model == "macro" else 2)
+    for summary in summaries:
+        with open(summary, newline="") as f:
+            rows = list(csv.DictReader(f))
+        assert len(rows) == 3 and list(rows[0])[-2:] == NEWTON_COLUMNS
+        for row in rows:
+            assert int(row["newton_iterations"]) >= 1 and float(row["newton_residual"]) <= 1e-10
 
 
 # --- parallel and resume ------------------------------------------------------------------------
