@@ -126,18 +126,20 @@ class MacroModel:
         n = self.problem.n_owned
         parts = [self.problem.midpoints[:n, :2], Fg[:n].reshape(n, 4), G[:n].reshape(n, 4)]
         midpoints, Fg_all, G_all = (self._gather.cell_values(p) for p in parts)
-        u = dof_state(self.problem.u) if self.problem.finite else {}  # Newton's initial guess
+        newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         if self.comm.rank != 0:
             return None
-        return {"midpoints": midpoints, "Fg": Fg_all, "G": G_all} | u
+        return {"midpoints": midpoints, "Fg": Fg_all, "G": G_all} | newton
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint."""
         distance, index = cKDTree(state["midpoints"]).query(self.problem.midpoints[:, :2])
         tolerance = 1e-9 * max(self.problem.bounding_box)
         matches = np.max(distance, initial=0.0) <= tolerance
-        if self.problem.finite:  # the last solution: the resumed Newton starts where it left off
-            matches = "u" in state and restore_dofs(self.problem.u, state, tolerance) and matches
+        if self.problem.finite:  # the resumed Newton starts from the straight run's guess
+            matches = (
+                restore_dofs(self.problem.newton.guess_functions, state, tolerance) and matches
+            )
         if not matches:
             raise RunError("the saved state does not match this mesh: was the scene changed?")
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)

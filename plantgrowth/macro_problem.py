@@ -94,10 +94,9 @@ class MacroProblem:
         self.bcs = self._boundary_conditions()
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         self.solver = scene.solver.macro_kind(self.ndofs)
+        self._linear_forms(scene, psi, P1)  # finite kinematics: Newton's predictor
         if self.finite:
             self._finite_forms(scene, psi, P1)
-        else:
-            self._linear_forms(scene, psi, P1)
         self._grad_u = fem.Function(self.T0)
         self._grad_u_expr = fem.Expression(ufl.grad(self.u), self.T0.element.interpolation_points())
         log.info(
@@ -137,8 +136,10 @@ class MacroProblem:
         residual -= self._traction_terms(
             scene, lambda f, n, ds: finite.follower_traction(u, f, psi, n, ds)
         )
-        self.active_terms.append("finite kinematics (Newton)")
-        self.newton = NewtonSolver(residual, self.u, self.bcs, self._linear_solver)
+        self.active_terms.append("finite kinematics (Newton, linear predictor)")
+        self.newton = NewtonSolver(
+            residual, self.u, self.bcs, self._linear_solver, predictor=self._linear_solve
+        )
         self.newton_report: NewtonReport | None = None
 
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
@@ -208,13 +209,17 @@ class MacroProblem:
             self.newton_report = report = self.newton.solve()
             log_report("macro", report)
             return SolveReport(report.reason, report.linear_residual)
-        report = assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+        report = self._linear_solve()
         if self.solver == "iterative":
             log.info(
                 "macro solve: %d CG iterations, relative residual %.2g",
                 report.iterations, report.residual,
             )  # fmt: skip
         return report
+
+    def _linear_solve(self) -> SolveReport:
+        """The linear-kinematics solve (MODEL.md 4) into u."""
+        return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
 
     def grad_u(self) -> np.ndarray:
         """(n_cells, 2, 2) displacement gradient per cell."""

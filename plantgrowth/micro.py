@@ -89,24 +89,22 @@ class MicroModel:
         self.bcs = self._boundary_conditions(facet_tags)
         self.finite = scene.kinematics == "finite"
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
-        if self.finite:
+        rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx)
+        if np.any(self.pressure != 0.0):
+            rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
+        self.a = fem.form(wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx))
+        self.L = fem.form(rhs)
+        self.A = fem.petsc.create_matrix(self.a)
+        self.b = fem.petsc.create_vector(self.L)
+        self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
+        if self.finite:  # the linear solve above is Newton's predictor
             residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx)
             if np.any(self.pressure != 0.0):
                 residual += finite_forms.follower_pressure(self.u, psi, P, n, membrane)
             self.newton = NewtonSolver(
-                residual, self.u, self.bcs, lambda A: lu_solver(A, comm, "plantgrowth_micro_")
-            )
-        else:
-            rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx)
-            if np.any(self.pressure != 0.0):
-                rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
-            self.a = fem.form(
-                wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx)
-            )
-            self.L = fem.form(rhs)
-            self.A = fem.petsc.create_matrix(self.a)
-            self.b = fem.petsc.create_vector(self.L)
-            self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
+                residual, self.u, self.bcs, lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
+                predictor=self._linear_solve,
+            )  # fmt: skip
         driving = (
             self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx)
             if scene.growth.law == "stress"
@@ -196,7 +194,7 @@ class MicroModel:
             log_report("micro", newton)
             report = SolveReport(newton.reason, newton.linear_residual)
         else:
-            report = assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+            report = self._linear_solve()
         t1 = time.perf_counter()
         diagnostics.check_solution(report, self.u, self.comm)
         integrals = fem.petsc.assemble_vector(self.driving)
@@ -234,6 +232,10 @@ class MicroModel:
             *((newton.iterations, newton.residual) if newton else ()),
         )  # fmt: skip
 
+    def _linear_solve(self) -> SolveReport:
+        """The linear-kinematics solve ([var_inequal]) into u."""
+        return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+
     @cached_property
     def _wall_strain_form(self) -> fem.Form:
         """Per mesh cell ``int eps_el dx`` (finite kinematics: Ee; compiled on first use)."""
@@ -254,15 +256,15 @@ class MicroModel:
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
         """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with
-        finite kinematics also u, Newton's initial guess for the next solve."""
-        u = dof_state(self.u) if self.finite else {}
-        return {"Fg": Fg, "G": G} | u if self.comm.rank == 0 else None
+        finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
+        newton = dof_state(self.newton.guess_functions) if self.finite else {}
+        return {"Fg": Fg, "G": G} | newton if self.comm.rank == 0 else None
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         matches = state["Fg"].shape == (self.layout.n_cells, 2, 2)
         if self.finite:
             tolerance = 1e-9 * max(self.layout.bounding_box)
-            matches = "u" in state and restore_dofs(self.u, state, tolerance) and matches
+            matches = restore_dofs(self.newton.guess_functions, state, tolerance) and matches
         if not matches:
             raise RunError("the saved state does not match this tissue: was the scene changed?")
         return state["Fg"], state["G"]
