@@ -149,13 +149,15 @@ def line(result: dict) -> str:
     d = result["differences"]
     last = len(d["t"]) - 1
     first = min(1, last)
+    stops = f"{result['linear']['cause'][:80]!r} / {result['finite']['cause'][:80]!r}"
+    if last < 0:
+        return f"{result['scene']}: no common step; stops: {stops}"
     return (
         f"{result['scene']}: rel. diff tr G {d['rel_diff_growth_rate'][first]:.2e} at t = "
         f"{d['t'][first]:g}, {d['rel_diff_growth_rate'][last]:.2e} at t = {d['t'][last]:g} "
         f"(area {d['rel_diff_area'][last]:.2e}, growth ratio {d['growth_ratio'][last]:.3f}); "
         f"cost x{result['cost_ratio_per_step']:.2f} per step; reached t = "
-        f"{result['linear']['t_reached']:g} / {result['finite']['t_reached']:g}; stops: "
-        f"{result['linear']['cause'][:80]!r} / {result['finite']['cause'][:80]!r}"
+        f"{result['linear']['t_reached']:g} / {result['finite']['t_reached']:g}; stops: {stops}"
     )
 
 
