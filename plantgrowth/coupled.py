@@ -21,7 +21,7 @@ from plantgrowth import diagnostics, growth, plausibility
 from plantgrowth.boundary import Boundary, shape_domain
 from plantgrowth.coarse import CoarseGrid, active_nodes, project_to_nodes
 from plantgrowth.errors import RunError
-from plantgrowth.gather import MeshGather
+from plantgrowth.gather import MeshGather, dof_state, restore_dofs
 from plantgrowth.growth_fields import GrowthFields
 from plantgrowth.homogenization import Homogenizer
 from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
@@ -61,7 +61,9 @@ def _pruning_report(problem: MacroProblem, scene: Scene, strain_averages: bool) 
     skipped = []
     if problem.K is None:
         skipped.append("pressure: P1 = 0, no K_hom cell problem and no pressure term")
-    if problem.P2vec is None:
+    if problem.finite and not scene.P1.is_constant:
+        skipped.append("finite kinematics: grad(P1) and P2vec cancel (MODEL.md 10), not assembled")
+    elif problem.P2vec is None:
         skipped.append("P1 has no gradient: no grad(P1) or P2 terms")
     if not scene.loads:
         skipped.append("no loads: no traction term")
@@ -135,14 +137,21 @@ class MacroModel:
         n = self.problem.n_owned
         parts = [self.problem.midpoints[:n, :2], Fg[:n].reshape(n, 4), G[:n].reshape(n, 4)]
         midpoints, Fg_all, G_all = (self._gather.cell_values(p) for p in parts)
+        newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         if self.comm.rank != 0:
             return None
-        return {"midpoints": midpoints, "Fg": Fg_all, "G": G_all}
+        return {"midpoints": midpoints, "Fg": Fg_all, "G": G_all} | newton
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint."""
         distance, index = cKDTree(state["midpoints"]).query(self.problem.midpoints[:, :2])
-        if np.max(distance, initial=0.0) > 1e-9 * max(self.problem.bounding_box):
+        tolerance = 1e-9 * max(self.problem.bounding_box)
+        matches = np.max(distance, initial=0.0) <= tolerance
+        if self.problem.finite:  # the resumed Newton starts from the straight run's guess
+            matches = (
+                restore_dofs(self.problem.newton.guess_functions, state, tolerance) and matches
+            )
+        if not matches:
             raise RunError("the saved state does not match this mesh: was the scene changed?")
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
@@ -179,7 +188,8 @@ class MacroModel:
         t2 = time.perf_counter()
         diagnostics.check_solution(report, problem.u, self.comm)
         grad_u = problem.grad_u()
-        eps_el = growth.elastic_strain(grad_u, Fg)
+        strain = growth.green_lagrange_strain if problem.finite else growth.elastic_strain
+        eps_el = strain(grad_u, Fg)  # finite kinematics: Ee (MODEL.md 10)
         sigma = growth.homogenized_stress(C, eps_el, K, self.P1)
         eps_hom = None
         if self.strain_averages:
@@ -207,11 +217,13 @@ class MacroModel:
                 self.side_output.values[name] = nt.C[self._nearest, i, j]
         t3 = time.perf_counter()
         n, M = problem.n_owned, self.scene.growth.clamp
+        newton = problem.newton_report if problem.finite else None
         return StepResult(
             G, report.reason, report.residual, self.homogenizer.solves_last_call,
             {"seconds_cells": t1 - t0, "seconds_solve": t2 - t1, "seconds_growth": t3 - t2},
             plausibility.largest_strain(eps_el[:n], self.comm),
             plausibility.clamped_fraction(G[:n], M, problem.areas, self.comm),
+            *((newton.iterations, newton.residual) if newton else ()),
         )  # fmt: skip
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:

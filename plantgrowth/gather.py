@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
+from scipy.spatial import cKDTree
 
 
 class MeshGather:
@@ -90,3 +91,39 @@ class MeshGather:
         if u.function_space.ufl_element().degree() == 0:
             return self.cell_values(values[dofmap.list.array[: self.n_owned_cells]])
         return self.node_values(values)
+
+
+def dof_state(functions: list[fem.Function], root: int = 0) -> dict[str, np.ndarray]:
+    """The owned nodal values of blocked Lagrange functions (any degree, one space) and their
+    points, on ``root`` ({} elsewhere) in a canonical order (points sorted), for a float64
+    resume state: key ``dof_points`` and one key per function name."""
+    V = functions[0].function_space
+    n, bs = V.dofmap.index_map.size_local, V.dofmap.index_map_bs
+    local = [V.tabulate_dof_coordinates()[:n, :2]]
+    local += [f.x.array[: n * bs].reshape(n, bs) for f in functions]
+    parts = V.mesh.comm.gather(local, root)
+    if parts is None:
+        return {}
+    points, *values = (np.concatenate(arrays) for arrays in zip(*parts, strict=True))
+    key = np.round(points / (1e-9 * max(np.abs(points).max(), 1e-300)))
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    names = [f.name for f in functions]
+    return {"dof_points": points[order]} | {k: v[order] for k, v in zip(names, values, strict=True)}
+
+
+def restore_dofs(
+    functions: list[fem.Function], state: dict[str, np.ndarray], tolerance: float
+) -> bool:
+    """Set the functions (all local nodes, ghosts included) from :func:`dof_state`'s arrays,
+    matched by point; False (nothing set) when an array is missing or some node is farther
+    than ``tolerance`` from every saved point on some rank."""
+    V = functions[0].function_space
+    if "dof_points" not in state or any(f.name not in state for f in functions):
+        return False
+    distance, index = cKDTree(state["dof_points"]).query(V.tabulate_dof_coordinates()[:, :2])
+    ok = V.mesh.comm.allreduce(bool(np.max(distance, initial=0.0) <= tolerance), op=MPI.LAND)
+    if ok:
+        for f in functions:
+            f.x.array[:] = state[f.name][index].reshape(-1)
+            f.x.scatter_forward()
+    return ok

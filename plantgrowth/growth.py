@@ -34,6 +34,12 @@ def elastic_strain(grad_u: np.ndarray, Fg: np.ndarray) -> np.ndarray:
     return 0.5 * (A + np.swapaxes(A, 1, 2)) - np.eye(2)
 
 
+def green_lagrange_strain(grad_u: np.ndarray, Fg: np.ndarray) -> np.ndarray:
+    """``Ee = (Fe^T Fe - I) / 2`` with ``Fe = (I + grad u) Fg^{-1}`` (MODEL.md section 10)."""
+    Fe = (np.eye(2) + grad_u) @ np.linalg.inv(Fg)
+    return 0.5 * (np.swapaxes(Fe, 1, 2) @ Fe - np.eye(2))
+
+
 def homogenized_stress(C: np.ndarray, eps_el: np.ndarray, K: np.ndarray | None, P1: np.ndarray):
     """[sigma_hom]: ``E_hom eps_el + K_hom P1`` (C is the 3x3 Voigt form of E_hom)."""
     sigma = from_voigt_stress(np.einsum("nij,nj->ni", C, voigt_vector(eps_el)))

@@ -21,11 +21,12 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth.boundary import Boundary, pinned_vertices, rectangle_boundary
-from plantgrowth.forms import macro
+from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction
 from plantgrowth.forms.expressions import UFL_OPS
 from plantgrowth.linear import SolveReport, assemble_and_solve, cg_gamg_solver, lu_solver
 from plantgrowth.loads import ALONG
+from plantgrowth.newton import NewtonReport, NewtonSolver, log_report
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -97,52 +98,81 @@ class MacroProblem:
         self.total_area = comm.allreduce(self.areas.sum(), op=MPI.SUM)
         self.bounding_box = mesh_bounding_box(msh)
 
-        u, psi = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
-        dx = ufl.dx
+        psi = ufl.TestFunction(self.V)
+        self.finite = scene.kinematics == "finite"
         self.active_terms = ["elasticity", "growth"]
-        rhs = macro.macro_growth_rhs(psi, self.Fg, self.C, dx)
         self.K = None
         self.P2vec = None
         at_cells = self.midpoints[:, 0], self.midpoints[:, 1]
+        P1 = grad_P1 = None
         if not (scene.P1.is_constant and float(scene.P1(0.0, 0.0)) == 0.0):
             self.K = fem.Function(self.T0, name="K")
-            # P1 at the cell midpoints: the one-point rule integrates a linear P1 exactly
+            # P1 at the cell midpoints: the one-point rule integrates a linear P1 exactly (every
+            # other factor of both kinematics' forms is constant on a cell)
             P1 = fem.Function(self.Q0)
             self.set_cell_values(P1, scene.P1(*at_cells))
-            rhs += macro.macro_pressure_rhs(psi, self.Fg, self.K, self.phi_w, P1, dx)
             self.active_terms.append("pressure")
             if not scene.P1.is_constant:
-                self.P2vec = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)), name="P2vec")
-                grad_P1 = fem.Function(self.P2vec.function_space)
+                grad_P1 = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)))
                 self.set_cell_values(grad_P1, scene.P1.gradient(*at_cells))
-                rhs += macro.macro_pressure_gradient_rhs(
-                    psi, self.Fg, self.phi_w, grad_P1, self.P2vec, dx
-                )
-                self.active_terms.append("pressure gradient (grad P1, P2)")
-        rhs += self._traction_terms(scene, psi)
-        self.a = fem.form(macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx))
-        self.L = fem.form(rhs)
+        self.active_terms += [f"traction on {name}" for name in sorted(scene.loads)]
         self.bcs = self._boundary_conditions()
-        self.A = fem.petsc.create_matrix(self.a)
-        self.b = fem.petsc.create_vector(self.L)
-        self._grad_u = fem.Function(self.T0)
-        self._grad_u_expr = fem.Expression(ufl.grad(self.u), self.T0.element.interpolation_points())
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         self.solver = scene.solver.macro_kind(self.ndofs)
-        self.ksp = self._linear_solver()
+        self._linear_forms(scene, psi, P1, grad_P1)  # finite kinematics: Newton's predictor
+        if self.finite:
+            self._finite_forms(scene, psi, P1)
+        self._grad_u = fem.Function(self.T0)
+        self._grad_u_expr = fem.Expression(ufl.grad(self.u), self.T0.element.interpolation_points())
         log.info(
             "macro solver: %s (solver.macro = %r, %d fine dofs, threshold %d)",
             "CG + GAMG" if self.solver == "iterative" else "LU", scene.solver.macro,
             self.ndofs, scene.solver.macro_threshold,
         )  # fmt: skip
 
-    def _linear_solver(self) -> PETSc.KSP:
-        if self.solver == "iterative":
-            return cg_gamg_solver(self.A, self.V, PREFIX, MACRO_RTOL, MACRO_MAX_IT)
-        return lu_solver(self.A, self.mesh.comm, PREFIX)
+    def _linear_forms(self, scene: Scene, psi, P1, grad_P1) -> None:
+        """MODEL.md 4: the bilinear form a, the load L of the active terms, matrix and solver."""
+        u, dx = ufl.TrialFunction(self.V), ufl.dx
+        rhs = macro.macro_growth_rhs(psi, self.Fg, self.C, dx)
+        if self.K is not None:
+            rhs += macro.macro_pressure_rhs(psi, self.Fg, self.K, self.phi_w, P1, dx)
+            if grad_P1 is not None:
+                self.P2vec = fem.Function(grad_P1.function_space, name="P2vec")
+                rhs += macro.macro_pressure_gradient_rhs(
+                    psi, self.Fg, self.phi_w, grad_P1, self.P2vec, dx
+                )
+                self.active_terms.append("pressure gradient (grad P1, P2)")
+        rhs += self._traction_terms(
+            scene, lambda f, n, ds: boundary_traction(f, psi, self.Fg, n, ds)
+        )
+        self.a = fem.form(macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx))
+        self.L = fem.form(rhs)
+        self.A = fem.petsc.create_matrix(self.a)
+        self.b = fem.petsc.create_vector(self.L)
+        self.ksp = self._linear_solver(self.A)
 
-    def _traction_terms(self, scene: Scene, psi) -> ufl.Form | int:
-        """``int_{Gamma_N} Jg |Fg^{-T} N| f . psi ds`` on each loaded edge (0 without loads)."""
+    def _finite_forms(self, scene: Scene, psi, P1) -> None:
+        """MODEL.md 10: the residual (grad P1 and P2vec cancel: not assembled) and its Newton
+        solver; tractions follow the deformed edges."""
+        u, dx = self.u, ufl.dx
+        residual = finite.macro_residual(u, psi, self.Fg, self.C, self.K, self.phi_w, P1, dx)
+        residual -= self._traction_terms(
+            scene, lambda f, n, ds: finite.follower_traction(u, f, psi, n, ds)
+        )
+        self.active_terms.append("finite kinematics (Newton, linear predictor)")
+        self.newton = NewtonSolver(
+            residual, self.u, self.bcs, self._linear_solver, predictor=self._linear_solve
+        )
+        self.newton_report: NewtonReport | None = None
+
+    def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
+        if self.solver == "iterative":
+            return cg_gamg_solver(A, self.V, PREFIX, MACRO_RTOL, MACRO_MAX_IT)
+        return lu_solver(A, self.mesh.comm, PREFIX)
+
+    def _traction_terms(self, scene: Scene, term) -> ufl.Form | int:
+        """``term(f, n, ds)`` summed over the loaded edges (0 without loads): the traction
+        ``int_{Gamma_N} Jg |Fg^{-T} N| f . psi ds`` (MODEL.md 4) or its finite variant."""
         terms = 0
         if not scene.loads:
             return terms
@@ -150,9 +180,7 @@ class MacroProblem:
         ds = ufl.Measure("ds", domain=msh, subdomain_data=self.boundary.facets)
         n = ufl.FacetNormal(msh)
         for name, f in sorted(scene.loads.items()):
-            traction = _traction(msh, name, f)
-            terms += boundary_traction(traction, psi, self.Fg, n, ds(self.boundary.edges[name]))
-            self.active_terms.append(f"traction on {name}")
+            terms += term(_traction(msh, name, f), n, ds(self.boundary.edges[name]))
         return terms
 
     def _boundary_conditions(self) -> list:
@@ -180,14 +208,23 @@ class MacroProblem:
         return function.x.array.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
 
     def solve(self) -> SolveReport:
-        """Assemble the active terms and solve for u; returns the solver diagnostics."""
-        report = assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+        """Assemble the active terms and solve for u; returns the solver diagnostics (finite
+        kinematics: those of the worst linear solve; Newton's in ``newton_report``)."""
+        if self.finite:
+            self.newton_report = report = self.newton.solve()
+            log_report("macro", report)
+            return SolveReport(report.reason, report.linear_residual)
+        report = self._linear_solve()
         if self.solver == "iterative":
             log.info(
                 "macro solve: %d CG iterations, relative residual %.2g",
                 report.iterations, report.residual,
             )  # fmt: skip
         return report
+
+    def _linear_solve(self) -> SolveReport:
+        """The linear-kinematics solve (MODEL.md 4) into u."""
+        return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
 
     def grad_u(self) -> np.ndarray:
         """(n_cells, 2, 2) displacement gradient per cell."""

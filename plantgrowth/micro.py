@@ -23,12 +23,15 @@ from plantgrowth import diagnostics, growth, plausibility
 from plantgrowth.cell_outlines import CellOutlines
 from plantgrowth.errors import RunError
 from plantgrowth.forms import cell_measures
+from plantgrowth.forms import finite as finite_forms
 from plantgrowth.forms import micro as micro_forms
 from plantgrowth.forms.elasticity import wall_bilinear_form
+from plantgrowth.gather import dof_state, restore_dofs
 from plantgrowth.growth_fields import GrowthFields
-from plantgrowth.linear import assemble_and_solve, lu_solver
+from plantgrowth.linear import SolveReport, assemble_and_solve, lu_solver
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
 from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
+from plantgrowth.newton import NewtonSolver, log_report
 from plantgrowth.scene import Scene
 from plantgrowth.timeloop import StepResult, max_abs_components, run_model
 
@@ -83,16 +86,31 @@ class MicroModel:
         dx = ufl.dx(domain=msh)
         ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
         n = ufl.FacetNormal(msh)
-        u, psi, tau_test = ufl.TrialFunction(self.V), ufl.TestFunction(self.V), ufl.TestFunction(T0)
+        psi, tau_test = ufl.TestFunction(self.V), ufl.TestFunction(T0)
+        membrane = ds(FACET_TAGS["membrane"])
+        self.bcs = self._boundary_conditions(facet_tags)
+        self.finite = scene.kinematics == "finite"
+        self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
         rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx)
         if np.any(self.pressure != 0.0):
-            rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, ds(FACET_TAGS["membrane"]))
-        self.a = fem.form(wall_bilinear_form(u, psi, self.Fg, E, nu, dx))
+            rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
+        self.a = fem.form(wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx))
         self.L = fem.form(rhs)
+        self.A = fem.petsc.create_matrix(self.a)
+        self.b = fem.petsc.create_vector(self.L)
+        self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
+        if self.finite:  # the linear solve above is Newton's predictor
+            residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx)
+            if np.any(self.pressure != 0.0):
+                residual += finite_forms.follower_pressure(self.u, psi, P, n, membrane)
+            self.newton = NewtonSolver(
+                residual, self.u, self.bcs, lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
+                predictor=self._linear_solve,
+            )  # fmt: skip
         driving = (
-            micro_forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx)
+            self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx)
             if scene.growth.law == "stress"
-            else micro_forms.elastic_strain_average_form(self.u, tau_test, self.Fg, dx)
+            else self.forms.elastic_strain_average_form(self.u, tau_test, self.Fg, dx)
         )
         self.driving = fem.form(driving)
         self.enclosed_area = fem.form(
@@ -103,10 +121,6 @@ class MicroModel:
         self.hexagon_area = np.array(
             [polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]
         )
-        self.bcs = self._boundary_conditions(facet_tags)
-        self.A = fem.petsc.create_matrix(self.a)
-        self.b = fem.petsc.create_vector(self.L)
-        self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
 
         self._vector_dg0 = fem.VectorFunctionSpace(msh, ("DG", 0))
         self.G_out = fem.Function(T0, name="G")
@@ -187,7 +201,13 @@ class MicroModel:
     def step(self, Fg: np.ndarray) -> StepResult:
         t0 = time.perf_counter()
         self._set(self.Fg, Fg)
-        report = assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+        newton = None
+        if self.finite:
+            newton = self.newton.solve()
+            log_report("micro", newton)
+            report = SolveReport(newton.reason, newton.linear_residual)
+        else:
+            report = self._linear_solve()
         t1 = time.perf_counter()
         diagnostics.check_solution(report, self.u, self.comm)
         means = self._cell_means(self.driving)
@@ -224,6 +244,7 @@ class MicroModel:
             plausibility.clamped_fraction(
                 G, self.scene.growth.clamp, self.hexagon_area, MPI.COMM_SELF
             ),  # per-cell values are the same on every rank
+            *((newton.iterations, newton.residual) if newton else ()),
         )  # fmt: skip
 
     def _cell_geometry(self) -> tuple[np.ndarray, np.ndarray]:
@@ -264,12 +285,16 @@ class MicroModel:
         """(n_cells, 4) wall stress averaged over each cell's own walls."""
         return self._cell_means(self._wall_stress_form)
 
+    def _linear_solve(self) -> SolveReport:
+        """The linear-kinematics solve ([var_inequal]) into u."""
+        return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+
     @cached_property
     def _wall_strain_form(self) -> fem.Form:
-        """Per mesh cell ``int eps_el dx`` (compiled on first use)."""
+        """Per mesh cell ``int eps_el dx`` (finite kinematics: Ee; compiled on first use)."""
         tau = ufl.TestFunction(self.Fg.function_space)
         dx = ufl.dx(domain=self.mesh)
-        return fem.form(micro_forms.elastic_strain_average_form(self.u, tau, self.Fg, dx))
+        return fem.form(self.forms.elastic_strain_average_form(self.u, tau, self.Fg, dx))
 
     def _cell_mean_strains(self) -> np.ndarray:
         """(n_cells, 2, 2) elastic strain averaged over each cell's own walls: the strain the
@@ -283,11 +308,17 @@ class MicroModel:
         diagnostics.stop_if(diagnostics.growth_problems(Fg, self.layout.centres), self.comm)
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
-        """Fg and G per biological cell (replicated on all ranks; rank 0 saves them)."""
-        return {"Fg": Fg, "G": G} if self.comm.rank == 0 else None
+        """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with
+        finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
+        newton = dof_state(self.newton.guess_functions) if self.finite else {}
+        return {"Fg": Fg, "G": G} | newton if self.comm.rank == 0 else None
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        if state["Fg"].shape != (self.layout.n_cells, 2, 2):
+        matches = state["Fg"].shape == (self.layout.n_cells, 2, 2)
+        if self.finite:
+            tolerance = 1e-9 * max(self.layout.bounding_box)
+            matches = restore_dofs(self.newton.guess_functions, state, tolerance) and matches
+        if not matches:
             raise RunError("the saved state does not match this tissue: was the scene changed?")
         return state["Fg"], state["G"]
 

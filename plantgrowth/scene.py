@@ -7,6 +7,8 @@ of range: ...``. Integers are accepted for floats. Everything is non-dimensional
 inclined wall length l2 = 1)::
 
     model = "macro"            # "macro" | "micro" | "both"
+    kinematics = "linear"      # "linear": the paper's eps_el; "finite": F = Fe Fg, Green-Lagrange
+                               # Ee, Newton's method (MODEL.md 10, docs/finite_kinematics.md)
     [tissue]                   # the rectangle [0, width] x [0, height]; x2 = 0 is a symmetry plane
     width = 6.928203230275509  # 8 cos(30 deg), at most 1e6
     height = 3.0               # at most 1e6
@@ -146,6 +148,7 @@ MAX_NX = TISSUE_MAX_NX  # micro.nx
 LAWS = ("stress", "strain", "none")
 INTEGRATORS = ("euler", "exp", "adaptive")
 MODELS = ("macro", "micro", "both")
+KINEMATICS = ("linear", "finite")
 MACRO_SOLVERS = ("auto", "direct", "iterative")
 MACRO_THRESHOLD = 200_000
 """Fine dofs from which ``solver.macro = "auto"`` solves iteratively: where CG + GAMG's time per
@@ -544,9 +547,11 @@ class Scene:
     micro_nx: int = 16
     micro_resolution: int = 2
     solver: Solver = Solver()
+    kinematics: str = "linear"
 
     def __post_init__(self) -> None:
         _choice("model", self.model, MODELS)
+        _choice("kinematics", self.kinematics, KINEMATICS)
         self.P1.check("pressure.P1", *RANGES["pressure.P1"])
         for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
             if isinstance(f, Field) and f.width != self.tissue.width:
@@ -647,7 +652,7 @@ class Scene:
 
     def to_dict(self) -> dict[str, Any]:
         """The fully resolved scene as plain TOML/JSON data (fields as numbers or tables)."""
-        out: dict[str, Any] = {"model": self.model}
+        out: dict[str, Any] = {"model": self.model, "kinematics": self.kinematics}
         out["tissue"] = self.tissue.to_toml()
         for key, f in self.parameter_fields().items():
             section, name = key.split(".")
@@ -865,7 +870,7 @@ def parse_scene(
 def _parse(data: dict, directory: Path) -> Scene:
     if not isinstance(data, dict):
         raise SceneError(f"scene: expected a table of tables, got {_show(data)}")
-    _check_keys(data, "", ("model", *_TABLES))
+    _check_keys(data, "", ("model", *_TABLES, "kinematics"))
     tables = {name: _table(data, name) for name in _TABLES}
     if "mesh" in tables["tissue"]:
         tables["tissue"] = tables["tissue"] | {
@@ -908,6 +913,7 @@ def _parse(data: dict, directory: Path) -> Scene:
         micro_nx=t["micro"].get("nx", 16),
         micro_resolution=t["micro"].get("resolution", 2),
         solver=Solver(**t["solver"]),
+        kinematics=data.get("kinematics", "linear"),
     )
 
 

@@ -40,6 +40,13 @@ SUMMARY_COLUMNS = [
     "u1_max", "u2_max", "det_Fg_min", "n_cell_solves", "residual",
     "substeps", "seconds", "seconds_cells", "seconds_solve", "seconds_growth", "seconds_io",
 ]  # fmt: skip
+NEWTON_COLUMNS = ["newton_iterations", "newton_residual"]
+"""Appended to SUMMARY_COLUMNS for ``kinematics = "finite"`` (linear runs keep those above)."""
+
+
+def summary_columns(scene: Scene) -> list[str]:
+    """The columns of a scene's summary.csv."""
+    return SUMMARY_COLUMNS + (NEWTON_COLUMNS if scene.kinematics == "finite" else [])
 
 
 @dataclass
@@ -53,6 +60,8 @@ class StepResult:
     seconds: dict[str, float] = field(default_factory=dict)  # seconds_cells, _solve, _growth
     max_elastic_strain: float | None = None  # largest principal |eps_el| over the tissue
     clamped_fraction: float | None = None  # area fraction where some |G_ij| reaches the clamp M
+    newton_iterations: int = 0  # finite kinematics: Newton iterations of the step's solve
+    newton_residual: float = 0.0  # finite kinematics: its final relative residual
 
 
 class GrowthModel(Protocol):
@@ -204,7 +213,7 @@ def run_model(
     schedule = Schedule(scene.output.every, n_steps)
     series = FieldSeries(outdir, model.output_space, model.outputs, schedule,
                          scene.output.precision, model.side_output, keep_until=last)  # fmt: skip
-    summary = SummaryWriter(outdir / "summary.csv", SUMMARY_COLUMNS, comm, keep_until=last)
+    summary = SummaryWriter(outdir / "summary.csv", summary_columns(scene), comm, keep_until=last)
     table = model.cell_table
     cells = None if table is None else SummaryWriter(
         outdir / "cells.csv", table.columns, comm, keep_until=last, schedule=schedule
@@ -244,7 +253,8 @@ def run_model(
             row = model.measures(Fg, result.G)
             row.update(step=step, t=t, n_cell_solves=result.n_cell_solves + substeps[1],
                        residual=result.residual, seconds=t2 - t0, seconds_io=t2 - t1,
-                       substeps=substeps[0], **result.seconds)  # fmt: skip
+                       substeps=substeps[0], newton_iterations=result.newton_iterations,
+                       newton_residual=result.newton_residual, **result.seconds)  # fmt: skip
             row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
                    for k, v in row.items()}  # fmt: skip
             # fields (and cell rows), row, state: a kill between them leaves the state one step
@@ -253,9 +263,15 @@ def run_model(
             state.write(step, t, snapshot)
             rows.append(row)
             left = (time.perf_counter() - start) / (step + 1 - first) * (n_steps - step)
+            newton = (
+                f"  Newton {result.newton_iterations} it., residual {result.newton_residual:.1e}"
+                if scene.kinematics == "finite"
+                else ""
+            )
             log.info(
-                "%sstep %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d  (%.1f s left)",
-                prefix, step, n_steps, t, row["growth_rate_area"], row["n_cell_solves"], left,
+                "%sstep %d/%d  t = %g  mean growth rate tr G = %.6g  cell solves %d%s  "
+                "(%.1f s left)", prefix, step, n_steps, t, row["growth_rate_area"],
+                row["n_cell_solves"], newton, left,
             )  # fmt: skip
             for text in warnings.check(step, t, result):
                 log.warning("warning: %s%s", prefix, text)

@@ -1,0 +1,94 @@
+"""Finite kinematics: the multiplicative split F = Fe Fg (MODEL.md section 10).
+
+``Fe = (I + grad u) Fg^{-1}``, ``Ee = (Fe^T Fe - I) / 2`` (Green-Lagrange, intermediate frame).
+Residuals ``R(u; psi)`` are returned as linear forms in the test function psi; their Jacobians
+are ``ufl.derivative(R, u)`` (:func:`jacobian`), never written by hand.
+
+- macro: ``int Jg (Fe S) : grad(psi) Fg^{-1} dx - int_{Gamma_N} |cof(F) N| f . psi ds`` with
+  ``S = E_hom Ee + (K_hom + (phi_w - 1) I) P1``; the grad(P1) and P2vec body forces of section 4
+  cancel (P2vec = (1 - phi_w) grad P1) and are not assembled;
+- micro: St Venant-Kirchhoff walls, ``S = lam tr(Ee) I + 2 mu Ee``, and the follower turgor
+  ``-P cof(F) N`` per reference length on the membranes.
+"""
+
+from __future__ import annotations
+
+import ufl
+
+from .elasticity import growth_weighted_work, wall_stress
+from .macro import from_voigt, voigt
+
+
+def deformation_gradient(u):
+    """``F = I + grad u``."""
+    return ufl.Identity(2) + ufl.grad(u)
+
+
+def elastic_deformation(u, Fg):
+    """``Fe = (I + grad u) Fg^{-1}``."""
+    return deformation_gradient(u) * ufl.inv(Fg)
+
+
+def green_lagrange_strain(u, Fg):
+    """``Ee = (Fe^T Fe - I) / 2``; equals the linear eps_el to first order in grad u and Fg - I."""
+    Fe = elastic_deformation(u, Fg)
+    return 0.5 * (Fe.T * Fe - ufl.Identity(2))
+
+
+def cofactor(F):
+    """``cof(F) = det(F) F^{-T}``: maps reference normals times length to current ones."""
+    return ufl.det(F) * ufl.inv(F).T
+
+
+def macro_stress(u, Fg, C, K, phi_w, P1):
+    """Second Piola-Kirchhoff stress ``S = E_hom Ee + (K_hom + (phi_w - 1) I) P1`` (K = None:
+    no pressure term)."""
+    S = from_voigt(ufl.dot(C, voigt(green_lagrange_strain(u, Fg))))
+    if K is None:
+        return S
+    return S + (K + (phi_w - 1.0) * ufl.Identity(2)) * P1
+
+
+def macro_residual(u, psi, Fg, C, K, phi_w, P1, dx) -> ufl.Form:
+    """Volume part of the macro residual, ``int Jg (Fe S) : grad(psi) Fg^{-1} dx``."""
+    Fe = elastic_deformation(u, Fg)
+    return growth_weighted_work(Fe * macro_stress(u, Fg, C, K, phi_w, P1), psi, Fg, dx)
+
+
+def follower_traction(u, f, psi, n, ds) -> ufl.Form:
+    """``int |cof(F) N| f . psi ds``: a traction f given per current length."""
+    cN = ufl.dot(cofactor(deformation_gradient(u)), n)
+    return ufl.sqrt(ufl.inner(cN, cN)) * ufl.inner(f, psi) * ds
+
+
+def wall_second_piola(u, Fg, E, nu):
+    """St Venant-Kirchhoff wall stress ``S = lam tr(Ee) I + 2 mu Ee``."""
+    return wall_stress(green_lagrange_strain(u, Fg), E, nu)
+
+
+def micro_residual(u, psi, Fg, E, nu, dx) -> ufl.Form:
+    """Walls part of the micro residual, ``int Jg (Fe S) : grad(psi) Fg^{-1} dx`` (first Piola
+    stress ``Jg Fe S Fg^{-T}``)."""
+    Fe = elastic_deformation(u, Fg)
+    return growth_weighted_work(Fe * wall_second_piola(u, Fg, E, nu), psi, Fg, dx)
+
+
+def follower_pressure(u, psi, P, n, ds) -> ufl.Form:
+    """Turgor on the deformed membranes moved to the residual's side: ``+int P cof(F) N . psi ds``
+    (the load is ``-P cof(F) N`` per reference length, N the walls' outward normal)."""
+    return P * ufl.inner(ufl.dot(cofactor(deformation_gradient(u)), n), psi) * ds
+
+
+def wall_stress_average_form(u, tau, Fg, E, nu, dx) -> ufl.Form:
+    """``int S : tau dx`` per mesh cell (stress-based micro growth, intermediate frame)."""
+    return ufl.inner(wall_second_piola(u, Fg, E, nu), tau) * dx
+
+
+def elastic_strain_average_form(u, tau, Fg, dx) -> ufl.Form:
+    """``int Ee : tau dx`` per mesh cell (strain-based micro growth)."""
+    return ufl.inner(green_lagrange_strain(u, Fg), tau) * dx
+
+
+def jacobian(residual: ufl.Form, u) -> ufl.Form:
+    """The exact Jacobian ``dR/du`` in the direction of a trial function (UFL-derived)."""
+    return ufl.derivative(residual, u, ufl.TrialFunction(u.ufl_function_space()))
