@@ -9,10 +9,11 @@ Scenes (resolved as shipped, ``PLANTGROWTH_CACHE_DIR=off``):
   H = 0.5; 576 at H = 1, the issue's count) to t = 10, with ``solver.macro`` direct (LU; MUMPS on
   2 ranks) and iterative (CG + GAMG).
 Each run is repeated (``--repeats``, alternating 1 and 2 ranks) and the median wall time kept;
-phases from summary.csv of the last repeat. With ``--baseline DIR`` (a checkout with its own
-.venv, e.g. ``git worktree add /tmp/base fd1571a``) the same runs of that version are recorded
-beside. Load averages before and after go with the numbers: the machine has 2 cores, and a
-2-rank run measured while anything else runs is meaningless.
+phases from summary.csv of the last repeat (``rest_seconds``: imports, scene, run directory,
+JIT cache look-ups and exit, what is neither set-up nor steps). With ``--baseline DIR`` (a
+checkout with its own .venv, e.g. ``git worktree add /tmp/base fd1571a``) the same runs of that
+version are recorded beside. Load averages before and after go with the numbers: the machine
+has 2 cores, and a 2-rank run measured while anything else runs is meaningless.
 
     python scripts/bench_ranks.py [--repeats 3] [--only NAME ...] [--baseline DIR] [--out FILE]
 """
@@ -89,7 +90,10 @@ def bench(checkout: Path, names: list[str], repeats: int) -> dict:
         tmp = Path(tmp)
         for name in names:
             scene = tmp / f"{name}.toml"
-            scene.write_text(resolved_scene(name))
+            text = resolved_scene(name)
+            if checkout != REPO:  # an older version may not know the key (its default)
+                text = text.replace('kinematics = "linear"\n', "")
+            scene.write_text(text)
             runs: dict[int, list[dict]] = {1: [], 2: []}
             for repeat in range(repeats):
                 for ranks in (1, 2):
@@ -100,10 +104,10 @@ def bench(checkout: Path, names: list[str], repeats: int) -> dict:
                 "all_wall_seconds": {str(r): [x["wall_seconds"] for x in runs[r]] for r in runs},
                 "speedup": walls[1] / walls[2],
                 "phases_last_repeat": {
-                    str(r): {p: runs[r][-1][f"{p}_total"] for p in (*PHASES, "setup_seconds")}
+                    str(r): {p: runs[r][-1][f"{p}_total"] for p in PHASES}
+                    | {p: runs[r][-1][p] for p in ("setup_seconds", "rest_seconds")}
                     for r in runs
-                }
-                | {"rest (imports, exit)": {str(r): runs[r][-1]["rest_seconds"] for r in runs}},
+                },
                 "max_rss_mib": {str(r): runs[r][-1]["max_rss_mib"] for r in runs},
                 "cell_solves": runs[1][-1]["cell_solves"],
                 "target": TARGETS.get(name),
