@@ -165,9 +165,10 @@ def test_mpirun_writes_the_serial_cell_table_and_outlines(finished):
 def test_an_extended_run_writes_the_rows_of_a_straight_run(finished):
     """t_max = 1 (rows of steps 0 and 1), then --resume to t_max = 3: step 1 is not on the new
     schedule (every = 2), so its rows go; the table equals the straight run's (1e-10: the same
-    arithmetic repeated, as tests/test_interruptions.py; under mpirun the distributed solve is
-    not bitwise repeatable, ~1e-14, which anisotropy and direction divide by g1 - g2, here down
-    to 2e-3 of tr G: 1e-10 absolute for those, measured 1.5e-12)."""
+    arithmetic repeated, as tests/test_interruptions.py; under mpirun the resumed run's mesh may
+    be partitioned anew and its distributed LU differs from the straight run's by ~1e-12 of u,
+    which anisotropy and direction divide by g1 - g2, here down to 2e-3 of tr G: 1e-9 absolute
+    for those, measured 1.5e-12 serial and 1.8e-10 under mpirun)."""
     directory = finished.parent
     short, extended = directory / "short.toml", directory / "extended"
     write(short, SCENE.replace("t_max = 3", "t_max = 1"))
@@ -180,5 +181,5 @@ def test_an_extended_run_writes_the_rows_of_a_straight_run(finished):
     assert len(resumed) == len(straight)
     for a, b in zip(straight, resumed, strict=True):
         for key in CELL_COLUMNS:
-            absolute = 1e-10 if key.startswith("growth_") else 1e-14
+            absolute = 1e-9 if key.startswith("growth_") else 1e-14
             assert b[key] == pytest.approx(a[key], rel=1e-10, abs=absolute), key
