@@ -27,7 +27,7 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth import growth, plausibility
-from plantgrowth.coupled import MacroModel, macro_domain
+from plantgrowth.coupled import MacroModel, macro_model
 from plantgrowth.errors import RunError
 from plantgrowth.machine import machine_description
 from plantgrowth.output import prepare_directory
@@ -87,7 +87,7 @@ def run(scene: Scene, outdir: Path) -> dict:
         largest[0] = max(largest[0], plausibility.largest_strain(eps, comm))
 
     start = time.perf_counter()
-    model = MacroModel(*macro_domain(scene, comm), comm)
+    model = macro_model(scene, comm)
     cause, rows = "", []
     try:
         rows = run_model(model, scene, outdir, comm, on_step=strain)
