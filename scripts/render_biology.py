@@ -1,7 +1,7 @@
 """The README gallery of the biology scenes (issue 11, item 5): each scene of scenes/biology/ run
-as shipped into ``results/biology/<name>/`` (a finished run is kept: delete it to rerun; about
-15 s each on one core), then ``plantgrowth render <run> --field trG`` at the last step into
-``docs/figures/biology_<name>.png``.
+as shipped into ``results/biology/<name>/`` (a run that reached t_max is kept: delete it to
+rerun; about 15 s each on one core), then ``plantgrowth render <run> --field trG`` at the last
+step into ``docs/figures/biology_<name>.png``.
 
     python scripts/render_biology.py [--only NAME ...]
 """
@@ -13,14 +13,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+from run_gradient_scenes import is_complete
+
 REPO = Path(__file__).resolve().parents[1]
 PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
-
-
-def finished(run: Path) -> bool:
-    """A run whose summary reached the scene's t_max (plantgrowth writes done: in run.log)."""
-    log = run / "run.log"
-    return log.exists() and "done:" in log.read_text()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.only and scene.stem not in args.only:
             continue
         run = REPO / "results" / "biology" / scene.stem
-        if not finished(run):
+        if not is_complete(scene, run):
             command = [PLANTGROWTH, "run", str(scene), "-o", str(run)]
             subprocess.run(command + (["--overwrite"] if run.exists() else []), check=True)
         picture = REPO / "docs" / "figures" / f"biology_{scene.stem}.png"

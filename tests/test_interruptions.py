@@ -211,13 +211,18 @@ def scene_file(tmp_path_factory) -> Path:
     return path
 
 
+def serial_run(scene: Path, name: str) -> Path:
+    """``plantgrowth run scene`` uninterrupted, serial, into the scene's directory / name."""
+    outdir = scene.parent / name
+    code, err = run(["run", str(scene), "-o", str(outdir)], scene.parent)
+    assert code == 0, err
+    return outdir
+
+
 @pytest.fixture(scope="module")
 def reference(scene_file) -> Path:
     """The uninterrupted serial run."""
-    outdir = scene_file.parent / "reference"
-    code, err = run(["run", str(scene_file), "-o", str(outdir)], scene_file.parent)
-    assert code == 0, err
-    return outdir
+    return serial_run(scene_file, "reference")
 
 
 @pytest.fixture(scope="module")
@@ -231,10 +236,7 @@ def sparse_scene(scene_file) -> Path:
 @pytest.fixture(scope="module")
 def sparse_reference(sparse_scene) -> Path:
     """The uninterrupted serial run with output.every = EVERY."""
-    outdir = sparse_scene.parent / "sparse_reference"
-    code, err = run(["run", str(sparse_scene), "-o", str(outdir)], sparse_scene.parent)
-    assert code == 0, err
-    return outdir
+    return serial_run(sparse_scene, "sparse_reference")
 
 
 def _kill_and_check(scene_file: Path, tmp_path: Path, ranks: int, every: int = 1) -> Path:
