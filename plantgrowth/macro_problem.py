@@ -161,7 +161,12 @@ class MacroProblem:
         )
         self.active_terms.append("finite kinematics (Newton, linear predictor)")
         self.newton = NewtonSolver(
-            residual, self.u, self.bcs, self._linear_solver, predictor=self._linear_solve
+            residual,
+            self.u,
+            self.Fg,
+            self.bcs,
+            self._linear_solver,
+            predictor=self._linear_solve,
         )
         self.newton_report: NewtonReport | None = None
 

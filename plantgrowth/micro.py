@@ -104,7 +104,8 @@ class MicroModel:
             if np.any(self.pressure != 0.0):
                 residual += finite_forms.follower_pressure(self.u, psi, P, n, membrane)
             self.newton = NewtonSolver(
-                residual, self.u, self.bcs, lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
+                residual, self.u, self.Fg, self.bcs,
+                lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
                 predictor=self._linear_solve,
             )  # fmt: skip
         driving = (

@@ -27,7 +27,7 @@ from petsc4py import PETSc
 
 from plantgrowth import diagnostics
 from plantgrowth.errors import RunError
-from plantgrowth.forms.finite import deformation_gradient, jacobian
+from plantgrowth.forms.finite import deformation_gradient, jacobian, smallest_elastic_stretch
 from plantgrowth.linear import relative_residual
 
 log = logging.getLogger("plantgrowth")
@@ -47,6 +47,12 @@ LINE_SEARCH_HALVINGS = 10
 """Backtracking steps alpha = 1 ... 2^-10 before a step fails."""
 ARMIJO = 1e-4
 """Sufficient decrease ``|R(u - alpha du)| <= (1 - ARMIJO alpha) |R(u)|``."""
+STRETCH_FLOOR = 3.0**-0.5
+"""Smallest principal elastic stretch of an admissible state. St Venant-Kirchhoff stress (walls;
+the homogenized ``S = E_hom Ee``) falls under further compression below stretch 1/sqrt(3) (in 1D
+``P = E lam (lam^2 - 1) / 2``, ``dP/dlam < 0`` there), and ``Fe = 0`` solves the equations with
+zero first Piola stress: a collapsed branch. Newton from u = 0 with a pre-grown Fg0 = diag(1, 4)
+(``Fe = diag(1, 1/4)``) converged to it (area 4e-20) before this floor."""
 
 
 @dataclass(frozen=True)
@@ -72,12 +78,15 @@ class NewtonSolver:
     Args:
         residual: the residual, a linear form in the test function, nonlinear in ``u``.
         u: the unknown; its values are the initial guess.
+        Fg: the growth tensor (for the elastic stretch ``Fe = (I + grad u) Fg^-1``).
         bcs: homogeneous Dirichlet conditions.
         make_ksp: the linear solver for the Jacobian matrix (called once with it).
         predictor: writes the linear-kinematics solution at the current Fg into u (one linear
             solve). The initial guess is then the better (smaller residual) of the previous
             solution and ``u_linear + offset``, offset = u_finite - u_linear of the previous
-            solve (0 at first), which follows the growth of Fg to O(strain^2). Why: a turgor
+            solve (0 at first), which follows the growth of Fg to O(strain^2). A guess whose
+            smallest elastic stretch is below STRETCH_FLOOR loses to one above it (the
+            residual norm of a compressed state is small: ``Fe S`` vanishes with Fe). Why: a turgor
             prestress ``(K_hom + (phi_w - 1) I) P1`` that the elastic strain does not yet
             balance is compressive and, with the honeycomb's small shear modulus (nu12 ~ 0.96),
             makes the Jacobian nearly singular: from u = 0 Newton fails on the P1-gradient
@@ -88,6 +97,7 @@ class NewtonSolver:
         self,
         residual: ufl.Form,
         u: fem.Function,
+        Fg: fem.Function,
         bcs: list,
         make_ksp: Callable[[PETSc.Mat], PETSc.KSP],
         predictor: Callable[[], object] | None = None,
@@ -106,6 +116,10 @@ class NewtonSolver:
         self._det = fem.Function(Q0)
         self._det_expr = fem.Expression(
             ufl.det(deformation_gradient(u)), Q0.element.interpolation_points()
+        )
+        self._stretch = fem.Function(Q0)
+        self._stretch_expr = fem.Expression(
+            smallest_elastic_stretch(u, Fg), Q0.element.interpolation_points()
         )
         owned = msh.topology.index_map(2).size_local
         self._det_dofs = Q0.dofmap.list.array[:owned]
@@ -142,14 +156,40 @@ class NewtonSolver:
         values = self._det.x.array[self._det_dofs]
         return _global_extreme(values, self._midpoints, self.comm, np.argmin)
 
+    def min_stretch(self) -> tuple[float, np.ndarray]:
+        """Smallest principal elastic stretch over all cells (midpoint values) and where."""
+        self._stretch.interpolate(self._stretch_expr)
+        values = self._stretch.x.array[self._det_dofs]
+        return _global_extreme(values, self._midpoints, self.comm, np.argmin)
+
+    def _rank(self, r: float) -> tuple:
+        """Order of initial guesses: not inverted, then admissible (stretch >= STRETCH_FLOOR),
+        then (inadmissible) the larger stretch, then the smaller residual norm r."""
+        if not (np.isfinite(r) and self.min_det()[0] > 0.0):
+            return (False,)
+        stretch = self.min_stretch()[0]
+        admissible = stretch >= STRETCH_FLOOR
+        return (True, admissible, 0.0 if admissible else stretch, -r)
+
+    def _check_admissible(self) -> None:
+        stretch, where = self.min_stretch()
+        if stretch < STRETCH_FLOOR:
+            raise RunError(
+                f"Newton converged to a collapsed state: smallest elastic principal stretch "
+                f"{stretch:.3g} < 1/sqrt(3) at x = ({where[0]:.4g}, {where[1]:.4g}), where the "
+                "St Venant-Kirchhoff law softens (Fe = 0 is a stress-free solution); likely "
+                "cause: growth or loads compress the tissue beyond the small-strain model"
+            )
+
     def solve(self) -> NewtonReport:
-        """Newton iterations from the current u; raises RunError (collectively) on failure."""
+        """Newton iterations from the initial guess; raises RunError (collectively) on failure."""
         du = self.du
         scale = max(self.load_norm(), NEWTON_FLOOR)
         r, linear_u = self._predict(self.residual_norm(), scale)
         history, reason, worst_linear, stalled = [r], 1, 0.0, False
         for k in range(NEWTON_MAX_IT + 1):
             if r <= NEWTON_RTOL * scale or stalled:
+                self._check_admissible()
                 if linear_u is not None:
                     self.offset.x.array[:] = self.u.x.array - linear_u
                 return NewtonReport(reason, r / scale, k, tuple(history), worst_linear)
@@ -178,20 +218,23 @@ class NewtonSolver:
         if self.predictor is None or r <= NEWTON_RTOL * scale:
             return r, None
         previous = self.u.x.array.copy()
+        rank_previous = self._rank(r)
         self.predictor()
         linear_u = self.u.x.array.copy()
         self.u.x.array[:] = linear_u + self.offset.x.array
         predicted = self.residual_norm()
-        if np.isfinite(predicted) and predicted < r and self.min_det()[0] > 0.0:
+        if self._rank(predicted) > rank_previous:
             return predicted, linear_u
         self.u.x.array[:] = previous
         return self.residual_norm(), linear_u
 
     def _line_search(self, r: float, scale: float, k: int) -> tuple[float, bool]:
-        """``u <- u - alpha du`` for the first alpha = 2^-j that leaves no element inverted and
-        passes a decrease test; returns the new residual norm (``self.b`` holds the residual)
-        and whether the iteration stalled at round-off level (relative residual below the time
-        loop's bound, diagnostics.RESIDUAL_BOUND, with no decrease left: converged).
+        """``u <- u - alpha du`` for the first alpha = 2^-j that leaves no element inverted, keeps
+        the smallest elastic stretch above ``min(STRETCH_FLOOR, its value at u)`` (never deeper
+        into the collapsed branch) and passes a decrease test; returns the new residual norm
+        (``self.b`` holds the residual) and whether the iteration stalled at round-off level
+        (relative residual below the time loop's bound, diagnostics.RESIDUAL_BOUND, with no
+        decrease left: converged).
 
         Decrease: the residual norm's (Armijo, ``|R_trial| <= (1 - ARMIJO alpha) |R|``), or,
         when that fails, Deuflhard's natural monotonicity ``|J^{-1} R_trial| <= (1 - alpha / 4)
@@ -202,11 +245,14 @@ class NewtonSolver:
         natural = self.du.duplicate()
         du_norm = self.du.norm()
         alpha, det_min, where = 1.0, 1.0, None
+        stretch_floor = min(STRETCH_FLOOR, self.min_stretch()[0])
         for _ in range(LINE_SEARCH_HALVINGS + 1):
             self.u.vector.waxpy(-alpha, self.du, start)
             self.u.x.scatter_forward()
             det_min, where = self.min_det()
-            trial = self.residual_norm() if det_min > 0.0 else np.inf
+            stretch, stretch_where = self.min_stretch() if det_min > 0.0 else (0.0, where)
+            admissible = det_min > 0.0 and stretch >= stretch_floor
+            trial = self.residual_norm() if admissible else np.inf
             accepted = stalled = False
             if np.isfinite(trial):
                 accepted = trial <= (1.0 - ARMIJO * alpha) * r
@@ -230,6 +276,14 @@ class NewtonSolver:
                 f"Newton iteration {k + 1}: inverted element (det F = {det_min:.3g} <= 0) at x = "
                 f"({where[0]:.4g}, {where[1]:.4g}) even after {LINE_SEARCH_HALVINGS} step "
                 "halvings; likely cause: loads or growth contrast too strong for the tissue"
+            )
+        if stretch < stretch_floor:
+            raise RunError(
+                f"Newton iteration {k + 1}: every step compresses the tissue towards collapse "
+                f"(elastic stretch {stretch:.7g} < {stretch_floor:.7g}) at x = "
+                f"({stretch_where[0]:.4g}, {stretch_where[1]:.4g}) even after "
+                f"{LINE_SEARCH_HALVINGS} step halvings; likely cause: growth or loads compress "
+                "the tissue beyond the small-strain model"
             )
         raise RunError(
             f"Newton did not converge: the line search found no decrease of the relative "

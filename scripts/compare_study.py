@@ -6,7 +6,12 @@ Two kinds of runs of ``plantgrowth compare``, each on a scene derived from
 - error study (Fig. 2 g-h): every w/l2 in ``--widths`` and law in ``--laws``, first step only,
   ``--nx`` (default 4 8 12 16) at ``--resolution`` (default 2);
 - full-time runs (Fig. 2 d-f, i-j): w/l2 = ``--full-width`` (0.05, the reference), both laws,
-  ``--full-nx`` (default 4 8 16) up to the scene's t_max (60) at ``--full-resolution``.
+  ``--full-nx`` (default 4 8 16) up to the scene's t_max (60) at ``--full-resolution``;
+- with ``--gradient SCENE`` (a file in ``--scenes``, e.g. gradient_P1_strain), one more full
+  run of that scene at ``--gradient-nx`` (default 8) up to ``--gradient-t-max`` (default 200).
+
+``--kinematics finite`` (MODEL.md 10) sets the scenes' kinematics; its default roots are then
+``results/compare_study_finite`` and ``benchmarks/results/compare_finite``.
 
 Raw runs (fields.h5/.xdmf, large) go to ``--raw`` (default ``results/compare_study/<case>``,
 git-ignored); ``compare.csv`` and every ``summary.csv`` are copied to
@@ -14,6 +19,7 @@ git-ignored); ``compare.csv`` and every ``summary.csv`` are copied to
 description, the cases, their command lines and wall times.
 
     python scripts/compare_study.py [--jobs 2] [--skip-existing] [--only error|full]
+        [--kinematics finite] [--gradient gradient_P1_strain]
 """
 
 from __future__ import annotations
@@ -42,7 +48,8 @@ WIDTHS = (0.05, 0.1, 0.2)
 
 @dataclass(frozen=True)
 class Case:
-    """One ``plantgrowth compare`` run."""
+    """One ``plantgrowth compare`` run of ``<source>.toml`` (``reference_<law>`` unless a
+    gradient scene), t_max None: the scene's."""
 
     name: str
     kind: str  # "error" (first step only) or "full" (up to t_max)
@@ -50,6 +57,9 @@ class Case:
     w: float
     nx: tuple[int, ...]
     resolution: int
+    kinematics: str = "linear"
+    source: str = ""
+    t_max: float | None = None
 
     @property
     def first_step_only(self) -> bool:
@@ -60,8 +70,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     add = parser.add_argument
     add("--scenes", type=Path, default=Path("scenes"), help="directory of reference_<law>.toml")
-    add("--raw", type=Path, default=Path("results/compare_study"), help="raw run root")
-    add("--bench", type=Path, default=Path("benchmarks/results/compare"), help="CSV/JSON root")
+    add("--raw", type=Path, default=None, help="raw run root (default: results/compare_study)")
+    add("--bench", type=Path, default=None, help="CSV/JSON root (benchmarks/results/compare)")
+    add("--kinematics", choices=("linear", "finite"), default="linear", help="MODEL.md 10")
+    add("--gradient", default=None, help="a gradient scene's name in --scenes (full run)")
+    add("--gradient-nx", type=int, default=8, help="Nx of the gradient run")
+    add("--gradient-t-max", type=float, default=200.0, help="t_max of the gradient run")
     add("--widths", type=float, nargs="+", default=list(WIDTHS), help="w/l2 of the error study")
     add("--laws", nargs="+", choices=LAWS, default=list(LAWS), help="growth laws")
     add("--nx", type=int, nargs="+", default=[4, 8, 12, 16], help="Nx of the error study")
@@ -79,26 +93,39 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add("--jobs", type=int, default=1, help="compares at a time (default 1; 2 cores here)")
     add("--skip-existing", action="store_true", help="do not rerun complete raw results")
     add("--plantgrowth", default=None, help="the command (default: next to this python)")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    suffix = "" if args.kinematics == "linear" else f"_{args.kinematics}"
+    args.raw = args.raw or Path(f"results/compare_study{suffix}")
+    args.bench = args.bench or Path(f"benchmarks/results/compare{suffix}")
+    return args
 
 
 def make_cases(args: argparse.Namespace) -> list[Case]:
     """Full-time runs first: they are the longest, so they start at once under --jobs 2."""
-    cases = []
+    cases, kin = [], args.kinematics
     if args.only in (None, "full"):
+        if args.gradient is not None:
+            text = (args.scenes / f"{args.gradient}.toml").read_text()
+            scene = tomllib.loads(text)
+            t = args.gradient_t_max
+            cases.append(Case(
+                f"{args.gradient}_t{t:g}_nx{args.gradient_nx}", "full", scene["growth"]["law"],
+                scene["cell"]["w"], (args.gradient_nx,), args.full_resolution, kin,
+                args.gradient, t,
+            ))  # fmt: skip
         for law in args.laws:
             w = args.full_width
-            cases.append(
-                Case(
-                    f"full_w{w:g}_{law}", "full", law, w, tuple(args.full_nx), args.full_resolution
-                )
-            )
+            cases.append(Case(
+                f"full_w{w:g}_{law}", "full", law, w, tuple(args.full_nx), args.full_resolution,
+                kin, f"reference_{law}",
+            ))  # fmt: skip
     if args.only in (None, "error"):
         for w in args.widths:
             for law in args.laws:
-                cases.append(
-                    Case(f"error_w{w:g}_{law}", "error", law, w, tuple(args.nx), args.resolution)
-                )
+                cases.append(Case(
+                    f"error_w{w:g}_{law}", "error", law, w, tuple(args.nx), args.resolution, kin,
+                    f"reference_{law}",
+                ))  # fmt: skip
     return cases
 
 
@@ -120,13 +147,18 @@ def _set_key(text: str, table: str, key: str, value: str) -> str:
 
 
 def write_scene(case: Case, scenes: Path, path: Path) -> Path:
-    """``scenes/reference_<law>.toml`` with ``cell.w`` and ``micro.resolution`` set; checked by
-    loading it back."""
-    text = (scenes / f"reference_{case.law}.toml").read_text()
+    """``scenes/<case.source>.toml`` with ``cell.w``, ``micro.resolution``, the kinematics and
+    (if given) ``time.t_max`` set; checked by loading it back."""
+    text = (scenes / f"{case.source}.toml").read_text()
     text = _set_key(text, "cell", "w", repr(case.w))
     text = _set_key(text, "micro", "resolution", str(case.resolution))
+    if case.t_max is not None:
+        text = _set_key(text, "time", "t_max", repr(case.t_max))
+    if case.kinematics != "linear":  # a top-level key: before the first table
+        text = f'kinematics = "{case.kinematics}"\n' + text
     data = tomllib.loads(text)
     assert data["cell"]["w"] == case.w and data["micro"]["resolution"] == case.resolution
+    assert data.get("kinematics", "linear") == case.kinematics
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     load_scene(path).check_micro()  # bad input fails here, before any run
@@ -146,8 +178,9 @@ def is_complete(case: Case, scene: Path, out: Path) -> bool:
     if not (table.is_file() and resolved.is_file()):
         return False
     ran = tomllib.loads(resolved.read_text())
-    same = (ran["growth"]["law"], ran["cell"]["w"], ran["micro"]["resolution"])
-    if same != (case.law, case.w, case.resolution):
+    same = (ran["growth"]["law"], ran["cell"]["w"], ran["micro"]["resolution"],
+            ran.get("kinematics", "linear"))  # fmt: skip
+    if same != (case.law, case.w, case.resolution, case.kinematics):
         return False
     with open(table, newline="") as f:
         done = {int(float(row["nx"])) for row in csv.DictReader(f)}
@@ -186,6 +219,12 @@ def copy_results(case: Case, raw: Path, bench: Path) -> list[str]:
             shutil.copyfile(source, target)
             copied.append(str(source.relative_to(raw)))
     return copied
+
+
+def _error_line(stdout: Path) -> str:
+    """The ``plantgrowth: ...`` error line of a failed compare (its last such line)."""
+    lines = [s for s in stdout.read_text().splitlines() if s.startswith("plantgrowth:")]
+    return lines[-1] if lines else "no error line in stdout.txt"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -227,9 +266,8 @@ def main(argv: list[str] | None = None) -> int:
 
     failed = []
     for case, cmd, out, rc, seconds in results:
-        if rc != 0:
+        if rc != 0:  # recorded too: the summaries of the steps completed, and the error
             failed.append(case.name)
-            continue
         bench = args.bench / case.name
         entry = index["cases"].get(case.name, {}) if seconds is None else {}
         entry.update(asdict(case))
@@ -242,6 +280,7 @@ def main(argv: list[str] | None = None) -> int:
         if seconds is not None:
             entry["wall_seconds"] = round(seconds, 1)
             entry["jobs"] = args.jobs
+        entry["error"] = _error_line(out / "stdout.txt") if rc != 0 else None
         index["cases"][case.name] = entry
     index["machine"] = machine_description()
     index["study_command"] = shlex.join(

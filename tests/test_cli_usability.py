@@ -97,6 +97,26 @@ def test_a_failure_is_printed_once_and_names_ranks_only_under_mpi(tmp_path_facto
         assert "run failed" in (directory / "out" / "run.log").read_text()
 
 
+def test_compare_errors_at_t_max_are_the_first_steps_without_growth(tmp_path_factory, capsys):
+    """No growth (stress law, threshold tau = 1 far above the wall stress; law "none" would run
+    t = 0 only): the state at t_max is the state at t = 0, so each ``_tmax`` error
+    equals its first-step value (to the round-off of repeated identical LU solves, 1e-12);
+    a t_max error left unmeasured, or computed from other fields than the first step's, fails."""
+    directory = shared_dir(tmp_path_factory, "compare_tmax")
+    scene, outdir = directory / "scene.toml", directory / "cmp"
+    write(scene, '[tissue]\nh = 0.5\n[growth]\nlaw = "stress"\ntau = 1.0\n[time]\nt_max = 2\n'
+                 "[accuracy]\ncell_resolution = 1\n[micro]\nnx = 2\nresolution = 1\n")  # fmt: skip
+    code, _, err = call(["compare", scene, "--nx", "2", "-o", outdir], capsys)
+    assert code == 0, err
+    if not RANK0:
+        return
+    with open(outdir / "compare.csv", newline="") as f:
+        (row,) = list(csv.DictReader(f))
+    for key in ("err_u1", "err_u2", "err_ubar", "err_G"):
+        assert float(row[f"{key}_tmax"]) == pytest.approx(float(row[key]), rel=1e-12, abs=1e-14)
+    assert float(row["err_u2"]) > 0.0
+
+
 def test_compare_says_which_model_and_nx_and_leaves_t_max_empty(tmp_path_factory, capsys):
     """Progress lines name the model and Nx; the errors are labelled relative; with
     --first-step-only the t_max columns are empty instead of repeating t = 0."""
@@ -111,10 +131,11 @@ def test_compare_says_which_model_and_nx_and_leaves_t_max_empty(tmp_path_factory
         return
     step_lines = [line for line in out.splitlines() if "step 0/0" in line]
     assert [line.split(": step")[0] for line in step_lines] == ["Nx = 2, macro", "Nx = 2, micro"]
-    assert "Nx = 2, relative errors: err_u1 = " in out
+    assert "Nx = 2, step 0, relative errors: err_u1 = " in out
     with open(outdir / "compare.csv", newline="") as f:
         (row,) = list(csv.DictReader(f))
     assert row["rate_macro_tmax"] == row["rate_micro_tmax"] == ""
+    assert {row[f"{key}_tmax"] for key in ("err_u1", "err_u2", "err_ubar", "err_G")} == {""}
     assert float(row["rate_macro_t0"]) > 0.0 and float(row["rate_micro_t0"]) > 0.0
 
 

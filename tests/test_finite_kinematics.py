@@ -249,6 +249,50 @@ def test_newton_failure_names_step_place_and_cause(mpi_tmp_path, monkeypatch):
         run_model(macro(sc), sc, mpi_tmp_path, MPI.COMM_WORLD)
 
 
+def test_smallest_elastic_stretch_is_the_smaller_singular_value_of_Fe():
+    """``smallest_elastic_stretch(u, Fg)`` against numpy's SVD of ``Fe = (I + grad u) Fg^-1``
+    for a homogeneous u = (A - I) x (exact in P1): round-off only."""
+    from dolfinx import fem
+    from dolfinx import mesh as dmesh
+
+    from plantgrowth.forms.finite import smallest_elastic_stretch
+
+    msh = dmesh.create_unit_square(MPI.COMM_WORLD, 2, 2)
+    V = fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+    Q = fem.FunctionSpace(msh, ("DG", 0))
+    A = rotation(20.0) @ np.diag([2.0, 0.5]) @ rotation(-35.0)
+    Fg = np.array([[1.5, 0.2], [0.0, 0.8]])
+    u = fem.Function(V)
+    u.interpolate(lambda x: (A - np.eye(2)) @ x[:2])
+    stretch = fem.Function(Q)
+    expr = smallest_elastic_stretch(u, fem.Constant(msh, Fg))
+    stretch.interpolate(fem.Expression(expr, Q.element.interpolation_points()))
+    expected = np.linalg.svd(A @ np.linalg.inv(Fg), compute_uv=False)[-1]
+    assert np.allclose(stretch.x.array, expected, rtol=1e-12, atol=0.0)
+
+
+def test_newton_refuses_the_collapsed_branch():
+    """Pre-grown Fg0 = diag(1, 4) (scenes/hard/anisotropic_Fg0_x2, coarse), strain law: the
+    linear model's elastic strain reaches 6.1 there (MODEL.md 10 is for small elastic
+    strain). St Venant-Kirchhoff has the stress-free solution Fe = 0; without the stretch floor
+    (STRETCH_FLOOR = 0) Newton converges to a collapsed tissue (measured: current area below
+    1e-6 of the reference one). With it the step fails with a named error at step 0."""
+    sc = scene(growth={"law": "strain", "Fg0": [[1.0, 0.0], [0.0, 4.0]]}, time={"t_max": 1.0})
+    model = macro(sc)
+    with pytest.raises(RunError, match=r"towards collapse \(elastic stretch .* at x = \(") as err:
+        model.step(model.initial_growth())
+    print(err.value)
+    unguarded = pytest.MonkeyPatch()
+    unguarded.setattr(newton, "STRETCH_FLOOR", 0.0)
+    try:
+        model = macro(sc)
+        model.step(model.initial_growth())
+        det = np.linalg.det(np.eye(2) + model.problem.grad_u()[: model.problem.n_owned])
+    finally:
+        unguarded.undo()
+    assert global_max(det) <= 1e-6
+
+
 # --- the rest of the program ---------------------------------------------------------------------
 
 
