@@ -7,8 +7,8 @@
 - ``finite_micro_macro.png``: from ``benchmarks/results/compare_finite`` and
   ``benchmarks/results/compare`` (``scripts/compare_study.py [--kinematics finite]``), the
   micro-macro errors err_u1, err_u2, err_ubar, err_G at t = 0 and t = t_max against Nx, finite
-  (solid) and linear (dashed), and the mean growth rate of the long gradient run (macro and
-  micro) against time.
+  (solid) and linear (dashed), and the area of the long gradient run (macro and micro, both
+  kinematics) against time.
 
 Reads result files only; nothing is solved here.
 
@@ -23,6 +23,7 @@ import json
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -74,7 +75,10 @@ def plot_differences(results: dict, path: Path) -> None:
 
 def plot_micro_macro(finite: Path, linear: Path, path: Path) -> None:
     laws = [p.name for p in sorted(finite.glob("full_*")) if (p / "compare.csv").is_file()]
-    long_runs = [p for p in sorted(finite.glob("gradient_*")) if (p / "compare.csv").is_file()]
+    long_runs = [
+        (kin, run) for kin, root in (("finite", finite), ("linear", linear))
+        for run in sorted(root.glob("gradient_*")) if list(run.glob("nx*/*/summary.csv"))
+    ]  # fmt: skip
     n = len(laws) + bool(long_runs)
     fig, axes = plt.subplots(1, n, figsize=(4.6 * n, 4.2), squeeze=False)
     colours = dict(zip(ERRORS, ("tab:blue", "tab:orange", "tab:green", "tab:red"), strict=True))
@@ -91,16 +95,19 @@ def plot_micro_macro(finite: Path, linear: Path, path: Path) -> None:
         ax.set(xscale="log", yscale="log", xlabel="Nx", ylabel="relative error",
                title=f"{case}: finite (dashed: linear, t = 0)")  # fmt: skip
         ax.set_xticks(f["nx"], [f"{x:g}" for x in f["nx"]])
+        ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
         ax.grid(True, alpha=0.3)
     axes[0][0].legend(fontsize=6.5)
     if long_runs:
         ax = axes[0][-1]
-        for run in long_runs:
+        for kin, run in long_runs:
+            colour = "tab:blue" if kin == "finite" else "tab:grey"
             for model, style in (("macro", "-"), ("micro", "--")):
                 for summary in sorted(run.glob(f"nx*/{model}/summary.csv")):
                     s = read_csv(summary)
-                    ax.plot(s["t"], s["growth_rate_area"], style, label=f"{run.name}, {model}")
-        ax.set(xlabel="t", ylabel="mean growth rate tr G", title="long gradient run, finite")
+                    ax.plot(s["t"], s["area"], style, color=colour, label=f"{kin}, {model}")
+        ax.set(xlabel="t", ylabel="tissue area", yscale="log",
+               title=f"{long_runs[0][1].name}: area")  # fmt: skip
         ax.legend(fontsize=6.5)
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
