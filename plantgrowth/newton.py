@@ -152,14 +152,16 @@ class NewtonSolver:
 
     def min_det(self) -> tuple[float, np.ndarray]:
         """Smallest ``det F`` over all cells (midpoint values) and the midpoint where it is."""
-        self._det.interpolate(self._det_expr)
-        values = self._det.x.array[self._det_dofs]
-        return _global_extreme(values, self._midpoints, self.comm, np.argmin)
+        return self._cell_minimum(self._det, self._det_expr)
 
     def min_stretch(self) -> tuple[float, np.ndarray]:
         """Smallest principal elastic stretch over all cells (midpoint values) and where."""
-        self._stretch.interpolate(self._stretch_expr)
-        values = self._stretch.x.array[self._det_dofs]
+        return self._cell_minimum(self._stretch, self._stretch_expr)
+
+    def _cell_minimum(self, function: fem.Function, expr: fem.Expression) -> tuple:
+        """(value, midpoint) of the smallest of ``expr`` at the owned cells, all ranks."""
+        function.interpolate(expr)
+        values = function.x.array[self._det_dofs]
         return _global_extreme(values, self._midpoints, self.comm, np.argmin)
 
     def _rank(self, r: float) -> tuple:
