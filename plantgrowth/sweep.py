@@ -420,7 +420,7 @@ def _check_directory(sweep: Sweep, outdir: Path, overwrite: bool) -> None:
     if (outdir / RESOLVED).is_file() and (differs := _differences(sweep, outdir)):
         raise _another_sweep(outdir, differs)
     for run in sweep.runs:
-        _check_run_directory(outdir / run.name, run)
+        check_run_directory(outdir / run.name, run)
 
 
 def _another_sweep(outdir: Path, differs: str) -> InputError:
@@ -449,12 +449,13 @@ def _differences(sweep: Sweep, outdir: Path) -> str:
     return ", ".join(shown)
 
 
-def _check_run_directory(run_dir: Path, run: Run) -> None:
+def check_run_directory(run_dir: Path, run: Run) -> None:
     """A run directory of an earlier start must hold this run's scene (or one with a smaller
     time.t_max: the run is extended)."""
     saved = run_dir / "scene.toml"
     if not saved.is_file():
-        if run_dir.is_dir() and earlier_outputs(run_dir):
+        starting = saved.with_name(f".{saved.name}.tmp")  # another element's run is writing it
+        if run_dir.is_dir() and set(earlier_outputs(run_dir)) - {starting}:
             raise InputError(
                 f"{run_dir} holds plantgrowth files but no scene.toml: use --overwrite"
             )

@@ -30,9 +30,10 @@ from cli_helpers import ENV, PLANTGROWTH, RANK0, call, finish, shared_dir, write
 from mpi4py import MPI
 
 from plantgrowth.cli import main
+from plantgrowth.errors import InputError
 from plantgrowth.presets import knob
 from plantgrowth.rundir import DirectoryLock
-from plantgrowth.sweep import NUMBERS, Share, load_sweep
+from plantgrowth.sweep import NUMBERS, Share, check_run_directory, load_sweep
 
 TIMEOUT = 120.0  # s; a sweep here takes a few seconds, under mpirun a few more
 SIZE = MPI.COMM_WORLD.size
@@ -393,6 +394,20 @@ def test_a_changed_base_scene_is_refused_a_larger_t_max_extends(tmp_path_factory
     if RANK0:
         assert [int(r["step"]) for r in summary(out / "run_0000" / "summary.csv")] == [0, 1, 2, 3]
         assert table(out)[0]["t"] == "3" and starts(out / "run_0000") == 2
+
+
+def test_a_run_that_is_starting_is_not_taken_for_foreign_files(tmp_path_factory):
+    """Another job-array element's run writes .scene.toml.tmp just before its scene.toml: the
+    directory check of an element starting meanwhile must let it be (CI caught this race); a
+    run directory with other plantgrowth files and no scene.toml is still refused."""
+    directory = sweep_dir(tmp_path_factory, "starting", HEAD + '"material.nu" = [0.2]\n')
+    (run,) = load_sweep(directory / "sweep.toml").runs
+    run_dir = directory / "out" / run.name
+    write(run_dir / ".scene.toml.tmp", "")
+    check_run_directory(run_dir, run)
+    write(run_dir / "summary.csv", "step,t\n")
+    with pytest.raises(InputError, match="holds plantgrowth files but no scene.toml"):
+        check_run_directory(run_dir, run)
 
 
 def test_a_sweep_is_refused_while_another_holds_the_directory(tmp_path_factory, capsys):
