@@ -78,13 +78,17 @@ def stiffness_problems(C: np.ndarray, nodes: np.ndarray) -> list[str]:
     ]
 
 
-def solve_problems(reason: int, residual: float, iterations: int = 0) -> list[str]:
-    """A linear solve that failed or is inaccurate (``iterations`` > 0: a Krylov solve)."""
+def solve_problems(
+    reason: int, residual: float, iterations: int = 0, method: str = "cg"
+) -> list[str]:
+    """A linear solve that failed or is inaccurate (``iterations`` > 0: a Krylov solve, PETSc's
+    KSP type ``method``)."""
     if reason > 0 and residual <= RESIDUAL_BOUND:
         return []
     krylov = (
-        f" after {iterations} CG iterations; the direct solver (solver.macro = 'direct') is "
-        "robust to what slows CG down: thin walls, stiffness contrast, nu close to 0.5"
+        f" after {iterations} {method.upper()} iterations; the direct solver (solver.macro = "
+        f"'direct') is robust to what slows {method.upper()} down: thin walls, stiffness "
+        "contrast, nu close to 0.5"
         if iterations > 0
         else ""
     )

@@ -7,7 +7,8 @@ the symmetry edges x2 = 0 (no tangential traction) and ``u1 = 0`` at the pinned 
 origin of the rectangle; removes the remaining rigid translation); the other edges carry the
 scene's tractions or none. The operator is
 symmetric positive definite after these conditions, so large systems are solved by CG + GAMG
-(``solver.macro``), small ones by LU.
+(``solver.macro``), small ones by LU; a finite-kinematics Jacobian is not (GMRES + GAMG, then
+LU where GMRES stops).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from plantgrowth.boundary import Boundary, pinned_vertices, rectangle_boundary
 from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction
 from plantgrowth.forms.expressions import UFL_OPS
-from plantgrowth.linear import SolveReport, assemble_and_solve, cg_gamg_solver, lu_solver
+from plantgrowth.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
 from plantgrowth.loads import ALONG
 from plantgrowth.newton import NewtonReport, NewtonSolver, log_report
 from plantgrowth.scene import Scene
@@ -39,6 +40,17 @@ MACRO_MAX_IT = 2000
 """CG's iteration limit: about 100 iterations at any size on the shipped scenes, 700 on the
 thinnest-walled hard case (w = 0.005); a solve that needs more stops with a RunError."""
 PREFIX = "plantgrowth_macro_"
+NEWTON_PREFIX = PREFIX + "newton_"  # its own GAMG options (see linear.gamg_solver)
+NEWTON_KRYLOV_MAX_IT = 500
+"""GMRES iterations on a Newton step before LU takes over (NewtonSolver's fallback): 5 times
+the 90-111 a solve needs on gradient_E_strain with finite kinematics."""
+
+
+_SOLVER_NAMES = {
+    ("direct", False): "LU", ("direct", True): "LU",
+    ("iterative", False): "CG + GAMG",
+    ("iterative", True): "CG + GAMG, Newton: GMRES + GAMG (LU where GMRES stops)",
+}  # fmt: skip
 
 
 def mesh_bounding_box(msh: mesh.Mesh) -> tuple[float, float]:
@@ -126,7 +138,7 @@ class MacroProblem:
         self._grad_u_expr = fem.Expression(ufl.grad(self.u), self.T0.element.interpolation_points())
         log.info(
             "macro solver: %s (solver.macro = %r, %d fine dofs, threshold %d)",
-            "CG + GAMG" if self.solver == "iterative" else "LU", scene.solver.macro,
+            _SOLVER_NAMES[self.solver, self.finite], scene.solver.macro,
             self.ndofs, scene.solver.macro_threshold,
         )  # fmt: skip
 
@@ -161,19 +173,28 @@ class MacroProblem:
         )
         self.active_terms.append("finite kinematics (Newton, linear predictor)")
         self.newton = NewtonSolver(
-            residual,
-            self.u,
-            self.Fg,
-            self.bcs,
-            self._linear_solver,
+            residual, self.u, self.Fg, self.bcs, self._jacobian_solver,
             predictor=self._linear_solve,
-        )
+            fallback=self._direct_jacobian_solver if self.solver == "iterative" else None,
+        )  # fmt: skip
         self.newton_report: NewtonReport | None = None
 
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
         if self.solver == "iterative":
-            return cg_gamg_solver(A, self.V, PREFIX, MACRO_RTOL, MACRO_MAX_IT)
+            return gamg_solver(A, self.V, PREFIX, MACRO_RTOL, MACRO_MAX_IT)
         return lu_solver(A, self.mesh.comm, PREFIX)
+
+    def _jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
+        """Newton's linear solver: GMRES + GAMG (a finite-kinematics Jacobian is non-symmetric
+        under follower loads, indefinite under strong compression), or LU."""
+        if self.solver == "iterative":
+            return gamg_solver(
+                J, self.V, NEWTON_PREFIX, MACRO_RTOL, NEWTON_KRYLOV_MAX_IT, spd=False
+            )
+        return self._direct_jacobian_solver(J)
+
+    def _direct_jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
+        return lu_solver(J, self.mesh.comm, NEWTON_PREFIX)
 
     def _traction_terms(self, scene: Scene, term) -> ufl.Form | int:
         """``term(f, n, ds)`` summed over the loaded edges (0 without loads): the traction

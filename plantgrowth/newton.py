@@ -2,11 +2,11 @@
 (MODEL.md section 10), with the exact UFL-derived Jacobian.
 
 Iteration k: assemble ``R(u_k)`` and ``J(u_k) = dR/du``, solve ``J du = R`` with the problem's
-linear solver (LU or CG + GAMG: :mod:`plantgrowth.linear`), then ``u_{k+1} = u_k - alpha du``
-with alpha = 1, 1/2, 1/4, ... until the residual norm decreases (Armijo) and no element inverts
-(``det F > 0`` in every cell). The initial guess is whatever u holds: the previous step's
-solution. Dirichlet conditions are homogeneous, so every iterate satisfies them and the
-residual is zeroed on their dofs (no lifting is needed).
+linear solver (LU, or GMRES + GAMG with LU as fallback: :mod:`plantgrowth.linear`), then
+``u_{k+1} = u_k - alpha du`` with alpha = 1, 1/2, 1/4, ... until the residual norm decreases
+(Armijo) and no element inverts (``det F > 0`` in every cell). The initial guess is whatever u
+holds: the previous step's solution. Dirichlet conditions are homogeneous, so every iterate
+satisfies them and the residual is zeroed on their dofs (no lifting is needed).
 
 Convergence: ``|R(u)| <= NEWTON_RTOL * scale`` with ``scale = max(|R(0)|, NEWTON_FLOOR)``:
 ``R(0)`` is the load of the step (growth, turgor, tractions at u = 0), the quantity a linear
@@ -81,6 +81,10 @@ class NewtonSolver:
         Fg: the growth tensor (for the elastic stretch ``Fe = (I + grad u) Fg^-1``).
         bcs: homogeneous Dirichlet conditions.
         make_ksp: the linear solver for the Jacobian matrix (called once with it).
+        fallback: a direct solver for it, made when a (Krylov) solve of make_ksp's fails: a
+            Jacobian of finite kinematics can be indefinite (strong compression, follower
+            loads), where GMRES + GAMG stagnates (it did on the L-shaped tissue pulled by
+            3e-4 per length, which LU solves).
         predictor: writes the linear-kinematics solution at the current Fg into u (one linear
             solve). The initial guess is then the better (smaller residual) of the previous
             solution and ``u_linear + offset``, offset = u_finite - u_linear of the previous
@@ -101,8 +105,9 @@ class NewtonSolver:
         bcs: list,
         make_ksp: Callable[[PETSc.Mat], PETSc.KSP],
         predictor: Callable[[], object] | None = None,
+        fallback: Callable[[PETSc.Mat], PETSc.KSP] | None = None,
     ) -> None:
-        self.u, self.bcs, self.predictor = u, bcs, predictor
+        self.u, self.bcs, self.predictor, self.fallback = u, bcs, predictor, fallback
         self.offset = fem.Function(u.function_space, name="u_offset")  # u_finite - u_linear
         self.comm = u.function_space.mesh.comm
         self.F = fem.form(residual)
@@ -200,11 +205,8 @@ class NewtonSolver:
             self.A.zeroEntries()
             fem.petsc.assemble_matrix(self.A, self.J, bcs=self.bcs)
             self.A.assemble()
-            self.ksp.solve(self.b, du)
-            reason = self.ksp.getConvergedReason()
-            linear = relative_residual(self.A, du, self.b)
-            iterations = 0 if self.ksp.getType() == "preonly" else self.ksp.getIterationNumber()
-            diagnostics.stop_if(diagnostics.solve_problems(reason, linear, iterations), self.comm)
+            reason, linear, problems = self._solve_linear(du)
+            diagnostics.stop_if(problems, self.comm)
             worst_linear = max(worst_linear, linear)
             r, stalled = self._line_search(r, scale, k)
             history.append(r)
@@ -213,6 +215,26 @@ class NewtonSolver:
             f"(tolerance {NEWTON_RTOL:g}), largest at x = {self._largest_residual_place()}; "
             "likely cause: loads or growth contrast too strong for the elastic tissue"
         )
+
+    def _solve_linear(self, du: PETSc.Vec) -> tuple[int, float, list[str]]:
+        """``J du = R``: PETSc's reason, the true relative residual and what went wrong. A
+        failed Krylov solve is repeated with ``fallback``, which solves from then on."""
+        while True:
+            self.ksp.solve(self.b, du)
+            reason = self.ksp.getConvergedReason()
+            linear = relative_residual(self.A, du, self.b)
+            krylov = self.ksp.getType() != "preonly"
+            iterations = self.ksp.getIterationNumber() if krylov else 0
+            problems = diagnostics.solve_problems(reason, linear, iterations, self.ksp.getType())
+            if not problems or self.fallback is None:  # reason, residual: the same on all ranks
+                return reason, linear, problems
+            log.warning(
+                "warning: Newton: %s + GAMG stopped (PETSc reason %d, relative residual %.3g "
+                "after %d iterations): the Jacobian is indefinite or far from symmetric here; "
+                "LU solves it from now on", self.ksp.getType().upper(), reason, linear, iterations,
+            )  # fmt: skip
+            self.ksp.destroy()
+            self.ksp, self.fallback = self.fallback(self.A), None
 
     def _predict(self, r: float, scale: float) -> tuple[float, np.ndarray | None]:
         """The initial guess (see the class doc) unless u already solves the problem: the

@@ -208,7 +208,7 @@ def micro_solves(nx: int, kind: str, out: Path) -> None:
     step's solve time (assembly included), iterations and true residual."""
     from mpi4py import MPI
 
-    from plantgrowth.linear import cg_gamg_solver
+    from plantgrowth.linear import gamg_solver
     from plantgrowth.micro import MicroModel
     from plantgrowth.scene import load_scene
 
@@ -216,7 +216,7 @@ def micro_solves(nx: int, kind: str, out: Path) -> None:
     model = MicroModel(load_scene(REPO / "scenes" / "reference_strain.toml"), MPI.COMM_WORLD, nx)
     setup = time.perf_counter() - start
     if kind == "iterative":
-        model.ksp = cg_gamg_solver(model.A, model.V, "micro_", MICRO_RTOL, max_it=5000)
+        model.ksp = gamg_solver(model.A, model.V, "micro_", MICRO_RTOL, max_it=5000)
     results, iterations = [], []
     for _ in range(2):
         results.append(model.step(model.initial_growth()))

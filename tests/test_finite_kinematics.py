@@ -252,6 +252,51 @@ def test_newton_failure_names_step_place_and_cause(mpi_tmp_path, monkeypatch):
         run_model(macro(sc), sc, mpi_tmp_path, MPI.COMM_WORLD)
 
 
+L_TISSUE = """kinematics = "finite"
+[solver]
+macro = "{solver}"
+[tissue]
+outline = [[0.0, 0.0], [4.0, 0.0], [4.0, 1.0], [2.0, 1.0], [2.0, 3.0], [0.0, 3.0]]
+h = 0.35
+[growth]
+law = "stress"
+[loads]
+edge1 = [{right}, 0.0]
+edge5 = [{left}, 0.0]
+[time]
+t_max = 1
+[accuracy]
+cell_resolution = 1
+"""
+
+
+def l_tissue_rows(directory: Path, solver: str, pull: float) -> tuple[list[dict], str]:
+    """The L-shaped tissue (scenes/shapes) pulled along x1 by ``pull`` per length on its left
+    edge, 3 ``pull`` on its right (balanced): summary rows and run.log."""
+    path, out = directory / f"{solver}.toml", directory / solver
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text(L_TISSUE.format(solver=solver, right=3 * pull, left=-pull))
+    MPI.COMM_WORLD.Barrier()
+    assert main(["run", str(path), "-o", str(out)]) == 0
+    with open(out / "summary.csv", newline="") as f:
+        return list(csv.DictReader(f)), (out / "run.log").read_text()
+
+
+@pytest.mark.parametrize("pull, hands_over", [(1e-5, False), (2e-4, True)])
+def test_iterative_newton_hands_a_jacobian_gmres_cannot_solve_to_lu(mpi_tmp_path, pull, hands_over):
+    """solver.macro = "iterative": Newton's Jacobian is solved by GMRES + GAMG. Pulled by 2e-4
+    (u up to 0.56 on a tissue 4 wide) it is indefinite at the linear predictor: GMRES stagnates
+    (CG, before, stopped the run: PETSc reason -8, indefinite preconditioner), LU takes over
+    and the run equals the direct one. Pulled by 1e-5 GMRES converges throughout. Agreement:
+    NEWTON_ACCURACY (both solves converge to the same relative residual 1e-10)."""
+    iterative, log_text = l_tissue_rows(mpi_tmp_path, "iterative", pull)
+    direct, _ = l_tissue_rows(mpi_tmp_path, "direct", pull)
+    assert ("LU solves it from now on" in log_text) == hands_over
+    for row, expected in zip(iterative, direct, strict=True):
+        for key in ("area", "growth_rate_area", "u1_max", "u2_max"):
+            assert float(row[key]) == pytest.approx(float(expected[key]), rel=NEWTON_ACCURACY)
+
+
 def test_smallest_elastic_stretch_is_the_smaller_singular_value_of_Fe():
     """``smallest_elastic_stretch(u, Fg)`` against numpy's SVD of ``Fe = (I + grad u) Fg^-1``
     for a homogeneous u = (A - I) x (exact in P1): round-off only."""
