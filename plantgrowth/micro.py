@@ -21,6 +21,7 @@ from petsc4py import PETSc
 
 from plantgrowth import diagnostics, growth, plausibility
 from plantgrowth.cell_outlines import CellOutlines
+from plantgrowth.cell_samples import CellSamples, det_degree
 from plantgrowth.errors import RunError
 from plantgrowth.forms import cell_measures
 from plantgrowth.forms import finite as finite_forms
@@ -141,12 +142,9 @@ class MicroModel:
         self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
         self.cell_table = self.outlines  # cells.csv
         self._E, self._nu = E, nu
-        self._deformation_det = fem.Function(Q0)
-        self._deformation_det_expr = fem.Expression(
-            ufl.det(ufl.Identity(2) + ufl.grad(self.u)), Q0.element.interpolation_points()
+        self._deformation_det = CellSamples(
+            ufl.det(ufl.Identity(2) + ufl.grad(self.u)), msh, det_degree(self.u)
         )
-        self._cell_dofs = Q0.dofmap.list.array[:n_owned]
-        self._midpoints = mesh.compute_midpoints(msh, 2, np.arange(n_owned, dtype=np.int32))[:, :2]
         self.output_space = self.u_out.function_space
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         log.info(
@@ -219,12 +217,10 @@ class MicroModel:
             G = growth.growth_rate(
                 means.reshape(-1, 2, 2), ones, self.eta, self.tau, self.scene.growth.clamp
             )
-        self._deformation_det.interpolate(self._deformation_det_expr)
+        det = self._deformation_det
         diagnostics.stop_if(
             diagnostics.growth_problems(Fg, self.layout.centres, G)
-            + diagnostics.inversion_problems(
-                self._deformation_det.x.array[self._cell_dofs], self._midpoints
-            ),
+            + diagnostics.inversion_problems(det.values(), det.points),
             self.comm,
         )
         self.last_G = G

@@ -21,11 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import ufl
-from dolfinx import fem, mesh
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth import diagnostics
+from plantgrowth.cell_samples import CellSamples, det_degree
 from plantgrowth.errors import RunError
 from plantgrowth.forms.finite import deformation_gradient, jacobian, smallest_elastic_stretch
 from plantgrowth.linear import relative_residual
@@ -116,19 +117,9 @@ class NewtonSolver:
         self.b = fem.petsc.create_vector(self.F)
         self.du = self.A.createVecRight()
         self.ksp = make_ksp(self.A)
-        msh = u.function_space.mesh
-        Q0 = fem.FunctionSpace(msh, ("DG", 0))
-        self._det = fem.Function(Q0)
-        self._det_expr = fem.Expression(
-            ufl.det(deformation_gradient(u)), Q0.element.interpolation_points()
-        )
-        self._stretch = fem.Function(Q0)
-        self._stretch_expr = fem.Expression(
-            smallest_elastic_stretch(u, Fg), Q0.element.interpolation_points()
-        )
-        owned = msh.topology.index_map(2).size_local
-        self._det_dofs = Q0.dofmap.list.array[:owned]
-        self._midpoints = mesh.compute_midpoints(msh, 2, np.arange(owned, dtype=np.int32))[:, :2]
+        msh, degree = u.function_space.mesh, det_degree(u)
+        self._det = CellSamples(ufl.det(deformation_gradient(u)), msh, degree)
+        self._stretch = CellSamples(smallest_elastic_stretch(u, Fg), msh, degree)
         V = u.function_space
         n_nodes = V.dofmap.index_map.size_local
         self._node_points = V.tabulate_dof_coordinates()[:n_nodes, :2]
@@ -156,18 +147,16 @@ class NewtonSolver:
         return value
 
     def min_det(self) -> tuple[float, np.ndarray]:
-        """Smallest ``det F`` over all cells (midpoint values) and the midpoint where it is."""
-        return self._cell_minimum(self._det, self._det_expr)
+        """Smallest ``det F`` over all cells (at the nodes of :mod:`plantgrowth.cell_samples`)
+        and where it is."""
+        return self._minimum(self._det)
 
     def min_stretch(self) -> tuple[float, np.ndarray]:
-        """Smallest principal elastic stretch over all cells (midpoint values) and where."""
-        return self._cell_minimum(self._stretch, self._stretch_expr)
+        """Smallest principal elastic stretch over all cells (the same points) and where."""
+        return self._minimum(self._stretch)
 
-    def _cell_minimum(self, function: fem.Function, expr: fem.Expression) -> tuple:
-        """(value, midpoint) of the smallest of ``expr`` at the owned cells, all ranks."""
-        function.interpolate(expr)
-        values = function.x.array[self._det_dofs]
-        return _global_extreme(values, self._midpoints, self.comm, np.argmin)
+    def _minimum(self, samples: CellSamples) -> tuple[float, np.ndarray]:
+        return _global_extreme(samples.values(), samples.points, self.comm, np.argmin)
 
     def _rank(self, r: float) -> tuple:
         """Order of initial guesses: not inverted, then admissible (stretch >= STRETCH_FLOOR),
