@@ -234,6 +234,36 @@ MUTANTS = (
         (("return growth.advance(Fg, G, t.dt, t.integrator), 1, 0",
           "return growth.advance(Fg, G, t.dt, \"exp\"), 1, 0"),),
     ),
+    # --- finite kinematics (MODEL.md section 10, issue 12) ---------------------------------------
+    Mutant(
+        "finite_Fe_order", "forms/finite.py", "transposition",
+        "elastic deformation Fe = Fg^{-1} F instead of F Fg^{-1} (macro and micro residuals, the "
+        "stretch floor)",
+        (("return deformation_gradient(u) * ufl.inv(Fg)",
+          "return ufl.inv(Fg) * deformation_gradient(u)"),),
+    ),
+    Mutant(
+        "finite_green_lagrange_left", "forms/finite.py", "wrong configuration",
+        "Green-Lagrange strain from the left Cauchy-Green tensor Fe Fe^T instead of Fe^T Fe",
+        (("return 0.5 * (Fe.T * Fe - ufl.Identity(2))",
+          "return 0.5 * (Fe * Fe.T - ufl.Identity(2))"),),
+    ),
+    Mutant(
+        "finite_green_lagrange_factor", "forms/finite.py", "factor",
+        "Green-Lagrange strain Fe^T Fe - I without the factor 1/2",
+        (("return 0.5 * (Fe.T * Fe - ufl.Identity(2))", "return Fe.T * Fe - ufl.Identity(2)"),),
+    ),
+    Mutant(
+        "finite_cofactor_transposed", "forms/finite.py", "transposition",
+        "cofactor det(F) F^{-1} instead of det(F) F^{-T} (follower turgor and tractions)",
+        (("return ufl.det(F) * ufl.inv(F).T", "return ufl.det(F) * ufl.inv(F)"),),
+    ),
+    Mutant(
+        "finite_macro_stress_order", "forms/finite.py", "transposition",
+        "macro first Piola stress from S Fe instead of Fe S",
+        (("growth_weighted_work(Fe * macro_stress(u, Fg, C, K, phi_w, P1), psi, Fg, dx)",
+          "growth_weighted_work(macro_stress(u, Fg, C, K, phi_w, P1) * Fe, psi, Fg, dx)"),),
+    ),
 )  # fmt: skip
 
 
