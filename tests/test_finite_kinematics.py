@@ -127,6 +127,48 @@ def test_rotation_as_growth_gives_no_displacement_and_no_stress_with_finite_kine
     assert global_max(linear.out.sigma.x.array) <= 1e-12  # stress-free, but displaced
 
 
+HOMOGENEOUS_F = rotation(30.0) @ np.array([[1.2, 0.3], [0.0, 0.9]])
+"""A homogeneous deformation with rotation, stretch and shear (F != F^T, so F^-T N and F^-1 N
+differ)."""
+
+
+def right_edge_integral(form_of) -> np.ndarray:
+    """``form_of(u, n, ds_right)`` assembled for ``u = (F - I) x`` (exact in P1) on the unit
+    square, over its right edge x1 = 1 (reference normal N = e1, length 1), all ranks."""
+    import ufl
+    from dolfinx import fem, mesh
+
+    comm = MPI.COMM_WORLD
+    msh = mesh.create_unit_square(comm, 2, 2)
+    u = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)))
+    u.interpolate(lambda x: (HOMOGENEOUS_F - np.eye(2)) @ x[:2])
+    facets = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[0], 1.0))
+    tags = mesh.meshtags(msh, 1, facets, np.full(len(facets), 1, dtype=np.int32))
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)(1)
+    values = [fem.assemble_scalar(fem.form(f)) for f in form_of(u, ufl.FacetNormal(msh), ds)]
+    return np.array([comm.allreduce(v, op=MPI.SUM) for v in values])
+
+
+def test_follower_loads_act_on_the_deformed_edge():
+    """Nanson's formula: the right edge deforms to ``t = F e2``; turgor P = 1 pushes on it with
+    the force ``int cof(F) N ds = (t2, -t1)`` (its outward normal times its current length),
+    and a traction per current length f acts with ``int |cof(F) N| ds = |t|``. A constant F on
+    P1 makes both exact: round-off only."""
+    import ufl
+
+    from plantgrowth.forms.finite import follower_pressure, follower_traction
+
+    t = HOMOGENEOUS_F @ np.array([0.0, 1.0])
+    axes = [ufl.as_vector((1.0, 0.0)), ufl.as_vector((0.0, 1.0))]
+    force = right_edge_integral(
+        lambda u, n, ds: [follower_pressure(u, e, 1.0, n, ds) for e in axes]
+    )
+    np.testing.assert_allclose(force, [t[1], -t[0]], rtol=1e-12)
+    f = ufl.as_vector((1.0, 0.0))
+    length = right_edge_integral(lambda u, n, ds: [follower_traction(u, f, axes[0], n, ds)])
+    np.testing.assert_allclose(length, [np.linalg.norm(t)], rtol=1e-12)
+
+
 def test_micro_walls_rotated_by_growth_stay_unloaded():
     """The micro model's St Venant-Kirchhoff walls with Fg = R in every cell: u = 0."""
     model = MicroModel(rotation_scene("finite", "micro"), MPI.COMM_WORLD)
