@@ -16,7 +16,8 @@ from dolfinx import fem, mesh
 
 
 def det_degree(u: fem.Function) -> int:
-    """The polynomial degree of ``det(grad u)`` on a triangle for u in P_k (2D): ``2 (k - 1)``."""
+    """The polynomial degree of ``det(I + grad u)`` on a triangle for u in P_k (2D):
+    ``2 (k - 1)``."""
     return 2 * (u.function_space.ufl_element().degree() - 1)
 
 

@@ -46,13 +46,6 @@ NEWTON_KRYLOV_MAX_IT = 500
 the 90-111 a solve needs on gradient_E_strain with finite kinematics."""
 
 
-_SOLVER_NAMES = {
-    ("direct", False): "LU", ("direct", True): "LU",
-    ("iterative", False): "CG + GAMG",
-    ("iterative", True): "CG + GAMG, Newton: GMRES + GAMG (LU where GMRES stops)",
-}  # fmt: skip
-
-
 def mesh_bounding_box(msh: mesh.Mesh) -> tuple[float, float]:
     """Collective: (width, height) of the mesh, whose bounding box starts at the origin."""
     x = msh.geometry.x
@@ -138,7 +131,7 @@ class MacroProblem:
         self._grad_u_expr = fem.Expression(ufl.grad(self.u), self.T0.element.interpolation_points())
         log.info(
             "macro solver: %s (solver.macro = %r, %d fine dofs, threshold %d)",
-            _SOLVER_NAMES[self.solver, self.finite], scene.solver.macro,
+            self._solver_name(), scene.solver.macro,
             self.ndofs, scene.solver.macro_threshold,
         )  # fmt: skip
 
@@ -178,6 +171,12 @@ class MacroProblem:
             fallback=self._direct_jacobian_solver if self.solver == "iterative" else None,
         )  # fmt: skip
         self.newton_report: NewtonReport | None = None
+
+    def _solver_name(self) -> str:
+        if self.solver != "iterative":
+            return "LU"
+        newton = ", Newton: GMRES + GAMG (LU where GMRES stops)" if self.finite else ""
+        return "CG + GAMG" + newton
 
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
         if self.solver == "iterative":

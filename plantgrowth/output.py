@@ -92,8 +92,13 @@ def prepare_directory(directory: Path, comm: MPI.Comm, keep: bool = False) -> No
         raise OSError(error)
 
 
+def temporary_path(path: Path) -> Path:
+    """Where an atomic write of ``path`` puts its content before renaming it into place."""
+    return path.with_name(f".{path.name}.tmp")
+
+
 def atomic_write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
+    tmp = temporary_path(path)
     with open(tmp, "w") as f:
         f.write(text)
         f.flush()
@@ -126,7 +131,7 @@ def last_summary_step(path: Path) -> int | None:
 @contextmanager
 def _atomic_h5(path: Path) -> Iterator[h5py.File]:
     """An HDF5 file written under a temporary name and renamed into place when complete."""
-    tmp = path.with_name(f".{path.name}.tmp")
+    tmp = temporary_path(path)
     with h5py.File(tmp, "w") as f:
         yield f
     os.replace(tmp, path)

@@ -63,7 +63,7 @@ from typing import Any
 from mpi4py import MPI
 
 from plantgrowth.errors import InputError, RunError
-from plantgrowth.output import atomic_write_text, last_summary_step
+from plantgrowth.output import atomic_write_text, last_summary_step, temporary_path
 from plantgrowth.rundir import DirectoryLock, changed_keys, earlier_outputs, remove_earlier_outputs
 from plantgrowth.scene import EDGES, Scene, dict_to_toml, load_scene, parse_scene
 from plantgrowth.timeloop import Interrupted
@@ -454,7 +454,7 @@ def check_run_directory(run_dir: Path, run: Run) -> None:
     time.t_max: the run is extended)."""
     saved = run_dir / "scene.toml"
     if not saved.is_file():
-        starting = saved.with_name(f".{saved.name}.tmp")  # another element's run is writing it
+        starting = temporary_path(saved)  # another element's run is writing it
         if run_dir.is_dir() and set(earlier_outputs(run_dir)) - {starting}:
             raise InputError(
                 f"{run_dir} holds plantgrowth files but no scene.toml: use --overwrite"
