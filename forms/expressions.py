@@ -1,5 +1,5 @@
 """UFL versions of the operations of scene expressions (the keys of
-``plantgrowth.expression.NUMPY``), so an expression can be a form coefficient, e.g. a traction
+``plantgrowth.scene.expression.NUMPY``), so an expression can be a form coefficient, e.g. a traction
 that varies along an edge. Comparisons give 1.0 or 0.0, ``where(c, a, b)`` is a conditional."""
 
 from __future__ import annotations

@@ -1,1 +1,39 @@
-"""plantgrowth: multiscale simulation of plant tissue growth (see README.md)."""
+"""plantgrowth: multiscale simulation of plant tissue growth (docs/model.md, docs/api.md).
+
+The Python API, as ``import plantgrowth as pg``:
+
+- ``pg.load_scene(path)``, ``pg.Scene.from_dict(data)``, ``scene.replace(**{"material.E": 2.0})``;
+- ``pg.run(scene, outdir, comm=None) -> pg.Results``; ``pg.read_results(outdir) -> pg.Results``;
+- ``pg.cell(**parameters) -> dict``;
+- the errors ``pg.InputError`` (bad input; ``pg.SceneError`` for scenes) and ``pg.RunError``.
+
+Subpackages, each importing only those after it (tests/test_layout.py checks):
+``cli`` -> ``api`` -> ``studies`` -> ``runner``, ``results`` -> ``models`` -> ``unitcell`` ->
+``scene`` -> ``base`` -> ``forms``, ``meshes``. The names above are imported when first used, so
+``import plantgrowth`` itself loads neither dolfinx nor MPI.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_API = {
+    "load_scene": "plantgrowth.scene",
+    "Scene": "plantgrowth.scene",
+    "SceneError": "plantgrowth.base.errors",
+    "InputError": "plantgrowth.base.errors",
+    "RunError": "plantgrowth.base.errors",
+    "run": "plantgrowth.api",
+    "read_results": "plantgrowth.results.run_results",
+    "Results": "plantgrowth.results.run_results",
+    "cell": "plantgrowth.api",
+}
+
+__all__ = sorted(_API)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _API:
+        raise AttributeError(f"module 'plantgrowth' has no attribute {name!r}")
+    return getattr(importlib.import_module(_API[name]), name)

@@ -46,10 +46,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib.tri import LinearTriInterpolator, Triangulation
 
-from plantgrowth.machine import machine_description
-from plantgrowth.presets import PRESETS
-from plantgrowth.results_reader import read_series
-from plantgrowth.scene import Scene, dict_to_toml, load_scene, parse_scene
+from plantgrowth.base.machine import machine_description
+from plantgrowth.results.reader import read_series
+from plantgrowth.scene import Scene, load_scene, parse_scene
+from plantgrowth.scene.presets import PRESETS
+from plantgrowth.scene.toml_text import dict_to_toml
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ("gradient_E_strain.toml", "gradient_P1_stress.toml", "hard/E_contrast_100.toml")

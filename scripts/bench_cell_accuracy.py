@@ -124,9 +124,9 @@ def main(argv: list[str] | None = None) -> int:
         # read by dolfinx.jit at import time, hence before importing the solver
         tmp_cache = tempfile.mkdtemp(prefix="plantgrowth-jit-")
         os.environ["XDG_CACHE_HOME"] = tmp_cache
-    from plantgrowth.cell_solver import CellSolver
-    from plantgrowth.machine import machine_description
+    from plantgrowth.base.machine import machine_description
     from plantgrowth.meshes.honeycomb import HoneycombCell
+    from plantgrowth.unitcell.solver import CellSolver
 
     logging.getLogger().setLevel(logging.WARNING)  # quiet the JIT's compiler log
     wall_start = time.perf_counter()

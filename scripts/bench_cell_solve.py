@@ -49,9 +49,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def load_baseline(revision: str, directory: Path):
-    """The ``plantgrowth.cell_solver`` module of a git revision, imported under another name."""
+    """The ``plantgrowth.unitcell.solver`` module of a git revision, imported under another name."""
     source = subprocess.run(
-        ["git", "-C", str(REPO), "show", f"{revision}:plantgrowth/cell_solver.py"],
+        ["git", "-C", str(REPO), "show", f"{revision}:plantgrowth/unitcell/solver.py"],
         check=True,
         capture_output=True,
         text=True,
@@ -146,9 +146,9 @@ def run_resolution(solvers: dict, cell, resolution: int, repeats: int) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from plantgrowth.cell_solver import CellSolver
-    from plantgrowth.machine import machine_description
+    from plantgrowth.base.machine import machine_description
     from plantgrowth.meshes.honeycomb import HoneycombCell
+    from plantgrowth.unitcell.solver import CellSolver
 
     logging.getLogger().setLevel(logging.WARNING)  # quiet the JIT's compiler log
     load_before = os.getloadavg()

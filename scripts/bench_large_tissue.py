@@ -52,7 +52,7 @@ def large_scene(scale: float, t_max: float) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from plantgrowth.machine import machine_description
+    from plantgrowth.base.machine import machine_description
 
     load_before = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="plantgrowth-bench-large-") as tmp:

@@ -111,10 +111,10 @@ class NaiveHomogenizer:
         """``NodeTensors`` at n nodes from (n, 4) geometry, (n,) E and nu, (n, 2, 2) Fg."""
         from mpi4py import MPI
 
-        from plantgrowth.cell_solver import CellSolver
-        from plantgrowth.homogenization import NodeTensors
+        from plantgrowth.base.tensors import voigt_matrix
         from plantgrowth.meshes.honeycomb import HoneycombCell
-        from plantgrowth.tensors import voigt_matrix
+        from plantgrowth.unitcell.homogenization import NodeTensors
+        from plantgrowth.unitcell.solver import CellSolver
 
         out = {"C": [], "phi_w": [], "K": [], "dbar_w": [], "dbar_v": [], "P2_matrix": []}
         for g, E_n, nu_n, Fg_n in zip(geometry, E, nu, Fg, strict=True):
@@ -145,10 +145,10 @@ def run_naive(scene_path: Path, outdir: Path) -> None:
     cell-problem seconds) next to the run's usual files."""
     from mpi4py import MPI
 
-    from plantgrowth.coupled import macro_model
-    from plantgrowth.output import prepare_directory
+    from plantgrowth.models.macro.model import macro_model
+    from plantgrowth.runner.output import prepare_directory
+    from plantgrowth.runner.timeloop import run_model
     from plantgrowth.scene import load_scene
-    from plantgrowth.timeloop import run_model
 
     comm = MPI.COMM_WORLD
     if comm.size > 1:
@@ -208,7 +208,7 @@ def run_record(outdir: Path, wall: float, memory: float) -> dict:
 
 def differences(outdir: Path, reference: Path) -> dict[str, float]:
     """Largest relative differences of area (over steps) and of u at the last step."""
-    from plantgrowth.results_reader import read_series
+    from plantgrowth.results.reader import read_series
 
     rows, ref_rows = summary_rows(outdir), summary_rows(reference)
     area = max(
@@ -229,9 +229,9 @@ def basis_seconds(resolution: int, repeats: int = 5) -> float:
     import ufl
     from mpi4py import MPI
 
-    from plantgrowth.cell_solver import CellSolver, GradientBasis
     from plantgrowth.meshes.honeycomb import HoneycombCell
     from plantgrowth.meshes.unit_cell import CELL_TAGS
+    from plantgrowth.unitcell.solver import CellSolver, GradientBasis
 
     solver = CellSolver(HoneycombCell(), resolution, MPI.COMM_SELF)
     cell_tags = solver.unit_cell.cell_tags
@@ -278,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.naive is not None:
         run_naive(*args.naive)
         return 0
-    from plantgrowth.machine import machine_description
+    from plantgrowth.base.machine import machine_description
 
     load_before = os.getloadavg()
     exact = {"cell_tolerance": 0.0}

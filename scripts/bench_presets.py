@@ -25,9 +25,9 @@ import time
 import tomllib
 from pathlib import Path
 
-from plantgrowth.machine import machine_description
-from plantgrowth.presets import PRESETS
-from plantgrowth.scene import dict_to_toml
+from plantgrowth.base.machine import machine_description
+from plantgrowth.scene.presets import PRESETS
+from plantgrowth.scene.toml_text import dict_to_toml
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks/results/presets.json"

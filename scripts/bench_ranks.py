@@ -119,7 +119,7 @@ def bench(checkout: Path, names: list[str], repeats: int) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from plantgrowth.machine import machine_description
+    from plantgrowth.base.machine import machine_description
 
     result = {
         "description": "whole wall time of plantgrowth run, 1 rank against mpirun -n 2",

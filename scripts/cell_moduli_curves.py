@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.cell_solver import DEFAULT_RESOLUTION, CellSolver
-from plantgrowth.machine import machine_description
+from plantgrowth.base.machine import machine_description
 from plantgrowth.meshes.honeycomb import HoneycombCell
+from plantgrowth.unitcell.solver import DEFAULT_RESOLUTION, CellSolver
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

@@ -39,7 +39,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from plantgrowth.machine import machine_description
+from plantgrowth.base.machine import machine_description
 from plantgrowth.scene import load_scene
 
 LAWS = ("strain", "stress")

@@ -26,13 +26,13 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth import growth, plausibility
-from plantgrowth.coupled import MacroModel, macro_model
-from plantgrowth.errors import RunError
-from plantgrowth.machine import machine_description
-from plantgrowth.output import prepare_directory
-from plantgrowth.scene import Scene, parse_scene
-from plantgrowth.timeloop import run_model
+from plantgrowth.base.errors import RunError
+from plantgrowth.base.machine import machine_description
+from plantgrowth.models import growth
+from plantgrowth.models.macro.model import MacroModel, macro_model
+from plantgrowth.runner.output import prepare_directory
+from plantgrowth.runner.timeloop import run_model
+from plantgrowth.scene import Scene, parse_scene, plausibility
 
 log = logging.getLogger("plantgrowth")
 

@@ -23,8 +23,8 @@ import time
 from collections import Counter, defaultdict
 from pathlib import Path
 
+from plantgrowth.base.machine import machine_description
 from plantgrowth.cli import main
-from plantgrowth.machine import machine_description
 
 REPO = Path(__file__).resolve().parent.parent
 OUTPUT = REPO / "benchmarks" / "results" / "bad_inputs.json"

@@ -1,8 +1,8 @@
 """Hard-case stability suite: every scene of ``scenes/hard`` at full resolution and refined once.
 
 Runs each scene (and the refinement: tissue.h halved, accuracy.cell_resolution + 1) through
-:func:`plantgrowth.hard_cases.evaluate` with the scenes' integrator ('adaptive'), plus at full
-resolution: the large-step study (final area versus a dt = 0.25 'adaptive' run for dt in
+:func:`plantgrowth.studies.hard_cases.evaluate` with the scenes' integrator ('adaptive'), plus at
+full resolution: the large-step study (final area versus a dt = 0.25 'adaptive' run for dt in
 {1, 10, 30} with the three integrators, on the scenes of ``DT_SCENES``), the long run at dt = 10
 with each integrator (``EXTRA``), and the limit scenes (``LIMIT_SCENES``: they stop with
 "element inverted") with other steps and integrators (``LIMIT_RUNS``). Writes the criterion
@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from plantgrowth import hard_cases as hc
-from plantgrowth.machine import machine_description
+from plantgrowth.base.machine import machine_description
+from plantgrowth.studies import hard_cases as hc
 
 DT_SCENES = ("reference", "gradient_E", "E_contrast_100")
 """Scenes of the large-step study: the homogeneous reference (Euler's error has a closed form),

@@ -78,13 +78,13 @@ CLAMPED = (
 MUTANTS = (
     # --- forms/ --------------------------------------------------------------------------------
     Mutant(
-        "cell_pressure_sign", "plantgrowth/cell_solver.py", "sign",
+        "cell_pressure_sign", "plantgrowth/unitcell/solver.py", "sign",
         "pressure cell problem [UCw_weak] with the unit pressure's sign flipped (v -> -v), "
         "issue 8",
         (("wall_b + [np.eye(2)] * pressure", "wall_b + [-np.eye(2)] * pressure"),),
     ),
     Mutant(
-        "cell_grad_g_transposed", "plantgrowth/cell_solver.py", "transposition",
+        "cell_grad_g_transposed", "plantgrowth/unitcell/solver.py", "transposition",
         "cell problems' growth map vec(X Fg^{-T}) instead of vec(X Fg^{-1}) (matrix, loads, "
         "averages of [UC_weak]/[UCw_weak])",
         (("return np.kron(np.eye(2), np.linalg.inv(Fg).T)",
@@ -128,108 +128,108 @@ MUTANTS = (
     ),
     # --- homogenization, cell solver, tensors ---------------------------------------------------
     Mutant(
-        "E_hom_doubled", "plantgrowth/homogenization.py", "factor",
+        "E_hom_doubled", "plantgrowth/unitcell/homogenization.py", "factor",
         "E_hom doubled on its way from the cell problems to the macro problem, issue 8",
         (("C = packed[:, :9].reshape(n, 3, 3) * E[:, None, None]",
           "C = packed[:, :9].reshape(n, 3, 3) * (2.0 * E[:, None, None])"),),
     ),
     Mutant(
-        "dbar_v_E_scaling", "plantgrowth/homogenization.py", "factor",
+        "dbar_v_E_scaling", "plantgrowth/unitcell/homogenization.py", "factor",
         "dbar[v] of the reduced (E = 1) cell scaled by E instead of 1/E",
         (("reshape(n, 2, 2) / E[:, None, None]", "reshape(n, 2, 2) * E[:, None, None]"),),
     ),
     Mutant(
-        "cell_average_over_walls", "plantgrowth/cell_solver.py", "wrong average",
+        "cell_average_over_walls", "plantgrowth/unitcell/solver.py", "wrong average",
         "cell averages divided by |Y_w| instead of |Y|",
         (("grad_g.transpose(0, 2, 1)) / self.area",
           "grad_g.transpose(0, 2, 1)) / self.wall_area"),),
     ),
     Mutant(
-        "voigt_vector_shear_factor", "plantgrowth/tensors.py", "factor",
+        "voigt_vector_shear_factor", "plantgrowth/base/tensors.py", "factor",
         "numpy Voigt strain (e11, e22, e12) instead of (e11, e22, 2 e12) in sigma_hom",
         (("np.stack([e[..., 0, 0], e[..., 1, 1], 2.0 * e[..., 0, 1]], axis=-1)",
           "np.stack([e[..., 0, 0], e[..., 1, 1], e[..., 0, 1]], axis=-1)"),),
     ),
     # --- growth law and integrators ---------------------------------------------------------------
     Mutant(
-        "positive_part_abs", "plantgrowth/growth.py", "wrong law or integrator",
+        "positive_part_abs", "plantgrowth/models/growth.py", "wrong law or integrator",
         "[A]_+ built from |eigenvalues| instead of max(eigenvalues, 0)",
         (("lambda lam: np.maximum(lam, 0.0)", "lambda lam: np.abs(lam)"),),
     ),
     Mutant(
-        "clamp_before_eta", "plantgrowth/growth.py", "wrong law or integrator",
+        "clamp_before_eta", "plantgrowth/models/growth.py", "wrong law or integrator",
         "G = eta clip([X/phi_w - tau]_+, -M, M) instead of clip(eta [.]_+, -M, M)",
         (("np.clip(eta[:, None, None] * positive_part(driving), -clamp, clamp)",
           "eta[:, None, None] * np.clip(positive_part(driving), -clamp, clamp)"),),
     ),
     Mutant(
-        "elastic_strain_transposed", "plantgrowth/growth.py", "transposition",
+        "elastic_strain_transposed", "plantgrowth/models/growth.py", "transposition",
         "numpy eps_el from Fg^{-1} grad u instead of grad u Fg^{-1} (sigma_hom, eps_hom)",
         (("A = grad_u @ Finv + Finv", "A = Finv @ grad_u + Finv"),),
     ),
     Mutant(
-        "homogenized_strain_dbar_transposed", "plantgrowth/growth.py", "transposition",
+        "homogenized_strain_dbar_transposed", "plantgrowth/models/growth.py", "transposition",
         "eps_hom with sum_kl eps_el_kl dbar[w^ij]_kl instead of sum_ij eps_el_ij dbar[w^ij]_kl",
         (('np.einsum("nij,nijkl->nkl", eps_el, dbar_w)',
           'np.einsum("nkl,nijkl->nij", eps_el, dbar_w)'),),
     ),
     Mutant(
-        "exp_integrator_order", "plantgrowth/growth.py", "wrong law or integrator",
+        "exp_integrator_order", "plantgrowth/models/growth.py", "wrong law or integrator",
         "exp integrator Fg expm(dt G) instead of expm(dt G) Fg",
         (("return symmetric_function(G, lambda lam: np.exp(dt * lam)) @ Fg",
           "return Fg @ symmetric_function(G, lambda lam: np.exp(dt * lam))"),),
     ),
     # --- coupled loop -----------------------------------------------------------------------------
     Mutant(
-        "sigma_without_K", "plantgrowth/coupled.py", "wrong law or integrator",
+        "sigma_without_K", "plantgrowth/models/macro/model.py", "wrong law or integrator",
         "growth driven by the elastic part E_hom eps_el only, without K_hom P1",
         (("growth.homogenized_stress(C, eps_el, K, self.P1)",
           "growth.homogenized_stress(C, eps_el, None, self.P1)"),),
     ),
     Mutant(
-        "interpolation_points_swapped", "plantgrowth/coupled.py", "transposition",
+        "interpolation_points_swapped", "plantgrowth/models/macro/model.py", "transposition",
         "coarse-node tensors interpolated at (x2, x1) instead of the fine cells' (x1, x2)",
         (("interpolation_matrix(problem.midpoints[:, :2])",
           "interpolation_matrix(problem.midpoints[:, 1::-1])"),),
     ),
     Mutant(
-        "Fg_projection_transposed", "plantgrowth/coupled.py", "transposition",
+        "Fg_projection_transposed", "plantgrowth/models/macro/model.py", "transposition",
         "Fg projected to the coarse nodes as Fg^T (cell problems solved for the transpose)",
         (("Fg[:n_owned].reshape(-1, 4)", "np.swapaxes(Fg[:n_owned], 1, 2).reshape(-1, 4)"),),
     ),
     # --- macro problem ----------------------------------------------------------------------------
     Mutant(
-        "macro_bottom_clamped", "plantgrowth/macro_problem.py", "wrong boundary condition",
+        "macro_bottom_clamped", "plantgrowth/models/macro/problem.py", "wrong boundary condition",
         "macro bottom edge clamped (u = 0) instead of a symmetry plane (u2 = 0)",
         (CLAMPED,),
     ),
     # --- micro model ------------------------------------------------------------------------------
     Mutant(
-        "micro_bottom_clamped", "plantgrowth/micro.py", "wrong boundary condition",
+        "micro_bottom_clamped", "plantgrowth/models/micro/model.py", "wrong boundary condition",
         "micro bottom walls clamped (u = 0) instead of a symmetry plane (u2 = 0)",
         (CLAMPED,),
     ),
     Mutant(
-        "micro_average_over_hexagon", "plantgrowth/micro.py", "wrong average",
+        "micro_average_over_hexagon", "plantgrowth/models/micro/model.py", "wrong average",
         "per-cell micro growth driven by the wall integral divided by the cell's hexagon area "
         "instead of its wall area",
         (("reshape(-1, 4), T0) / self.wall_area[:, None]",
           "reshape(-1, 4), T0) / self.hexagon_area[:, None]"),),
     ),
     Mutant(
-        "micro_cut_cell_shear_kept", "plantgrowth/micro.py", "wrong average",
+        "micro_cut_cell_shear_kept", "plantgrowth/models/micro/model.py", "wrong average",
         "cut bottom cells averaged as they are (shear kept) instead of as the mirrored full cell",
         (("means[self.layout.cut_cells, 1:3] = 0.0", "means[self.layout.cut_cells, 1:3] *= 1.0"),),
     ),
     # --- time loop --------------------------------------------------------------------------------
     Mutant(
-        "adaptive_midpoint_lagged", "plantgrowth/timeloop.py", "wrong law or integrator",
+        "adaptive_midpoint_lagged", "plantgrowth/runner/timeloop.py", "wrong law or integrator",
         "adaptive integrator's second half-step with the start-of-step G, not the midpoint G",
         (("growth.advance(half, middle.G, 0.5 * h, \"exp\")",
           "growth.advance(half, G, 0.5 * h, \"exp\")"),),
     ),
     Mutant(
-        "scene_integrator_ignored", "plantgrowth/timeloop.py", "wrong law or integrator",
+        "scene_integrator_ignored", "plantgrowth/runner/timeloop.py", "wrong law or integrator",
         "explicit steps always use exp, whatever the scene's integrator says",
         (("return growth.advance(Fg, G, t.dt, t.integrator), 1, 0",
           "return growth.advance(Fg, G, t.dt, \"exp\"), 1, 0"),),

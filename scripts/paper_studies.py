@@ -43,9 +43,9 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from plantgrowth.machine import machine_description
+from plantgrowth.base.machine import machine_description
 from plantgrowth.scene import Scene
-from plantgrowth.sweep import Run, Sweep, load_sweep
+from plantgrowth.studies.sweep import Run, Sweep, load_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 SWEEPS_DIR = ROOT / "scenes" / "sweeps" / "paper"

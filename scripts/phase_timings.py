@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from plantgrowth.machine import machine_description
+from plantgrowth.base.machine import machine_description
 
 PHASES = ("seconds_cells", "seconds_solve", "seconds_growth", "seconds_io")
 DEFAULT = ["scenes/reference_stress.toml", "scenes/gradient_E_strain.toml"]

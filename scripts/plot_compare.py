@@ -31,7 +31,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch, PathPatch, Rectangle  # noqa: E402
 from matplotlib.path import Path as MplPath  # noqa: E402
 
-from plantgrowth.results_reader import boundary_outline, read_series  # noqa: E402
+from plantgrowth.results.reader import boundary_outline, read_series  # noqa: E402
 
 WIDTH_COLOURS = {0.05: "tab:blue", 0.1: "tab:orange", 0.2: "tab:green"}
 LAW_MARKERS = {"strain": dict(marker="o", mfc="none", ms=9), "stress": dict(marker="x", ms=6)}

@@ -24,7 +24,7 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from plantgrowth.results_reader import boundary_outline, read_series  # noqa: E402
+from plantgrowth.results.reader import boundary_outline, read_series  # noqa: E402
 
 LAWS = ("strain", "stress")
 ROWS = (  # (scene tag, scene keys as (table, key), row label)

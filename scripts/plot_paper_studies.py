@@ -31,7 +31,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 from plot_compare import draw_tissue  # noqa: E402  (scripts/, next to this file)
 
-from plantgrowth.results_reader import read_series  # noqa: E402
+from plantgrowth.results.reader import read_series  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 LAWS = ("strain", "stress")

@@ -3,8 +3,8 @@ and the scene's name in the title.
 
 Reads ``RESULT_DIR`` written by ``plantgrowth run`` (never re-solves, never writes into it) and
 draws the field on the grown tissue x + u(t) at the last written time, the initial outline
-dashed (plantgrowth/render.py). ``--field NAME[:COMPONENT]``: e.g. ``G:tr`` (the default, the
-areal growth rate tr G), ``trG``, ``growth_direction``, ``E1111``. Replaces ``--out``.
+dashed (plantgrowth/results/render.py). ``--field NAME[:COMPONENT]``: e.g. ``G:tr`` (the default,
+the areal growth rate tr G), ``trG``, ``growth_direction``, ``E1111``. Replaces ``--out``.
 
     python scripts/render_tissue.py results/reference_stress --out PNG [--field G:tr]
 """
@@ -16,7 +16,7 @@ import re
 import sys
 from pathlib import Path
 
-from plantgrowth.render import render
+from plantgrowth.results.render import render
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

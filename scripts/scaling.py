@@ -38,8 +38,10 @@ import time
 import tomllib
 from pathlib import Path
 
-from plantgrowth.machine import machine_description
-from plantgrowth.scene import MACRO_THRESHOLD, dict_to_toml, parse_scene
+from plantgrowth.base.machine import machine_description
+from plantgrowth.scene import parse_scene
+from plantgrowth.scene.limits import MACRO_THRESHOLD
+from plantgrowth.scene.toml_text import dict_to_toml
 
 REPO = Path(__file__).resolve().parents[1]
 BASE = REPO / "scenes" / "gradient_E_strain.toml"
@@ -208,8 +210,8 @@ def micro_solves(nx: int, kind: str, out: Path) -> None:
     step's solve time (assembly included), iterations and true residual."""
     from mpi4py import MPI
 
-    from plantgrowth.linear import gamg_solver
-    from plantgrowth.micro import MicroModel
+    from plantgrowth.models.linear import gamg_solver
+    from plantgrowth.models.micro.model import MicroModel
     from plantgrowth.scene import load_scene
 
     start = time.perf_counter()

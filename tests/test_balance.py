@@ -1,4 +1,5 @@
-"""Cost-balanced dealing of cell problems (plantgrowth.balance): the schedule and the results.
+"""Cost-balanced dealing of cell problems (plantgrowth.unitcell.scheduler): the schedule and the
+results.
 
 The schedule is checked on a stand-in communicator of a chosen size (``assign`` only reads
 ``comm.size``); ``solve_all`` runs on the real COMM_WORLD (serial, and under mpirun -n 2).
@@ -11,7 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.balance import SETUP_SOLVES, CellScheduler
+from plantgrowth.unitcell.scheduler import SETUP_SOLVES, CellScheduler
 
 
 def scheduler(size: int) -> CellScheduler:

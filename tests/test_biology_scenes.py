@@ -17,8 +17,8 @@ from mpi4py import MPI
 
 from plantgrowth.cli import main
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.results_reader import read_series
-from plantgrowth.scene import dict_to_toml
+from plantgrowth.results.reader import read_series
+from plantgrowth.scene.toml_text import dict_to_toml
 
 BIOLOGY = Path(__file__).resolve().parents[1] / "scenes" / "biology"
 T_MAX = 10.0

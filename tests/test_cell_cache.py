@@ -1,4 +1,4 @@
-"""The on-disk cache of the surrogate's lattice (plantgrowth/cell_cache.py, issue 9).
+"""The on-disk cache of the surrogate's lattice (plantgrowth/unitcell/cache.py, issue 9).
 
 Runs are real ``plantgrowth run`` subprocesses sharing one cache directory (so
 ``skip_in_parallel``): two at once, and one killed with SIGKILL; later runs must start from
@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plantgrowth.homogenization import CHECK_EVERY
-from plantgrowth.scene import dict_to_toml
+from plantgrowth.scene.toml_text import dict_to_toml
+from plantgrowth.unitcell.homogenization import CHECK_EVERY
 
 pytestmark = pytest.mark.skip_in_parallel
 

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth.cell_solver import CellSolver
 from plantgrowth.cli import main
 from plantgrowth.meshes.honeycomb import HoneycombCell
+from plantgrowth.unitcell.solver import CellSolver
 
 KEYS = "E1111 E2222 E1122 E1212 E1112 E2212 K11 K22 K12 E1 E2 nu12 G12 phi_w ndofs seconds".split()
 BIN = Path(sys.executable).parent

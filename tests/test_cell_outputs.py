@@ -18,13 +18,13 @@ import pytest
 from cli_helpers import ENV, PLANTGROWTH, shared_dir, write
 from mpi4py import MPI
 
-from plantgrowth import principal
-from plantgrowth.cell_outlines import CELL_COLUMNS
+from plantgrowth.base import principal
 from plantgrowth.cli import main
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
 from plantgrowth.meshes.tissue import TissueLayout
-from plantgrowth.results_reader import read_series
-from plantgrowth.scene import GROWTH_FIELDS
+from plantgrowth.models.micro.outlines import CELL_COLUMNS
+from plantgrowth.results.reader import read_series
+from plantgrowth.scene.limits import GROWTH_FIELDS
 
 NX = 4
 N_CELLS = NX * NX // 2

@@ -1,4 +1,4 @@
-"""The pointwise checks' sample points (plantgrowth.cell_samples): a P2 field whose det F is
+"""The pointwise checks' sample points (plantgrowth.base.mesh_samples): a P2 field whose det F is
 positive at every cell midpoint but negative at a corner is seen inverted."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from plantgrowth.cell_samples import CellSamples, det_degree
+from plantgrowth.base.mesh_samples import CellSamples, det_degree
 
 A = -0.7
 """u = (A x1^2, 0): det F = 1 + 2 A x1, -0.4 at x1 = 1, positive at both cells' centroids of

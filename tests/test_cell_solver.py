@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth.cell_solver import CellSolver
+from plantgrowth.base.tensors import isotropic_tensor, orthotropic_moduli
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.tensors import isotropic_tensor, orthotropic_moduli
+from plantgrowth.unitcell.solver import CellSolver
 
 E_WALL, NU_WALL = 1.0, 0.3
 MU_WALL = E_WALL / (2 * (1 + NU_WALL))

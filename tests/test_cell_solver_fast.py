@@ -24,13 +24,13 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from plantgrowth.cell_solver import STRAIN_PROBLEMS, CellSolver, stiffness_weights
+from plantgrowth.base.tensors import isotropic_tensor, unit_strain
 from plantgrowth.forms import cell_problems
 from plantgrowth.forms.elasticity import lame_parameters, wall_bilinear_form
-from plantgrowth.linear import lu_solver
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.meshes.unit_cell import CELL_TAGS
-from plantgrowth.tensors import isotropic_tensor, unit_strain
+from plantgrowth.models.linear import lu_solver
+from plantgrowth.unitcell.solver import STRAIN_PROBLEMS, CellSolver, stiffness_weights
 
 # round-off of two direct factorizations of the same matrix (see the module docstring)
 ROUND_OFF = 1e-10

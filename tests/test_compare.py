@@ -43,11 +43,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth import homogenization
-from plantgrowth.cell_solver import CellSolver
 from plantgrowth.cli import main
-from plantgrowth.compare import COLUMNS, fitted_rate, run_compare
-from plantgrowth.scene import dict_to_toml, load_scene
+from plantgrowth.scene import load_scene
+from plantgrowth.scene.toml_text import dict_to_toml
+from plantgrowth.studies.compare import COLUMNS, fitted_rate, run_compare
+from plantgrowth.unitcell import homogenization
+from plantgrowth.unitcell.solver import CellSolver
 
 pytestmark = pytest.mark.convergence
 

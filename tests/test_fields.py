@@ -1,4 +1,4 @@
-"""Parameter fields along x2 and as expressions (issue 11, item 1; plantgrowth/expression.py,
+"""Parameter fields along x2 and as expressions (issue 11, item 1; plantgrowth/scene/expression.py,
 fields.py, field_checks.py).
 
 Parser: precedence, associativity, functions, named errors with positions, no eval. Fields:
@@ -21,11 +21,13 @@ import pytest
 from cli_helpers import ENV, PLANTGROWTH, call, shared_dir, write
 from mpi4py import MPI
 
-from plantgrowth.expression import ExpressionError, parse_expression
-from plantgrowth.field_checks import check_used_values
-from plantgrowth.fields import ExprField, Field
-from plantgrowth.output import step_file
-from plantgrowth.scene import REFERENCE_WIDTH, SceneError, dict_to_toml, parse_scene
+from plantgrowth.runner.output import step_file
+from plantgrowth.runner.scene_run import check_used_values
+from plantgrowth.scene import SceneError, parse_scene
+from plantgrowth.scene.expression import ExpressionError, parse_expression
+from plantgrowth.scene.fields import ExprField, Field
+from plantgrowth.scene.limits import REFERENCE_WIDTH
+from plantgrowth.scene.toml_text import dict_to_toml
 
 XY = ("x1", "x2")
 
@@ -260,7 +262,7 @@ def test_micro_fields_are_checked_at_the_cell_centres():
 
 def test_valid_expressions_pass_and_linear_fields_need_no_meshes(monkeypatch):
     check_used_values(scene(SMALL | {"material": {"E": {"expr": "1 + x1 * x2"}}}), MPI.COMM_WORLD)
-    import plantgrowth.field_checks as fc
+    import plantgrowth.runner.scene_run as fc
 
     monkeypatch.setattr(fc, "macro_domain", None)  # would fail if called
     check_used_values(scene(SMALL | {"material": {"E": {"from": 1, "to": 2}}}), MPI.COMM_WORLD)

@@ -7,7 +7,7 @@ quadratically; a distributed run equals a single-rank one; a resumed run equals 
 
 Scenes: coarse macro meshes (h = 0.35, cell_resolution 1, no surrogate) and a micro tissue of
 Nx = 4; each model step is well under a second. Newton stops at a relative residual of 1e-10
-(plantgrowth.newton.NEWTON_RTOL), usually far below it (quadratic convergence), so quantities
+(plantgrowth.models.newton.NEWTON_RTOL), usually far below it (quadratic convergence), so quantities
 that are exact in the continuous and the discrete problem are checked to 1e-8 relative.
 """
 
@@ -21,16 +21,16 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth import newton
+from plantgrowth.base.errors import RunError
+from plantgrowth.base.gather import dof_state
 from plantgrowth.cli import main
-from plantgrowth.coupled import MacroModel
-from plantgrowth.errors import RunError
-from plantgrowth.gather import dof_state
-from plantgrowth.macro_problem import rectangle_mesh
-from plantgrowth.micro import MicroModel
-from plantgrowth.rundir import changed_keys
+from plantgrowth.models import newton
+from plantgrowth.models.macro.model import MacroModel
+from plantgrowth.models.macro.problem import rectangle_mesh
+from plantgrowth.models.micro.model import MicroModel
+from plantgrowth.runner.rundir import changed_keys
+from plantgrowth.runner.timeloop import NEWTON_COLUMNS, run_model, summary_columns
 from plantgrowth.scene import SceneError, parse_scene
-from plantgrowth.timeloop import NEWTON_COLUMNS, run_model, summary_columns
 
 NEWTON_ACCURACY = 1e-8
 """Newton's relative residual 1e-10 times the conditioning of these small systems (module doc)."""

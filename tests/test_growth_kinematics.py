@@ -29,10 +29,10 @@ import pytest
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
-from plantgrowth.cell_solver import CellSolver
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.micro import MicroModel
+from plantgrowth.models.micro.model import MicroModel
 from plantgrowth.scene import parse_scene
+from plantgrowth.unitcell.solver import CellSolver
 
 ROUND_OFF = 1e-9  # LU round-off (module docstring)
 

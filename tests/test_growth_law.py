@@ -1,4 +1,4 @@
-"""Growth law and time integration (plantgrowth/growth.py, MODEL.md section 4): pure numpy.
+"""Growth law and time integration (plantgrowth/models/growth.py, MODEL.md section 4): pure numpy.
 
 No meshes and no MPI collectives: every rank runs the same checks. Tensors carry the cell index
 first, (n, 2, 2). Tolerances are round-off tolerances: every identity checked here is exact in
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from plantgrowth import growth
-from plantgrowth.tensors import isotropic_tensor, voigt_matrix
+from plantgrowth.base.tensors import isotropic_tensor, voigt_matrix
+from plantgrowth.models import growth
 
 RNG_SEED = 20240607
 

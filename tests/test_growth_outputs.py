@@ -1,5 +1,5 @@
 """Growth outputs a biologist reads (issue 11, item 3): ``trG``, ``growth_anisotropy``,
-``growth_direction``, ``stress_direction`` (plantgrowth/principal.py, growth_fields.py).
+``growth_direction``, ``stress_direction`` (plantgrowth/base/principal.py, growth_fields.py).
 
 The principal-value helpers are checked on hand-made tensors; the macro fields on a homogeneous
 scene, whose growth is exactly isotropic with tr G = 2 eta (1 - phi_w) P1 / phi_w (MODEL.md 4),
@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from cli_helpers import ENV, PLANTGROWTH, call, shared_dir, write
 
-from plantgrowth import principal
-from plantgrowth.growth_fields import GrowthFields
+from plantgrowth.base import principal
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.results_reader import read_series
-from plantgrowth.scene import DEFAULT_OUTPUT, GROWTH_FIELDS, OUTPUT_FIELDS
+from plantgrowth.models.growth_fields import GrowthFields
+from plantgrowth.results.reader import read_series
+from plantgrowth.scene.limits import DEFAULT_OUTPUT, GROWTH_FIELDS, OUTPUT_FIELDS
 
 ROUND_OFF = 1e-12  # closed-form 2x2 algebra on O(1) numbers: a few ulps
 FIELDS = ["u", "G", "sigma_hom", *GROWTH_FIELDS]

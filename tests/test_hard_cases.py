@@ -1,4 +1,5 @@
-"""Hard-case stability suite (``scenes/hard``, :mod:`plantgrowth.hard_cases`) on cheap meshes.
+"""Hard-case stability suite (``scenes/hard``, :mod:`plantgrowth.studies.hard_cases`) on cheap
+meshes.
 
 Every scene runs in process on COMM_WORLD at h = 0.35, H = 1 (2 for field scenes), one P2 element
 across a cell wall, with the recommended integrator ``adaptive`` (the scenes' own), and at most
@@ -14,7 +15,7 @@ to shortly before.
 With ``kinematics = "finite"`` (MODEL.md 10) every scene runs again to its own t_max: the
 FINITE_PASSING ones keep every criterion (and the homogeneous ones the exact rate); the
 FINITE_LIMITS stop with Newton's named error where the elastic strain leaves the range of the
-St Venant-Kirchhoff law (a principal elastic stretch at 1/sqrt(3), plantgrowth.newton.
+St Venant-Kirchhoff law (a principal elastic stretch at 1/sqrt(3), plantgrowth.models.newton.
 STRETCH_FLOOR): docs/finite_kinematics.md, "Limits table".
 """
 
@@ -26,7 +27,7 @@ from pathlib import Path
 import pytest
 from mpi4py import MPI
 
-from plantgrowth import hard_cases as hc
+from plantgrowth.studies import hard_cases as hc
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes" / "hard"
 
@@ -118,7 +119,7 @@ def test_every_scene_is_covered():
 
 @pytest.mark.parametrize("name", PASSING | LIMITS_ON_FINE_MESHES)
 def test_criteria_hold(run, name):
-    """All criteria of plantgrowth.hard_cases hold at every step with integrator 'adaptive'."""
+    """All criteria of plantgrowth.studies.hard_cases hold at every step (integrator 'adaptive')."""
     r = run(name, (PASSING | LIMITS_ON_FINE_MESHES)[name])
     assert r["error"] is None and r["steps"] == r["n_steps"], _failed(r)
     assert r["passed"], _failed(r)

@@ -34,9 +34,9 @@ import pytest
 from cli_helpers import finish, processes_mentioning, start
 from mpi4py import MPI
 
-from plantgrowth import macro_problem
 from plantgrowth.cli import main
-from plantgrowth.linear import SolveReport
+from plantgrowth.models.linear import SolveReport
+from plantgrowth.models.macro import problem as macro_problem
 
 N_STEPS = 40
 SCENE = """\

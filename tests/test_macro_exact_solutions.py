@@ -25,12 +25,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth.cell_solver import CellSolver
-from plantgrowth.coupled import MacroModel
-from plantgrowth.macro_problem import rectangle_mesh
+from plantgrowth.base.tensors import voigt_matrix
 from plantgrowth.meshes.honeycomb import HoneycombCell
+from plantgrowth.models.macro.model import MacroModel
+from plantgrowth.models.macro.problem import rectangle_mesh
 from plantgrowth.scene import load_scene, parse_scene
-from plantgrowth.tensors import voigt_matrix
+from plantgrowth.unitcell.solver import CellSolver
 
 ROOT = Path(__file__).resolve().parents[1]
 ROUND_OFF = 1e-9  # LU round-off of the macro and cell solves (module docstring)

@@ -33,15 +33,16 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from plantgrowth import coupled
-from plantgrowth.cell_solver import CellSolver
 from plantgrowth.cli import main
 from plantgrowth.forms import macro
-from plantgrowth.homogenization import Homogenizer
-from plantgrowth.macro_problem import MacroProblem, rectangle_mesh
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.presets import DEFAULT_PRESET, knob
-from plantgrowth.scene import Scene, dict_to_toml, load_scene, parse_scene
+from plantgrowth.models.macro import model as coupled
+from plantgrowth.models.macro.problem import MacroProblem, rectangle_mesh
+from plantgrowth.scene import Scene, load_scene, parse_scene
+from plantgrowth.scene.presets import DEFAULT_PRESET, knob
+from plantgrowth.scene.toml_text import dict_to_toml
+from plantgrowth.unitcell.homogenization import Homogenizer
+from plantgrowth.unitcell.solver import CellSolver
 
 BIN = Path(sys.executable).parent
 PLANTGROWTH = str(BIN / "plantgrowth")

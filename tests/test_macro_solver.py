@@ -21,10 +21,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth import diagnostics
-from plantgrowth.errors import RunError
-from plantgrowth.macro_problem import MACRO_RTOL, MacroProblem, rectangle_mesh
-from plantgrowth.scene import Solver, dict_to_toml, parse_scene
+from plantgrowth.base.errors import RunError
+from plantgrowth.models import diagnostics
+from plantgrowth.models.macro.problem import MACRO_RTOL, MacroProblem, rectangle_mesh
+from plantgrowth.scene import parse_scene
+from plantgrowth.scene.schema import Solver
+from plantgrowth.scene.toml_text import dict_to_toml
 
 PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")

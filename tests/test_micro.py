@@ -31,15 +31,16 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth.cell_solver import CellSolver
 from plantgrowth.cli import main
-from plantgrowth.compare import P1Snapshot
-from plantgrowth.coupled import macro_model
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
 from plantgrowth.meshes.tissue import TissueLayout
-from plantgrowth.micro import MicroModel, scene_cell
-from plantgrowth.scene import dict_to_toml, parse_scene
-from plantgrowth.timeloop import SUMMARY_COLUMNS
+from plantgrowth.models.macro.model import macro_model
+from plantgrowth.models.micro.model import MicroModel, scene_cell
+from plantgrowth.runner.timeloop import SUMMARY_COLUMNS
+from plantgrowth.scene import parse_scene
+from plantgrowth.scene.toml_text import dict_to_toml
+from plantgrowth.studies.compare import P1Snapshot
+from plantgrowth.unitcell.solver import CellSolver
 
 BIN = Path(sys.executable).parent
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")

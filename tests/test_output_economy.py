@@ -26,14 +26,14 @@ import pytest
 from cli_helpers import RANK0, call, shared_dir, write
 from mpi4py import MPI
 
-from plantgrowth import output
+from plantgrowth.base.errors import RunError
+from plantgrowth.base.tensors import VOIGT_NAMES
 from plantgrowth.cli import main
-from plantgrowth.coarse import CoarseGrid
-from plantgrowth.errors import RunError
-from plantgrowth.output import Schedule
-from plantgrowth.results_reader import read_series
+from plantgrowth.models.macro.coarse import CoarseGrid
+from plantgrowth.results.reader import read_series
+from plantgrowth.runner import output
+from plantgrowth.runner.output import Schedule
 from plantgrowth.scene import SceneError, parse_scene
-from plantgrowth.tensors import VOIGT_NAMES
 
 RTOL = 1e-10
 ULP32 = 2.0**-23

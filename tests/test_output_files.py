@@ -24,7 +24,8 @@ import pytest
 from mpi4py import MPI
 
 from plantgrowth.cli import main
-from plantgrowth.scene import OUTPUT_FIELDS, load_scene
+from plantgrowth.scene import load_scene
+from plantgrowth.scene.limits import OUTPUT_FIELDS
 
 BIN = Path(sys.executable).parent
 PLANTGROWTH = str(BIN / "plantgrowth")

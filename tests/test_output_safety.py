@@ -35,7 +35,7 @@ from cli_helpers import (
 )
 from mpi4py import MPI
 
-from plantgrowth.rundir import LOCK_NAME, earlier_outputs, remove_earlier_outputs
+from plantgrowth.runner.rundir import LOCK_NAME, earlier_outputs, remove_earlier_outputs
 
 TIMEOUT = 120.0  # s; a run of SCENE takes ~3 s serial, ~5 s on 2 ranks
 

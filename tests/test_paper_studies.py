@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from plantgrowth.scene import load_scene
-from plantgrowth.sweep import load_sweep
+from plantgrowth.studies.sweep import load_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 ROUND_OFF = 1e-12  # a few float64 operations on numbers of order 1

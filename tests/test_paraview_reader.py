@@ -16,8 +16,8 @@ from pathlib import Path
 import h5py
 import pytest
 
+from plantgrowth.base.tensors import VOIGT_NAMES
 from plantgrowth.cli import main
-from plantgrowth.tensors import VOIGT_NAMES
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = """

@@ -16,9 +16,9 @@ from dolfinx_mpc.utils.test import compare_mpc_lhs
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
-from plantgrowth.cell_solver import CellSolver
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.meshes.unit_cell import domain_polygon, periodic_domain
+from plantgrowth.unitcell.solver import CellSolver
 
 # A coarse cell (resolution 1, thick walls): small matrices for the explicit reduction.
 SMALL = HoneycombCell(w=0.2)

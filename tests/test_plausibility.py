@@ -20,7 +20,7 @@ import pytest
 from cli_helpers import RANK0, call, shared_dir, write
 from mpi4py import MPI
 
-from plantgrowth.plausibility import clamped_fraction, largest_strain
+from plantgrowth.models.step import clamped_fraction, largest_strain
 from plantgrowth.scene import SceneError, parse_scene
 
 BASE = "[tissue]\nh = 0.5\n[accuracy]\ncell_resolution = 1\n[time]\nt_max = 2\n"

@@ -13,8 +13,8 @@ from cli_helpers import RANK0, call, shared_dir, write
 from matplotlib.image import imread
 from mpi4py import MPI
 
-from plantgrowth.render import pick_time
-from plantgrowth.results_reader import read_series
+from plantgrowth.results.reader import read_series
+from plantgrowth.results.render import pick_time
 
 FIELDS = '["u", "G", "E_hom", "trG", "growth_anisotropy", "growth_direction", "stress_direction"]'
 MACRO = f"""\

@@ -10,18 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plantgrowth.errors import InputError
-from plantgrowth.presets import PRESETS
-from plantgrowth.scene import (
-    DEFAULT_OUTPUT,
-    Field,
-    Material,
-    Scene,
-    SceneError,
-    Time,
-    load_scene,
-    parse_scene,
-)
+from plantgrowth.base.errors import InputError
+from plantgrowth.scene import Scene, SceneError, load_scene, parse_scene
+from plantgrowth.scene.fields import Field
+from plantgrowth.scene.limits import DEFAULT_OUTPUT
+from plantgrowth.scene.presets import PRESETS
+from plantgrowth.scene.schema import Material, Time
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 LAW = '[growth]\nlaw = "stress"\n'

@@ -1,4 +1,4 @@
-"""The error-controlled surrogate of the cell problems (plantgrowth/surrogate.py, issue 9).
+"""The error-controlled surrogate of the cell problems (plantgrowth/unitcell/surrogate.py, issue 9).
 
 Checks: the polar split is exact; the error estimate bounds the true error on random inputs
 of the reduced space; E_hom stays symmetric positive definite; the rotation is applied
@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth import surrogate
-from plantgrowth.homogenization import Homogenizer
-from plantgrowth.tensors import rotate2, rotate4, tensor_from_voigt, voigt_matrix
+from plantgrowth.base.tensors import rotate2, rotate4, tensor_from_voigt, voigt_matrix
+from plantgrowth.unitcell import surrogate
+from plantgrowth.unitcell.homogenization import Homogenizer
 
 ROUND_OFF = 1e-12
 GEOMETRY = np.array([[1.5, 1.0, 30.0, 0.1]])  # l1 = 1.5: orthotropic, so rotations show

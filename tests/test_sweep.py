@@ -29,11 +29,11 @@ import pytest
 from cli_helpers import ENV, PLANTGROWTH, RANK0, call, finish, shared_dir, write
 from mpi4py import MPI
 
+from plantgrowth.base.errors import InputError
 from plantgrowth.cli import main
-from plantgrowth.errors import InputError
-from plantgrowth.presets import knob
-from plantgrowth.rundir import DirectoryLock
-from plantgrowth.sweep import NUMBERS, Share, check_run_directory, load_sweep
+from plantgrowth.runner.rundir import DirectoryLock
+from plantgrowth.scene.presets import knob
+from plantgrowth.studies.sweep import NUMBERS, Share, check_run_directory, load_sweep
 
 TIMEOUT = 120.0  # s; a sweep here takes a few seconds, under mpirun a few more
 SIZE = MPI.COMM_WORLD.size

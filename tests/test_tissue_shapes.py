@@ -18,10 +18,10 @@ import pytest
 from cli_helpers import ENV, PLANTGROWTH, call, shared_dir, write
 from mpi4py import MPI
 
-from plantgrowth.coarse import CoarseGrid, active_nodes
-from plantgrowth.coupled import macro_model
 from plantgrowth.meshes.polygon import first_crossing, write_polygon_msh
-from plantgrowth.results_reader import read_series
+from plantgrowth.models.macro.coarse import CoarseGrid, active_nodes
+from plantgrowth.models.macro.model import macro_model
+from plantgrowth.results.reader import read_series
 from plantgrowth.scene import SceneError, load_scene, parse_scene
 
 LAW = '[growth]\nlaw = "stress"\n'

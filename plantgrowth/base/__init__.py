@@ -1,0 +1,6 @@
+"""Base: what every part of plantgrowth shares, with no model in it: user-facing errors, 2D
+tensor storage and principal values, MPI gathers of distributed data, sampling of UFL expressions
+on mesh cells, the machine description recorded with benchmarks.
+
+May import: ``plantgrowth.forms``, ``plantgrowth.meshes`` and third-party packages only.
+"""

@@ -1,0 +1,47 @@
+"""Command line: ``plantgrowth run | validate | cell | compare | sweep | render``.
+
+``main(argv) -> int`` logs on rank 0 only: progress to stdout, warnings to stderr, both to the
+run's ``run.log``. Exit codes: 0 done, 2 bad input (one line naming the field and its valid
+range), 3 a run that failed numerically (step, time, place, cause; ``sweep``: some run failed,
+see its sweep.csv), 130 interrupted by SIGINT at the end of a step. A closed stdout
+(``plantgrowth ... | head``) silences the progress only.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from mpi4py import MPI
+
+from plantgrowth.base.errors import USER_ERRORS, InputError
+from plantgrowth.cli.console import configure_logging, discard_stdout, quiet_broken_pipe
+from plantgrowth.cli.parser import build_parser
+
+__all__ = ["build_parser", "main"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``plantgrowth`` command."""
+    comm = MPI.COMM_WORLD
+    configure_logging(comm)
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser()
+    try:
+        if not argv:
+            if comm.rank == 0:
+                parser.print_help()
+            raise InputError(
+                "no command given: choose one of cell, run, compare, validate, sweep, render"
+            )
+        args = parser.parse_args(argv)
+        quiet_broken_pipe()
+        code = args.handler(args, comm)
+        sys.stdout.flush()
+        return code
+    except USER_ERRORS as err:
+        if comm.rank == 0:
+            print(f"plantgrowth: error: {err}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # the reader of stdout is gone: nothing left to tell it
+        discard_stdout()
+        return 0

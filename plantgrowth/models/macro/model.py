@@ -1,0 +1,261 @@
+"""The coupled macroscopic growth loop (paper Algorithm 1, MODEL.md section 5).
+
+Per step: project Fg to the coarse nodes -> cell problems there (distinct inputs only) ->
+interpolate E_hom, K_hom, phi_w, dbar, P2vec to the fine cells -> macro solve -> sigma_hom or
+eps_hom -> growth rate G -> write the step -> Fg <- integrator(Fg, G, dt).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+from scipy.spatial import cKDTree
+
+from plantgrowth.base.errors import RunError
+from plantgrowth.base.gather import MeshGather, dof_state, restore_dofs
+from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS
+from plantgrowth.models import diagnostics, growth
+from plantgrowth.models.growth_fields import GrowthFields
+from plantgrowth.models.macro.boundary import Boundary
+from plantgrowth.models.macro.coarse import CoarseGrid, active_nodes, project_to_nodes
+from plantgrowth.models.macro.domain import MacroDomain, macro_domain
+from plantgrowth.models.macro.problem import MacroProblem
+from plantgrowth.models.step import (
+    SideMesh,
+    StepResult,
+    clamped_fraction,
+    largest_strain,
+    max_abs_components,
+)
+from plantgrowth.scene import Scene
+from plantgrowth.unitcell.homogenization import Homogenizer
+
+log = logging.getLogger("plantgrowth")
+
+
+class _Outputs:
+    """The DG0/P1 functions written to fields.xdmf, only those the scene asks for (E_hom lives
+    on the coarse nodes: see :func:`coarse_output`; the growth outputs: :class:`GrowthFields`)."""
+
+    def __init__(self, problem: MacroProblem, fields: tuple[str, ...]) -> None:
+        self.fields = fields
+        T0 = problem.T0
+        self.G = fem.Function(T0, name="G")
+        self.sigma = fem.Function(T0, name="sigma_hom")
+        self.eps = fem.Function(T0, name="eps_hom")
+        self.growth = GrowthFields(problem.mesh, fields)
+        chosen = {"u": problem.u, "Fg": problem.Fg, "G": self.G, "sigma_hom": self.sigma,
+                  "eps_hom": self.eps, **self.growth.functions}  # fmt: skip
+        self.functions = [chosen[name] for name in fields if name in chosen]
+
+
+def coarse_output(grid: CoarseGrid, fields: tuple[str, ...]) -> SideMesh:
+    """The coarse-node fields the scene asks for (E_hom's six components) on the coarse grid."""
+    names = VOIGT_NAMES if "E_hom" in fields else ()
+    return SideMesh("coarse.xdmf", "CoarseMesh", "coarse", grid.nodes, grid.triangles,
+                    {name: ("Node", 1) for name in names})  # fmt: skip
+
+
+def _pruning_report(problem: MacroProblem, scene: Scene, strain_averages: bool) -> list[str]:
+    skipped = []
+    if problem.K is None:
+        skipped.append("pressure: P1 = 0, no K_hom cell problem and no pressure term")
+    if problem.finite and not scene.P1.is_constant:
+        skipped.append("finite kinematics: grad(P1) and P2vec cancel (MODEL.md 10), not assembled")
+    elif problem.P2vec is None:
+        skipped.append("P1 has no gradient: no grad(P1) or P2 terms")
+    if not scene.loads:
+        skipped.append("no loads: no traction term")
+    if not strain_averages:
+        skipped.append("stress law: no strain averages dbar[w], dbar[v]")
+    if scene.growth.law == "none":
+        skipped.append("growth law 'none': no growth update, a single static solve")
+    return skipped
+
+
+class MacroModel:
+    """The coupled macroscopic model: Algorithm 1's inner steps for one time level.
+
+    Args:
+        scene: the scene.
+        mesh: the fine mesh m (the scene's rectangle, outline or mesh file, or the outline of a
+            micro tissue).
+        comm: communicator of the fine mesh; it also shares the cell problems.
+        boundary: the fine mesh's boundary (default: the scene's rectangle).
+    """
+
+    def __init__(self, scene: Scene, mesh, comm: MPI.Comm, boundary: Boundary | None = None):
+        self.scene = scene
+        self.comm = comm
+        self.problem = problem = MacroProblem(scene, mesh, boundary)
+        self.mesh = problem.mesh
+        width, height = problem.bounding_box
+        self.grid = CoarseGrid.with_edge(width, height, scene.tissue.H)
+        nodes = self.grid.nodes
+        self.W = self.grid.interpolation_matrix(problem.midpoints[:, :2])
+        # cell problems only at the nodes the fine cells see; the others show (coarse.xdmf) the
+        # values of their nearest active node
+        self.active = active_nodes(self.W, comm)
+        self._W_active = self.W[:, self.active]
+        self._nearest = cKDTree(nodes[self.active]).query(nodes)[1]  # into the active nodes
+        at_nodes, at_cells = (nodes[:, 0], nodes[:, 1]), problem.midpoints[:, :2].T
+        self.geometry = np.column_stack([f(*at_nodes) for f in scene.cell.fields()])
+        self.E_nodes = scene.material.E(*at_nodes)
+        self.nu_nodes = scene.material.nu(*at_nodes)
+        self.P1 = scene.P1(*at_cells)
+        self.eta, self.tau = scene.growth.eta(*at_cells), scene.growth.tau(*at_cells)
+        self.grad_P1 = scene.P1.gradient(*at_cells)  # (n_cells, 2): MODEL.md 6, P2 = -grad P1 . y
+        self.strain_averages = scene.growth.law == "strain" or "eps_hom" in scene.output.fields
+        self.homogenizer = Homogenizer(
+            scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
+            problem.K is not None, self.strain_averages, comm, scene.accuracy.cell_tolerance,
+        )  # fmt: skip
+        self.out = _Outputs(problem, scene.output.fields)
+        self.outputs = self.out.functions
+        self.side_output = coarse_output(self.grid, scene.output.fields)
+        self.cell_table = None  # per-cell rows (cells.csv): micro only
+        self.output_space = problem.V
+        self._gather = MeshGather(problem.V)
+        log.info(
+            "macro: %d fine dofs, %d coarse nodes (%d in the tissue), terms: %s",
+            problem.ndofs, len(nodes), self.active.sum(), ", ".join(problem.active_terms),
+        )  # fmt: skip
+        for line in _pruning_report(problem, scene, self.strain_averages):
+            log.info("skipped: %s", line)
+
+    def initial_growth(self) -> np.ndarray:
+        return self.scene.growth.initial(*self.problem.midpoints[:, :2].T)
+
+    def check_growth(self, Fg: np.ndarray) -> None:
+        points = self.problem.midpoints[:, :2]
+        diagnostics.stop_if(diagnostics.growth_problems(Fg, points), self.comm)
+
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
+        """Fg and G of the fine cells with their midpoints, gathered on rank 0 in the written
+        mesh's cell order."""
+        n = self.problem.n_owned
+        parts = [self.problem.midpoints[:n, :2], Fg[:n].reshape(n, 4), G[:n].reshape(n, 4)]
+        midpoints, Fg_all, G_all = (self._gather.cell_values(p) for p in parts)
+        newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
+        if self.comm.rank != 0:
+            return None
+        return {"midpoints": midpoints, "Fg": Fg_all, "G": G_all} | newton
+
+    def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint."""
+        distance, index = cKDTree(state["midpoints"]).query(self.problem.midpoints[:, :2])
+        tolerance = 1e-9 * max(self.problem.bounding_box)
+        matches = np.max(distance, initial=0.0) <= tolerance
+        if self.problem.finite:  # the resumed Newton starts from the straight run's guess
+            matches = (
+                restore_dofs(self.problem.newton.guess_functions, state, tolerance) and matches
+            )
+        if not matches:
+            raise RunError("the saved state does not match this mesh: was the scene changed?")
+        return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
+
+    def _to_cells(self, node_values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+        """P1 interpolation of active-node values to the fine cells' midpoints."""
+        n = node_values.shape[0]
+        return (self._W_active @ node_values.reshape(n, -1)).reshape(-1, *shape)
+
+    def step(self, Fg: np.ndarray) -> StepResult:
+        problem, law = self.problem, self.scene.growth.law
+        t0 = time.perf_counter()
+        n_owned = problem.n_owned
+        Fg_nodes = project_to_nodes(
+            self.W[:n_owned], problem.areas, Fg[:n_owned].reshape(-1, 4), self.comm
+        )
+        a = self.active
+        nt = self.homogenizer.homogenize(
+            self.geometry[a], self.E_nodes[a], self.nu_nodes[a], Fg_nodes[a].reshape(-1, 2, 2)
+        )
+        diagnostics.stop_if(diagnostics.stiffness_problems(nt.C, self.grid.nodes[a]), self.comm)
+        C = self._to_cells(nt.C, (3, 3))
+        phi_w = self._to_cells(nt.phi_w, ())
+        K = None if nt.K is None else self._to_cells(nt.K, (2, 2))
+        problem.set_cell_values(problem.Fg, Fg)
+        problem.set_cell_values(problem.C, C)
+        problem.set_cell_values(problem.phi_w, phi_w)
+        if K is not None:
+            problem.set_cell_values(problem.K, K)
+        if problem.P2vec is not None:
+            P2_matrix = self._to_cells(nt.P2_matrix, (2, 2))
+            problem.set_cell_values(problem.P2vec, np.einsum("nij,nj->ni", P2_matrix, self.grad_P1))
+        t1 = time.perf_counter()
+        report = problem.solve()
+        t2 = time.perf_counter()
+        diagnostics.check_solution(report, problem.u, self.comm)
+        grad_u = problem.grad_u()
+        strain = growth.green_lagrange_strain if problem.finite else growth.elastic_strain
+        eps_el = strain(grad_u, Fg)  # finite kinematics: Ee (MODEL.md 10)
+        sigma = growth.homogenized_stress(C, eps_el, K, self.P1)
+        eps_hom = None
+        if self.strain_averages:
+            dbar_v = None if nt.dbar_v is None else self._to_cells(nt.dbar_v, (2, 2))
+            dbar_w = self._to_cells(nt.dbar_w, (2, 2, 2, 2))
+            eps_hom = growth.homogenized_strain(eps_el, phi_w, dbar_w, dbar_v, self.P1)
+        if law == "none":
+            G = np.zeros_like(Fg)
+        else:
+            driving = sigma if law == "stress" else eps_hom
+            G = growth.growth_rate(driving, phi_w, self.eta, self.tau, self.scene.growth.clamp)
+        midpoints = problem.midpoints[:, :2]
+        diagnostics.stop_if(
+            diagnostics.growth_problems(Fg, midpoints, G)
+            + diagnostics.inversion_problems(np.linalg.det(np.eye(2) + grad_u), midpoints),
+            self.comm,
+        )
+        problem.set_cell_values(self.out.G, G)
+        problem.set_cell_values(self.out.sigma, sigma)
+        if eps_hom is not None:
+            problem.set_cell_values(self.out.eps, eps_hom)
+        self.out.growth.fill(G, sigma, problem.set_cell_values)
+        if self.side_output.fields:
+            for name, (i, j) in zip(VOIGT_NAMES, VOIGT_POSITIONS, strict=True):
+                self.side_output.values[name] = nt.C[self._nearest, i, j]
+        t3 = time.perf_counter()
+        n, M = problem.n_owned, self.scene.growth.clamp
+        newton = problem.newton_report if problem.finite else None
+        return StepResult(
+            G, report.reason, report.residual, self.homogenizer.solves_last_call,
+            {"seconds_cells": t1 - t0, "seconds_solve": t2 - t1, "seconds_growth": t3 - t2},
+            largest_strain(eps_el[:n], self.comm),
+            clamped_fraction(G[:n], M, problem.areas, self.comm),
+            *((newton.iterations, newton.residual) if newton else ()),
+        )  # fmt: skip
+
+    def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
+        """Current area ``int det(I + grad u)``, reference-area means of G11, G22, tr G,
+        max |u_i| and min det Fg."""
+        problem, comm = self.problem, self.comm
+        n = problem.n_owned
+        areas = problem.areas
+        area = np.sum(areas * np.linalg.det(np.eye(2) + problem.grad_u()[:n]))
+        means = np.array([np.sum(areas * G[:n, 0, 0]), np.sum(areas * G[:n, 1, 1])])
+        means = comm.allreduce(means, op=MPI.SUM) / problem.total_area
+        u1_max, u2_max = max_abs_components(problem.u, comm)
+        det_min = float(np.linalg.det(Fg[:n]).min()) if n else np.inf
+        return {
+            "area": comm.allreduce(area, op=MPI.SUM),
+            "growth_rate_11": means[0],
+            "growth_rate_22": means[1],
+            "growth_rate_area": means[0] + means[1],
+            "u1_max": u1_max,
+            "u2_max": u2_max,
+            "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
+        }
+
+
+def macro_model(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroModel:
+    """The MacroModel on :func:`plantgrowth.models.macro.domain.macro_domain`."""
+    return model_on(macro_domain(scene, comm, nx), comm)
+
+
+def model_on(domain: MacroDomain, comm: MPI.Comm) -> MacroModel:
+    """The MacroModel of a domain (its scene, mesh and boundary)."""
+    return MacroModel(domain.scene, domain.mesh, comm, domain.boundary)

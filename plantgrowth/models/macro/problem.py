@@ -1,0 +1,257 @@
+"""The macroscopic elasticity problem on the fine mesh m (MODEL.md section 4, Algorithm 2).
+
+P1 displacement; every coefficient (Fg, E_hom, K_hom, phi_w, P2vec) is piecewise constant on
+the fine cells, so the forms are integrated exactly by one-point quadrature. Only the terms
+the scene activates are assembled. Boundary conditions (plantgrowth/models/macro/boundary.py): ``u2
+= 0`` on the symmetry edges x2 = 0 (no tangential traction) and ``u1 = 0`` at the pinned vertex (the
+origin of the rectangle; removes the remaining rigid translation); the other edges carry the
+scene's tractions or none. The operator is
+symmetric positive definite after these conditions, so large systems are solved by CG + GAMG
+(``solver.macro``), small ones by LU; a finite-kinematics Jacobian is not (GMRES + GAMG, then
+LU where GMRES stops).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from plantgrowth.forms import finite, macro
+from plantgrowth.forms.elasticity import boundary_traction
+from plantgrowth.forms.expressions import UFL_OPS
+from plantgrowth.models.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
+from plantgrowth.models.macro.boundary import Boundary, pinned_vertices, rectangle_boundary
+from plantgrowth.models.newton import NewtonReport, NewtonSolver, log_report
+from plantgrowth.scene import Scene
+from plantgrowth.scene.loads import ALONG
+
+log = logging.getLogger("plantgrowth")
+
+MACRO_RTOL = 1e-10
+"""CG's relative tolerance on ``|b - A u| / |b|``: 100 times below the residual bound
+(diagnostics.RESIDUAL_BOUND), so that the true residual, which drifts from CG's recursive one,
+passes it, and serial and parallel runs agree to 1e-8 (docs/large_tissues.md)."""
+MACRO_MAX_IT = 2000
+"""CG's iteration limit: about 100 iterations at any size on the shipped scenes, 700 on the
+thinnest-walled hard case (w = 0.005); a solve that needs more stops with a RunError."""
+PREFIX = "plantgrowth_macro_"
+NEWTON_PREFIX = PREFIX + "newton_"  # its own GAMG options (see linear.gamg_solver)
+NEWTON_KRYLOV_MAX_IT = 500
+"""GMRES iterations on a Newton step before LU takes over (NewtonSolver's fallback): 5 times
+the 90-111 a solve needs on gradient_E_strain with finite kinematics."""
+
+
+def mesh_bounding_box(msh: mesh.Mesh) -> tuple[float, float]:
+    """Collective: (width, height) of the mesh, whose bounding box starts at the origin."""
+    x = msh.geometry.x
+    top = [float(x[:, i].max()) if len(x) else 0.0 for i in range(2)]
+    width, height = (msh.comm.allreduce(v, op=MPI.MAX) for v in top)
+    return width, height
+
+
+def rectangle_mesh(scene: Scene, comm: MPI.Comm) -> mesh.Mesh:
+    """The stand-alone macro domain ``[0, width] x [0, height]`` with edges about ``h``."""
+    t = scene.tissue
+    nx, ny = max(1, round(t.width / t.h)), max(1, round(t.height / t.h))
+    corners = [np.zeros(2), np.array([t.width, t.height])]
+    return mesh.create_rectangle(comm, corners, [nx, ny], mesh.CellType.triangle)
+
+
+def _traction(msh: mesh.Mesh, edge: str, f: tuple) -> ufl.core.expr.Expr:
+    """The traction on an edge: a Constant, or a UFL vector of its expressions of s, the
+    coordinate along the edge (plantgrowth/scene/loads.py)."""
+    if all(isinstance(c, float) for c in f):
+        return fem.Constant(msh, np.asarray(f, dtype=PETSc.ScalarType))
+    s = ufl.SpatialCoordinate(msh)[ALONG[edge]]
+    return ufl.as_vector([c if isinstance(c, float) else c.evaluate(UFL_OPS, s=s) for c in f])
+
+
+class MacroProblem:
+    """Fine mesh, pruned forms, boundary conditions and linear solver of the macro problem.
+
+    Args:
+        scene: the scene (pressure field, loads).
+        msh: the fine mesh.
+        boundary: its symmetry facets, pinned vertex and loadable edges; default: the scene's
+            rectangle (bottom edge on x2 = 0, a vertex at the origin).
+    """
+
+    def __init__(self, scene: Scene, msh: mesh.Mesh, boundary: Boundary | None = None) -> None:
+        self.mesh = msh
+        self.boundary = boundary or rectangle_boundary(msh, scene.tissue.width, scene.tissue.height)
+        comm = msh.comm
+        self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+        self.Q0 = fem.FunctionSpace(msh, ("DG", 0))
+        self.T0 = fem.TensorFunctionSpace(msh, ("DG", 0))
+        self.u = fem.Function(self.V, name="u")
+        self.Fg = fem.Function(self.T0, name="Fg")
+        self.C = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=(3, 3)), name="C")
+        self.phi_w = fem.Function(self.Q0, name="phi_w")
+
+        cells = msh.topology.index_map(2)
+        self.n_cells = cells.size_local + cells.num_ghosts
+        self.n_owned = cells.size_local
+        self.midpoints = mesh.compute_midpoints(msh, 2, np.arange(self.n_cells, dtype=np.int32))
+        area_form = fem.form(ufl.TestFunction(self.Q0) * ufl.dx)
+        areas = fem.petsc.assemble_vector(area_form)
+        self.areas = areas.array[self.Q0.dofmap.list.array[: self.n_owned]].copy()
+        self.total_area = comm.allreduce(self.areas.sum(), op=MPI.SUM)
+        self.bounding_box = mesh_bounding_box(msh)
+
+        psi = ufl.TestFunction(self.V)
+        self.finite = scene.kinematics == "finite"
+        self.active_terms = ["elasticity", "growth"]
+        self.K = None
+        self.P2vec = None
+        at_cells = self.midpoints[:, 0], self.midpoints[:, 1]
+        P1 = grad_P1 = None
+        if not (scene.P1.is_constant and float(scene.P1(0.0, 0.0)) == 0.0):
+            self.K = fem.Function(self.T0, name="K")
+            # P1 at the cell midpoints: the one-point rule integrates a linear P1 exactly (every
+            # other factor of both kinematics' forms is constant on a cell)
+            P1 = fem.Function(self.Q0)
+            self.set_cell_values(P1, scene.P1(*at_cells))
+            self.active_terms.append("pressure")
+            if not scene.P1.is_constant:
+                grad_P1 = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)))
+                self.set_cell_values(grad_P1, scene.P1.gradient(*at_cells))
+        self.active_terms += [f"traction on {name}" for name in sorted(scene.loads)]
+        self.bcs = self._boundary_conditions()
+        self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
+        self.solver = scene.solver.macro_kind(self.ndofs)
+        self._linear_forms(scene, psi, P1, grad_P1)  # finite kinematics: Newton's predictor
+        if self.finite:
+            self._finite_forms(scene, psi, P1)
+        self._grad_u = fem.Function(self.T0)
+        self._grad_u_expr = fem.Expression(ufl.grad(self.u), self.T0.element.interpolation_points())
+        log.info(
+            "macro solver: %s (solver.macro = %r, %d fine dofs, threshold %d)",
+            self._solver_name(), scene.solver.macro,
+            self.ndofs, scene.solver.macro_threshold,
+        )  # fmt: skip
+
+    def _linear_forms(self, scene: Scene, psi, P1, grad_P1) -> None:
+        """MODEL.md 4: the bilinear form a, the load L of the active terms, matrix and solver."""
+        u, dx = ufl.TrialFunction(self.V), ufl.dx
+        rhs = macro.macro_growth_rhs(psi, self.Fg, self.C, dx)
+        if self.K is not None:
+            rhs += macro.macro_pressure_rhs(psi, self.Fg, self.K, self.phi_w, P1, dx)
+            if grad_P1 is not None:
+                self.P2vec = fem.Function(grad_P1.function_space, name="P2vec")
+                rhs += macro.macro_pressure_gradient_rhs(
+                    psi, self.Fg, self.phi_w, grad_P1, self.P2vec, dx
+                )
+                self.active_terms.append("pressure gradient (grad P1, P2)")
+        rhs += self._traction_terms(
+            scene, lambda f, n, ds: boundary_traction(f, psi, self.Fg, n, ds)
+        )
+        self.a = fem.form(macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx))
+        self.L = fem.form(rhs)
+        self.A = fem.petsc.create_matrix(self.a)
+        self.b = fem.petsc.create_vector(self.L)
+        self.ksp = self._linear_solver(self.A)
+
+    def _finite_forms(self, scene: Scene, psi, P1) -> None:
+        """MODEL.md 10: the residual (grad P1 and P2vec cancel: not assembled) and its Newton
+        solver; tractions follow the deformed edges."""
+        u, dx = self.u, ufl.dx
+        residual = finite.macro_residual(u, psi, self.Fg, self.C, self.K, self.phi_w, P1, dx)
+        residual -= self._traction_terms(
+            scene, lambda f, n, ds: finite.follower_traction(u, f, psi, n, ds)
+        )
+        self.active_terms.append("finite kinematics (Newton, linear predictor)")
+        self.newton = NewtonSolver(
+            residual, self.u, self.Fg, self.bcs, self._jacobian_solver,
+            predictor=self._linear_solve,
+            fallback=self._direct_jacobian_solver if self.solver == "iterative" else None,
+        )  # fmt: skip
+        self.newton_report: NewtonReport | None = None
+
+    def _solver_name(self) -> str:
+        if self.solver != "iterative":
+            return "LU"
+        newton = ", Newton: GMRES + GAMG (LU where GMRES stops)" if self.finite else ""
+        return "CG + GAMG" + newton
+
+    def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
+        if self.solver == "iterative":
+            return gamg_solver(A, self.V, PREFIX, MACRO_RTOL, MACRO_MAX_IT)
+        return lu_solver(A, self.mesh.comm, PREFIX)
+
+    def _jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
+        """Newton's linear solver: GMRES + GAMG (a finite-kinematics Jacobian is non-symmetric
+        under follower loads, indefinite under strong compression), or LU."""
+        if self.solver == "iterative":
+            return gamg_solver(
+                J, self.V, NEWTON_PREFIX, MACRO_RTOL, NEWTON_KRYLOV_MAX_IT, spd=False
+            )
+        return self._direct_jacobian_solver(J)
+
+    def _direct_jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
+        return lu_solver(J, self.mesh.comm, NEWTON_PREFIX)
+
+    def _traction_terms(self, scene: Scene, term) -> ufl.Form | int:
+        """``term(f, n, ds)`` summed over the loaded edges (0 without loads): the traction
+        ``int_{Gamma_N} Jg |Fg^{-T} N| f . psi ds`` (MODEL.md 4) or its finite variant."""
+        terms = 0
+        if not scene.loads:
+            return terms
+        msh = self.mesh
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=self.boundary.facets)
+        n = ufl.FacetNormal(msh)
+        for name, f in sorted(scene.loads.items()):
+            terms += term(_traction(msh, name, f), n, ds(self.boundary.edges[name]))
+        return terms
+
+    def _boundary_conditions(self) -> list:
+        facets = self.boundary.facets
+        bottom = np.concatenate([facets.find(tag) for tag in self.boundary.symmetry])
+        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, np.sort(bottom))
+        origin = pinned_vertices(self.mesh, self.boundary.pin)
+        origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
+        zero = PETSc.ScalarType(0.0)
+        return [
+            fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),
+            fem.dirichletbc(zero, origin_dofs, self.V.sub(0)),
+        ]
+
+    def set_cell_values(self, function: fem.Function, values: np.ndarray) -> None:
+        """Write per-cell values (n_cells, ...) into a DG0 function (cell order -> dof order)."""
+        dofmap = function.function_space.dofmap
+        array = function.x.array.reshape(-1, dofmap.index_map_bs)
+        array[dofmap.list.array[: self.n_cells]] = values.reshape(self.n_cells, -1)
+        function.x.scatter_forward()
+
+    def cell_values(self, function: fem.Function) -> np.ndarray:
+        """Per-cell values (n_cells, bs) of a DG0 function."""
+        dofmap = function.function_space.dofmap
+        return function.x.array.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
+
+    def solve(self) -> SolveReport:
+        """Assemble the active terms and solve for u; returns the solver diagnostics (finite
+        kinematics: those of the worst linear solve; Newton's in ``newton_report``)."""
+        if self.finite:
+            self.newton_report = report = self.newton.solve()
+            log_report("macro", report)
+            return SolveReport(report.reason, report.linear_residual)
+        report = self._linear_solve()
+        if self.solver == "iterative":
+            log.info(
+                "macro solve: %d CG iterations, relative residual %.2g",
+                report.iterations, report.residual,
+            )  # fmt: skip
+        return report
+
+    def _linear_solve(self) -> SolveReport:
+        """The linear-kinematics solve (MODEL.md 4) into u."""
+        return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+
+    def grad_u(self) -> np.ndarray:
+        """(n_cells, 2, 2) displacement gradient per cell."""
+        self._grad_u.interpolate(self._grad_u_expr)
+        return self.cell_values(self._grad_u).reshape(-1, 2, 2)

@@ -1,0 +1,336 @@
+"""The cell-resolved microscopic model (MODEL.md section 7, paper [var_inequal], [growth_micro_1]).
+
+P2 displacement on the walls of all cells; Fg, E, nu and the turgor pressure are constant per
+cell (pressure P1 at the cell's centre). Growth is driven by the stress or elastic strain
+averaged over each cell's own walls, with the macro model's law, clamp and integrators:
+``G~ = eta [ mean_cell(X) - tau I ]_+`` (no 1/phi_w: the mean is over walls already).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from functools import cached_property
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from plantgrowth.base.errors import RunError
+from plantgrowth.base.gather import dof_state, restore_dofs
+from plantgrowth.base.mesh_samples import CellSamples, det_degree
+from plantgrowth.forms import cell_measures
+from plantgrowth.forms import finite as finite_forms
+from plantgrowth.forms import micro as micro_forms
+from plantgrowth.forms.elasticity import wall_bilinear_form
+from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
+from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
+from plantgrowth.models import diagnostics, growth
+from plantgrowth.models.growth_fields import GrowthFields
+from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
+from plantgrowth.models.micro.outlines import CellOutlines
+from plantgrowth.models.newton import NewtonSolver, log_report
+from plantgrowth.models.step import StepResult, clamped_fraction, largest_strain, max_abs_components
+from plantgrowth.scene import Scene
+
+log = logging.getLogger("plantgrowth")
+
+
+def scene_cell(scene: Scene) -> HoneycombCell:
+    """The (constant) unit cell of a micro scene."""
+    return scene.cell.at(0.0, 0.0)
+
+
+class MicroModel:
+    """The walls problem of an ``Nx`` cellular tissue and its per-cell growth.
+
+    Args:
+        scene: the scene (cell geometry, material and growth fields, pressure).
+        comm: communicator the walls mesh is distributed on.
+        nx: cells per row (default: the scene's ``micro.nx``).
+        resolution: P2 elements across one cell's wall (default: ``micro.resolution``).
+    """
+
+    def __init__(
+        self, scene: Scene, comm: MPI.Comm, nx: int | None = None, resolution: int | None = None
+    ) -> None:
+        layout = TissueLayout(scene_cell(scene), scene.micro_nx if nx is None else nx)
+        self.layout = layout
+        self.scene = scene = scene.over_extent(*layout.bounding_box)  # fields span this tissue
+        self.comm = comm
+        msh, cell_tags, facet_tags = build_walls_mesh(
+            layout, scene.micro_resolution if resolution is None else resolution, comm
+        )
+        self.mesh = msh
+        self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 2))
+        Q0 = fem.FunctionSpace(msh, ("DG", 0))
+        T0 = fem.TensorFunctionSpace(msh, ("DG", 0))
+        n_owned = msh.topology.index_map(2).size_local
+        self.n_owned = n_owned
+        self.cell_id = np.full(n_owned, -1, dtype=np.int64)
+        owned = cell_tags.indices < n_owned
+        self.cell_id[cell_tags.indices[owned]] = cell_tags.values[owned] - 1
+
+        centres = layout.centres[:, 0], layout.centres[:, 1]  # P1 etc. at the cell centres
+        self.eta, self.tau = scene.growth.eta(*centres), scene.growth.tau(*centres)
+        self.pressure = scene.P1(*centres)
+        self.u = fem.Function(self.V, name="u")
+        self.Fg = fem.Function(T0, name="Fg")
+        E, nu, P = (fem.Function(Q0) for _ in range(3))
+        self._set(E, scene.material.E(*centres))
+        self._set(nu, scene.material.nu(*centres))
+        self._set(P, self.pressure)
+
+        dx = ufl.dx(domain=msh)
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
+        n = ufl.FacetNormal(msh)
+        psi, tau_test = ufl.TestFunction(self.V), ufl.TestFunction(T0)
+        membrane = ds(FACET_TAGS["membrane"])
+        self.bcs = self._boundary_conditions(facet_tags)
+        self.finite = scene.kinematics == "finite"
+        self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
+        rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx)
+        if np.any(self.pressure != 0.0):
+            rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
+        self.a = fem.form(wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx))
+        self.L = fem.form(rhs)
+        self.A = fem.petsc.create_matrix(self.a)
+        self.b = fem.petsc.create_vector(self.L)
+        self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
+        if self.finite:  # the linear solve above is Newton's predictor
+            residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx)
+            if np.any(self.pressure != 0.0):
+                residual += finite_forms.follower_pressure(self.u, psi, P, n, membrane)
+            self.newton = NewtonSolver(
+                residual, self.u, self.Fg, self.bcs,
+                lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
+                predictor=self._linear_solve,
+            )  # fmt: skip
+        driving = (
+            self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx)
+            if scene.growth.law == "stress"
+            else self.forms.elastic_strain_average_form(self.u, tau_test, self.Fg, dx)
+        )
+        self.driving = fem.form(driving)
+        self.enclosed_area = fem.form(
+            micro_forms.enclosed_area_form(self.u, n, ds(FACET_TAGS["outer"]))
+        )
+        areas = fem.petsc.assemble_vector(fem.form(ufl.TestFunction(Q0) * dx))
+        self.wall_area = self._per_cell(areas.array.reshape(-1, 1), Q0)[:, 0]
+        self.hexagon_area = np.array(
+            [polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]
+        )
+
+        self._vector_dg0 = fem.VectorFunctionSpace(msh, ("DG", 0))
+        self.G_out = fem.Function(T0, name="G")
+        ids = fem.Function(Q0, name="cell_id")
+        self._set(ids, np.arange(layout.n_cells, dtype=float))
+        self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
+        self.growth_fields = GrowthFields(msh, scene.output.fields)
+        growth_outputs = list(self.growth_fields.functions.values())
+        self.outputs = [self.u_out, self.Fg, self.G_out, ids, *growth_outputs]
+        self.outlines = CellOutlines(layout, self.u)
+        membrane = ds(FACET_TAGS["membrane"])
+        self._measure_forms = [
+            (fem.form(form(self.u, ufl.TestFunction(space), n, dx, membrane)), space)
+            for form, space in ((cell_measures.deformed_area_form, Q0),
+                                (cell_measures.deformed_moment_form, self._vector_dg0))
+        ]  # fmt: skip
+        self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
+        self.cell_table = self.outlines  # cells.csv
+        self._E, self._nu = E, nu
+        self._deformation_det = CellSamples(
+            ufl.det(ufl.Identity(2) + ufl.grad(self.u)), msh, det_degree(self.u)
+        )
+        self.output_space = self.u_out.function_space
+        self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
+        log.info(
+            "micro: Nx = %d, %d cells, %d dofs (P2), pressure %s",
+            layout.nx, layout.n_cells, self.ndofs, "on" if np.any(self.pressure) else "off",
+        )  # fmt: skip
+
+    def _set(self, function: fem.Function, per_cell: np.ndarray) -> None:
+        """DG0 function from values per biological cell (any trailing shape)."""
+        dofmap = function.function_space.dofmap
+        array = function.x.array.reshape(-1, dofmap.index_map_bs)
+        values = np.asarray(per_cell, dtype=float).reshape(self.layout.n_cells, -1)
+        array[dofmap.list.array[: self.n_owned]] = values[self.cell_id]
+        function.x.scatter_forward()
+
+    def _per_cell(self, integrals: np.ndarray, space: fem.FunctionSpace) -> np.ndarray:
+        """Sum per-mesh-cell integrals (owned dofs of a DG0 space) per biological cell."""
+        rows = integrals[space.dofmap.list.array[: self.n_owned]]
+        sums = np.stack(
+            [
+                np.bincount(self.cell_id, rows[:, k], self.layout.n_cells)
+                for k in range(rows.shape[1])
+            ],
+            axis=1,
+        )
+        return self.comm.allreduce(sums, op=MPI.SUM)
+
+    def cell_means(self, u: fem.Function) -> np.ndarray:
+        """(n_cells, 2) mean of a vector field over each biological cell's own walls."""
+        V0 = self._vector_dg0
+        integrals = fem.petsc.assemble_vector(
+            fem.form(ufl.inner(u, ufl.TestFunction(V0)) * ufl.dx(domain=self.mesh))
+        )
+        return self._per_cell(integrals.array.reshape(-1, 2), V0) / self.wall_area[:, None]
+
+    def _boundary_conditions(self, facet_tags) -> list:
+        """u2 = 0 on the cut bottom walls (symmetry plane); u1 = 0 at the origin."""
+        bottom = facet_tags.indices[facet_tags.values == FACET_TAGS["bottom"]]
+        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, bottom)
+        origin = mesh.locate_entities_boundary(
+            self.mesh, 0, lambda x: np.isclose(x[0], 0.0) & np.isclose(x[1], 0.0)
+        )
+        origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
+        zero = PETSc.ScalarType(0.0)
+        return [
+            fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),
+            fem.dirichletbc(zero, origin_dofs, self.V.sub(0)),
+        ]
+
+    def initial_growth(self) -> np.ndarray:
+        return self.scene.growth.initial(*self.layout.centres.T)
+
+    def step(self, Fg: np.ndarray) -> StepResult:
+        t0 = time.perf_counter()
+        self._set(self.Fg, Fg)
+        newton = None
+        if self.finite:
+            newton = self.newton.solve()
+            log_report("micro", newton)
+            report = SolveReport(newton.reason, newton.linear_residual)
+        else:
+            report = self._linear_solve()
+        t1 = time.perf_counter()
+        diagnostics.check_solution(report, self.u, self.comm)
+        means = self._cell_means(self.driving)
+        ones = np.ones(self.layout.n_cells)
+        if self.scene.growth.law == "none":
+            G = np.zeros_like(Fg)
+        else:
+            G = growth.growth_rate(
+                means.reshape(-1, 2, 2), ones, self.eta, self.tau, self.scene.growth.clamp
+            )
+        det = self._deformation_det
+        diagnostics.stop_if(
+            diagnostics.growth_problems(Fg, self.layout.centres, G)
+            + diagnostics.inversion_problems(det.values(), det.points),
+            self.comm,
+        )
+        self.last_G = G
+        self._set(self.G_out, G)
+        self.outlines.update(G, *self._cell_geometry())
+        if self.growth_fields.functions:
+            stress = None
+            if self.growth_fields.needs_stress:
+                law = self.scene.growth.law
+                stress = (means if law == "stress" else self._stress_means()).reshape(-1, 2, 2)
+            self.growth_fields.fill(G, stress, self._set)
+        self.u_out.interpolate(self.u)
+        t2 = time.perf_counter()
+        return StepResult(
+            G, report.reason, report.residual, 0,
+            {"seconds_cells": 0.0, "seconds_solve": t1 - t0, "seconds_growth": t2 - t1},
+            largest_strain(self._cell_mean_strains(), MPI.COMM_SELF),
+            clamped_fraction(
+                G, self.scene.growth.clamp, self.hexagon_area, MPI.COMM_SELF
+            ),  # per-cell values are the same on every rank
+            *((newton.iterations, newton.residual) if newton else ()),
+        )  # fmt: skip
+
+    def _cell_geometry(self) -> tuple[np.ndarray, np.ndarray]:
+        """Deformed area (n_cells,) and centroid (n_cells, 2) of each cell's walls and void
+        (forms/cell_measures.py)."""
+        sums = []
+        for form, space in self._measure_forms:
+            vector = fem.petsc.assemble_vector(form)
+            # membrane facets next to a ghost cell: their share goes to the owner
+            vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            bs = space.dofmap.index_map_bs
+            sums.append(self._per_cell(vector.array.reshape(-1, bs), space))
+        area = sums[0][:, 0]
+        return area, sums[1] / area[:, None]
+
+    def _cell_means(self, form: fem.Form) -> np.ndarray:
+        """(n_cells, 4) means of a tensor over each cell's own walls, ``form`` giving the
+        per-mesh-cell integrals; a cut bottom cell takes the full cell mirrored about x2 = 0:
+        its half-cell mean for 11 and 22, and no shear, which changes sign under the mirror
+        (MODEL.md 7)."""
+        integrals = fem.petsc.assemble_vector(form)
+        T0 = self.Fg.function_space
+        means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]
+        means[self.layout.cut_cells, 1:3] = 0.0
+        return means
+
+    @cached_property
+    def _wall_stress_form(self) -> fem.Form:
+        """Per mesh cell ``int sigma dx`` (compiled on first use: stress_direction under the
+        strain law)."""
+        tau = ufl.TestFunction(self.Fg.function_space)
+        dx = ufl.dx(domain=self.mesh)
+        return fem.form(
+            micro_forms.wall_stress_average_form(self.u, tau, self.Fg, self._E, self._nu, dx)
+        )
+
+    def _stress_means(self) -> np.ndarray:
+        """(n_cells, 4) wall stress averaged over each cell's own walls."""
+        return self._cell_means(self._wall_stress_form)
+
+    def _linear_solve(self) -> SolveReport:
+        """The linear-kinematics solve ([var_inequal]) into u."""
+        return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+
+    @cached_property
+    def _wall_strain_form(self) -> fem.Form:
+        """Per mesh cell ``int eps_el dx`` (finite kinematics: Ee; compiled on first use)."""
+        tau = ufl.TestFunction(self.Fg.function_space)
+        dx = ufl.dx(domain=self.mesh)
+        return fem.form(self.forms.elastic_strain_average_form(self.u, tau, self.Fg, dx))
+
+    def _cell_mean_strains(self) -> np.ndarray:
+        """(n_cells, 2, 2) elastic strain averaged over each cell's own walls: the strain the
+        strain law uses (pointwise values are singular at the walls' re-entrant corners)."""
+        integrals = fem.petsc.assemble_vector(self._wall_strain_form)
+        T0 = self.Fg.function_space
+        sums = self._per_cell(integrals.array.reshape(-1, 4), T0)
+        return (sums / self.wall_area[:, None]).reshape(-1, 2, 2)
+
+    def check_growth(self, Fg: np.ndarray) -> None:
+        diagnostics.stop_if(diagnostics.growth_problems(Fg, self.layout.centres), self.comm)
+
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
+        """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with
+        finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
+        newton = dof_state(self.newton.guess_functions) if self.finite else {}
+        return {"Fg": Fg, "G": G} | newton if self.comm.rank == 0 else None
+
+    def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        matches = state["Fg"].shape == (self.layout.n_cells, 2, 2)
+        if self.finite:
+            tolerance = 1e-9 * max(self.layout.bounding_box)
+            matches = restore_dofs(self.newton.guess_functions, state, tolerance) and matches
+        if not matches:
+            raise RunError("the saved state does not match this tissue: was the scene changed?")
+        return state["Fg"], state["G"]
+
+    def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
+        """Area enclosed by the deformed outer boundary; means of G weighted by the cells'
+        reference (hexagon) areas; max |u_i|; min det Fg."""
+        weights = self.hexagon_area / self.hexagon_area.sum()
+        g11, g22 = float(weights @ G[:, 0, 0]), float(weights @ G[:, 1, 1])
+        u1_max, u2_max = max_abs_components(self.u, self.comm)
+        area = self.comm.allreduce(fem.assemble_scalar(self.enclosed_area), op=MPI.SUM)
+        return {
+            "area": area,
+            "growth_rate_11": g11,
+            "growth_rate_22": g22,
+            "growth_rate_area": g11 + g22,
+            "u1_max": u1_max,
+            "u2_max": u2_max,
+            "det_Fg_min": float(np.linalg.det(Fg).min()),
+        }

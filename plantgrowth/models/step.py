@@ -1,0 +1,109 @@
+"""What a growth model reports to the time loop: one step's result, the model protocol, the
+fields it writes on a second mesh, and the tissue measures shared by both models."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+
+@dataclass
+class SideMesh:
+    """Fields on a second, small mesh that every rank holds whole, with its own XDMF index: the
+    macro model's coarse grid (E_hom's components at its nodes, ``coarse.xdmf``) or the micro
+    model's cell outlines (``cells.xdmf``). The model puts each step's ``values`` here.
+
+    Attributes:
+        index: the XDMF file name.
+        group: the mesh's group in fields.h5 (``/<group>/geometry``, ``/<group>/topology``).
+        prefix: the fields' group in each step file (``/<prefix>/<name>``).
+        points: (n_nodes, 2) node coordinates.
+        cells: (n_cells, k) node numbers: triangles (k = 3) or line segments (k = 2).
+        fields: name -> (center, components): "Node" or "Cell", 1 (scalar) or 2 (vector).
+        values: name -> this step's values, (n, components) or (n,).
+    """
+
+    index: str
+    group: str
+    prefix: str
+    points: np.ndarray
+    cells: np.ndarray
+    fields: dict[str, tuple[str, int]]
+    values: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass
+class StepResult:
+    """What a model reports for one step at the current Fg."""
+
+    G: np.ndarray  # (n_units, 2, 2) growth rate of each growth unit
+    reason: int  # PETSc converged reason of the linear solve
+    residual: float  # true relative residual of the linear solve
+    n_cell_solves: int = 0
+    seconds: dict[str, float] = field(default_factory=dict)  # seconds_cells, _solve, _growth
+    max_elastic_strain: float | None = None  # largest principal |eps_el| over the tissue
+    clamped_fraction: float | None = None  # area fraction where some |G_ij| reaches the clamp M
+    newton_iterations: int = 0  # finite kinematics: Newton iterations of the step's solve
+    newton_residual: float = 0.0  # finite kinematics: its final relative residual
+
+
+class GrowthModel(Protocol):
+    """A tissue model the loop can drive."""
+
+    output_space: fem.FunctionSpace  # P1 vector space numbering the written mesh
+    outputs: list[fem.Function]
+    side_output: SideMesh | None  # fields on a second mesh (macro: E_hom at the coarse nodes;
+    # micro: the cell outlines)
+    cell_table: CellTable | None  # micro: one row per biological cell and written step
+
+    def initial_growth(self) -> np.ndarray:
+        """(n_units, 2, 2) Fg at t = 0."""
+
+    def step(self, Fg: np.ndarray) -> StepResult:
+        """Solve at the given Fg, fill the output functions, return G."""
+
+    def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
+        """Tissue measures: area, growth_rate_11/22/area, u1_max, u2_max, det_Fg_min."""
+
+    def check_growth(self, Fg: np.ndarray) -> None:
+        """Raise RunError (collectively) if the advanced Fg is not finite or inverted."""
+
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
+        """What --resume needs to continue after this step (global arrays, on rank 0)."""
+
+    def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """(Fg, G) of this rank's growth units from a saved state."""
+
+
+class CellTable(Protocol):
+    """Rows of ``cells.csv``: one per biological cell at a written step."""
+
+    columns: list[str]  # starting with "step", "t"
+
+    def rows(self, step: int, t: float) -> list[dict[str, float]]:
+        """The rows of the step just solved (collective; every rank gets them)."""
+
+
+def max_abs_components(u: fem.Function, comm: MPI.Comm) -> tuple[float, float]:
+    """max |u_1|, max |u_2| over the owned dofs of all ranks."""
+    owned = u.x.array.reshape(-1, 2)[: u.function_space.dofmap.index_map.size_local]
+    local = np.abs(owned).max(axis=0) if len(owned) else np.zeros(2)
+    return tuple(comm.allreduce(float(v), op=MPI.MAX) for v in local)
+
+
+def largest_strain(eps: np.ndarray, comm: MPI.Comm) -> float:
+    """Largest principal magnitude of symmetric (n, 2, 2) strains over all ranks."""
+    local = float(np.abs(np.linalg.eigvalsh(eps)).max(initial=0.0))
+    return comm.allreduce(local, op=MPI.MAX)
+
+
+def clamped_fraction(G: np.ndarray, clamp: float, weights: np.ndarray, comm: MPI.Comm) -> float:
+    """Weighted fraction of growth units where the clamp is active (some ``|G_ij| >= M``);
+    ``G`` and ``weights`` are this rank's share (pass MPI.COMM_SELF for replicated values)."""
+    hit = np.any(np.abs(G) >= clamp, axis=(1, 2))
+    sums = comm.allreduce(np.array([weights[hit].sum(), weights.sum()]), op=MPI.SUM)
+    return float(sums[0] / sums[1]) if sums[1] > 0.0 else 0.0

@@ -1,0 +1,444 @@
+"""Run outputs that survive interruption: XDMF time series, the resume state and the summary.
+
+Layout of an output directory::
+
+    fields.xdmf            the fine mesh's time series ParaView opens (rewritten atomically)
+    coarse.xdmf            the coarse grid's time series (macro E_hom; only if one is written)
+    cells.xdmf             micro runs: the cells' mid-line outlines (2-node lines) with u at
+                           their vertices, cell_id per line (ParaView: Warp By Vector)
+    fields.h5              the meshes: /Mesh/{geometry,topology}, /CoarseMesh/{geometry,topology},
+                           /Outlines/{geometry,topology}
+    fields/step_NNNNNN.h5  one file per written step: the fields, coarse ones under /coarse,
+                           outline ones under /outlines
+    state.h5               the model state after the last two completed steps (float64, --resume)
+    summary.csv            one row per completed step (flushed and fsync'ed)
+    cells.csv              micro runs: one row per biological cell and written step
+
+Fields are written at t = 0, every ``output.every``-th step and at the last step
+(:class:`Schedule`), in ``output.precision`` (float32 by default: what ParaView's XDMF reader
+loads) with gzip and shuffle filters; the state, written after every step, keeps float64 so
+that a resumed run continues exactly. Every file is written under a temporary name and renamed
+when complete, so a run killed at any moment (even SIGKILL) leaves every written step readable.
+Data are gathered to rank 0, which alone writes (Debian's h5py is serial). Only these names are
+ever removed (:func:`run_files`): a user's own files in the directory are left alone.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+from plantgrowth.base.gather import MeshGather
+from plantgrowth.models.step import SideMesh
+
+OUTPUT_FILES = (
+    "fields.xdmf", "coarse.xdmf", "cells.xdmf", "fields.h5", "state.h5", "summary.csv",
+    "cells.csv", "scene.toml", "run.log",
+)  # fmt: skip
+STEP_DIR = "fields"
+_TEMPORARY = tuple(f".{name}.tmp" for name in OUTPUT_FILES)  # a kill during an atomic write
+_STEP_FILE = re.compile(r"\.?step_\d{6,}\.h5(\.tmp)?")  # a step file or its temporary name
+FIELD_FILTERS = {"compression": "gzip", "compression_opts": 1, "shuffle": True}
+"""How field datasets are compressed: gzip after byte shuffling (HDF5's built-in filters, which
+every HDF5 reader has), level 1 with one chunk per dataset: measured here, higher levels save
+under 5% and take up to 3x as long."""
+
+
+def run_files(directory: Path) -> list[Path]:
+    """The files of one run's layout that exist in ``directory`` (nothing else is listed)."""
+    found = [directory / n for n in OUTPUT_FILES + _TEMPORARY if (directory / n).is_file()]
+    steps = directory / STEP_DIR
+    if steps.is_dir():
+        found += sorted(p for p in steps.iterdir() if _STEP_FILE.fullmatch(p.name))
+    return found
+
+
+def remove_run_files(directory: Path) -> None:
+    """Remove :func:`run_files`, then the step directory if that leaves it empty."""
+    for path in run_files(directory):
+        path.unlink(missing_ok=True)
+    if (directory / STEP_DIR).is_dir() and not any((directory / STEP_DIR).iterdir()):
+        (directory / STEP_DIR).rmdir()
+
+
+def prepare_directory(directory: Path, comm: MPI.Comm, keep: bool = False) -> None:
+    """Create the output directory; unless ``keep``, remove the files of an earlier run there
+    (:func:`run_files` only).
+
+    Raises OSError (on every rank) if the directory cannot be created or written.
+    """
+    error = None
+    if comm.rank == 0:
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+            if not keep:
+                remove_run_files(directory)
+            probe = directory / ".write-test"
+            probe.write_text("")
+            probe.unlink()
+        except OSError as err:
+            error = f"cannot write the output directory {directory}: {err.strerror or err}"
+    error = comm.bcast(error, root=0)
+    if error:
+        raise OSError(error)
+
+
+def temporary_path(path: Path) -> Path:
+    """Where an atomic write of ``path`` puts its content before renaming it into place."""
+    return path.with_name(f".{path.name}.tmp")
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    tmp = temporary_path(path)
+    with open(tmp, "w") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def step_file(outdir: Path, step: int) -> Path:
+    return outdir / STEP_DIR / f"step_{step:06d}.h5"
+
+
+def completed_steps(outdir: Path) -> list[tuple[int, float]]:
+    """(step, t) of every completed step file, in order."""
+    steps = []
+    for path in sorted((outdir / STEP_DIR).glob("step_*.h5")):
+        with h5py.File(path, "r") as f:
+            steps.append((int(f.attrs["step"]), float(f.attrs["t"])))
+    return steps
+
+
+def last_summary_step(path: Path) -> int | None:
+    """The step of the last row of a summary.csv (None if it has no row)."""
+    if not path.exists():
+        return None
+    with open(path, newline="") as f:
+        steps = [int(float(row["step"])) for row in csv.DictReader(f) if row.get("step")]
+    return steps[-1] if steps else None
+
+
+@contextmanager
+def _atomic_h5(path: Path) -> Iterator[h5py.File]:
+    """An HDF5 file written under a temporary name and renamed into place when complete."""
+    tmp = temporary_path(path)
+    with h5py.File(tmp, "w") as f:
+        yield f
+    os.replace(tmp, path)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """The steps whose fields are written: t = 0, every ``every``-th step and the last one."""
+
+    every: int
+    n_steps: int
+
+    def __contains__(self, step: int) -> bool:
+        return step % self.every == 0 or step == self.n_steps
+
+
+class StateFile:
+    """``state.h5``: what --resume needs to continue after either of the last two completed
+    steps, in float64, one group ``step_NNNNNN`` per step.
+
+    Replaced atomically after every step, so it stays small whatever ``output.every`` is. Two
+    steps, not one: a step's summary row is written before its state, so the newest state's row
+    exists, and the previous state still serves if summary.csv lost its last row.
+    """
+
+    def __init__(self, outdir: Path, comm: MPI.Comm) -> None:
+        self.path = outdir / "state.h5"
+        self.comm = comm
+        self._previous: tuple[int, float, dict[str, np.ndarray]] | None = None  # on rank 0
+
+    def write(self, step: int, t: float, state: dict[str, np.ndarray] | None) -> None:
+        """Save the state of (step, t) (given on rank 0; other ranks pass None)."""
+        if self.comm.rank != 0:
+            return
+        current = (step, t, state or {})
+        with _atomic_h5(self.path) as f:
+            for s, s_t, arrays in [x for x in (self._previous, current) if x is not None]:
+                group = f.create_group(f"step_{s:06d}")
+                group.attrs["t"] = s_t
+                for key, value in arrays.items():
+                    group[key] = value
+        self._previous = current
+
+    def steps(self) -> list[int]:
+        """The steps whose state is saved, on every rank."""
+        steps = []
+        if self.comm.rank == 0 and self.path.is_file():
+            with h5py.File(self.path, "r") as f:
+                steps = sorted(int(name.removeprefix("step_")) for name in f)
+        return self.comm.bcast(steps, root=0)
+
+    def read(self, step: int) -> dict[str, np.ndarray]:
+        """The state saved with ``step`` (global arrays, read on every rank); the next
+        :meth:`write` keeps it as the previous step."""
+        with h5py.File(self.path, "r") as f:
+            group = f[f"step_{step:06d}"]
+            state = {key: group[key][...] for key in group}
+            t = float(group.attrs["t"])
+        if self.comm.rank == 0:
+            self._previous = (step, t, state)
+        return state
+
+
+_ATTRIBUTE_TYPES = {1: ("Scalar", 1), 2: ("Vector", 3), 4: ("Tensor", 9)}
+"""Block size -> XDMF attribute type and its padded width (2D vectors/tensors padded to 3D)."""
+
+
+def _pad(values: np.ndarray) -> np.ndarray:
+    n, bs = values.shape
+    if bs == 2:
+        return np.column_stack([values, np.zeros(n)])
+    if bs == 4:
+        out = np.zeros((n, 9))
+        out[:, [0, 1, 3, 4]] = values
+        return out
+    return values
+
+
+def _write_field(f: h5py.File, name: str, values: np.ndarray, dtype: np.dtype) -> None:
+    f.create_dataset(name, data=values, dtype=dtype, chunks=values.shape, **FIELD_FILTERS)
+
+
+@dataclass(frozen=True)
+class _Attribute:
+    """One field of a time series: its XDMF attribute and its dataset in each step file."""
+
+    name: str
+    dataset: str
+    kind: str  # Scalar | Vector | Tensor
+    center: str  # Node | Cell
+    shape: tuple[int, int]
+    precision: int  # bytes per value
+
+    def xml(self, step: int) -> str:
+        dims = " ".join(map(str, self.shape))
+        return (
+            f'        <Attribute Name="{self.name}" AttributeType="{self.kind}" '
+            f'Center="{self.center}">\n'
+            f'          <DataItem Dimensions="{dims}" NumberType="Float" '
+            f'Precision="{self.precision}" '
+            f'Format="HDF">{STEP_DIR}/step_{step:06d}.h5:/{self.dataset}</DataItem>\n'
+            f"        </Attribute>\n"
+        )
+
+
+@dataclass(frozen=True)
+class _Mesh:
+    """A mesh in fields.h5: ``/<group>/geometry`` and ``/<group>/topology`` (triangles, or
+    2-node lines)."""
+
+    group: str
+    n_nodes: int
+    n_cells: int
+    nodes_per_cell: int = 3
+
+
+def _series_xml(mesh: _Mesh, attributes: list[_Attribute], steps: list[tuple[int, float]]) -> str:
+    """XDMF 3: the mesh grid, then a temporal collection with one grid per step that includes
+    the mesh's topology and geometry."""
+    group, n_nodes, n_cells, k = mesh.group, mesh.n_nodes, mesh.n_cells, mesh.nodes_per_cell
+    kind = {3: "Triangle", 2: "Polyline"}[k]
+    grid = (
+        f'    <Grid Name="{group}" GridType="Uniform">\n'
+        f'      <Topology TopologyType="{kind}" NumberOfElements="{n_cells}" '
+        f'NodesPerElement="{k}">\n'
+        f'        <DataItem Dimensions="{n_cells} {k}" NumberType="Int" Precision="8" '
+        f'Format="HDF">fields.h5:/{group}/topology</DataItem>\n'
+        f"      </Topology>\n"
+        f'      <Geometry GeometryType="XY">\n'
+        f'        <DataItem Dimensions="{n_nodes} 2" NumberType="Float" Precision="8" '
+        f'Format="HDF">fields.h5:/{group}/geometry</DataItem>\n'
+        f"      </Geometry>\n"
+        f"    </Grid>\n"
+    )
+    include = (
+        "<xi:include xpointer=\"xpointer(/Xdmf/Domain/Grid[@GridType='Uniform'][1]/"
+        '*[self::Topology or self::Geometry])" />'
+    )
+    grids = [
+        f'      <Grid Name="step_{step}" GridType="Uniform">\n'
+        f"        {include}\n"
+        f'        <Time Value="{t!r}" />\n' + "".join(a.xml(step) for a in attributes)
+        + "      </Grid>\n"
+        for step, t in steps
+    ]  # fmt: skip
+    return (
+        '<?xml version="1.0"?>\n'
+        '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
+        "  <Domain>\n" + grid
+        + '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">\n'
+        + "".join(grids)
+        + "    </Grid>\n  </Domain>\n</Xdmf>\n"
+    )  # fmt: skip
+
+
+class FieldSeries:
+    """Writes the XDMF time series of a run, one HDF5 file per written step.
+
+    Args:
+        outdir: the output directory.
+        V1: the P1 vector space that numbers the written mesh's nodes.
+        functions: P1 (node) or DG0 (cell) functions, written by name.
+        schedule: the steps to write.
+        precision: "float32" (what ParaView's XDMF reader loads) or "float64".
+        side: fields on a second mesh (:class:`SideMesh`: macro ``coarse.xdmf``, micro
+            ``cells.xdmf``), or None; one without fields is not written.
+        keep_until: resume: keep the steps already written up to this one that are on the
+            schedule (files of the others are removed); None starts the series afresh.
+    """
+
+    def __init__(
+        self, outdir: Path, V1: fem.FunctionSpace, functions: list[fem.Function],
+        schedule: Schedule, precision: str = "float32", side: SideMesh | None = None,
+        keep_until: int | None = None,
+    ) -> None:  # fmt: skip
+        self.outdir = outdir
+        self.functions = functions
+        self.schedule = schedule
+        self.dtype = np.dtype(precision)
+        self.side = side if side is not None and side.fields else None
+        self.gather = MeshGather(V1)
+        self.comm = V1.mesh.comm
+        points, triangles = self.gather.points(), self.gather.triangles()
+        self.steps: list[tuple[int, float]] = []
+        if self.comm.rank == 0:
+            self._write_meshes(points, triangles)
+            self.indexes = {"fields.xdmf": self._fine_index(points, triangles)}
+            if self.side is not None:
+                self.indexes[self.side.index] = self._side_index()
+            self._keep(keep_until)
+
+    def _write_meshes(self, points: np.ndarray, triangles: np.ndarray) -> None:
+        (self.outdir / STEP_DIR).mkdir(exist_ok=True)
+        path = self.outdir / "fields.h5"
+        with _atomic_h5(path) as f:
+            f["Mesh/geometry"] = points
+            f["Mesh/topology"] = triangles.astype(np.int64)
+            if self.side is not None:
+                f[f"{self.side.group}/geometry"] = self.side.points
+                f[f"{self.side.group}/topology"] = self.side.cells.astype(np.int64)
+
+    def _fine_index(
+        self, points: np.ndarray, triangles: np.ndarray
+    ) -> tuple[_Mesh, list[_Attribute]]:
+        """The fine mesh and its attributes (fields.xdmf)."""
+        n_nodes, n_cells = len(points), len(triangles)
+        attributes = []
+        for f in self.functions:
+            kind, width = _ATTRIBUTE_TYPES[f.function_space.dofmap.index_map_bs]
+            cell = f.function_space.ufl_element().degree() == 0
+            center, n = ("Cell", n_cells) if cell else ("Node", n_nodes)
+            attributes.append(
+                _Attribute(f.name, f.name, kind, center, (n, width), self.dtype.itemsize)
+            )
+        return _Mesh("Mesh", n_nodes, n_cells), attributes
+
+    def _side_index(self) -> tuple[_Mesh, list[_Attribute]]:
+        """The second mesh and its attributes (coarse.xdmf or cells.xdmf)."""
+        side, size = self.side, self.dtype.itemsize
+        n_nodes, (n_cells, k) = len(side.points), side.cells.shape
+        attributes = []
+        for name, (center, components) in side.fields.items():
+            kind, width = _ATTRIBUTE_TYPES[components]
+            n = n_nodes if center == "Node" else n_cells
+            attributes.append(
+                _Attribute(name, f"{side.prefix}/{name}", kind, center, (n, width), size)
+            )
+        return _Mesh(side.group, n_nodes, n_cells, k), attributes
+
+    def _keep(self, keep_until: int | None) -> None:
+        """Index the written steps to keep, then remove the files of the others."""
+        on_disk = completed_steps(self.outdir)
+        last = -1 if keep_until is None else keep_until
+        self.steps = [(s, t) for s, t in on_disk if s <= last and s in self.schedule]
+        self._write_index()
+        kept = {s for s, _ in self.steps}
+        for step, _ in on_disk:
+            if step not in kept:
+                step_file(self.outdir, step).unlink()
+
+    def write(self, step: int, t: float) -> None:
+        """Write all fields at (step, t): collective; rank 0 writes."""
+        values = {f.name: self.gather.function(f) for f in self.functions}
+        if self.comm.rank != 0:
+            return
+        path = step_file(self.outdir, step)
+        with _atomic_h5(path) as f:
+            f.attrs["step"], f.attrs["t"] = step, t
+            for name, v in values.items():
+                _write_field(f, name, _pad(v), self.dtype)
+            for name, (_, components) in self.side.fields.items() if self.side else ():
+                v = np.reshape(self.side.values[name], (-1, components))
+                _write_field(f, f"{self.side.prefix}/{name}", _pad(v), self.dtype)
+        self.steps = [(s, tt) for s, tt in self.steps if s < step] + [(step, t)]
+        self._write_index()
+
+    def _write_index(self) -> None:
+        """fields.xdmf (and coarse.xdmf or cells.xdmf) for the steps written so far, each
+        replaced atomically."""
+        for name, (mesh, attributes) in self.indexes.items():
+            atomic_write_text(self.outdir / name, _series_xml(mesh, attributes, self.steps))
+
+
+class SummaryWriter:
+    """A CSV of rows keyed by ``step``, written by rank 0, fsync'ed at once: ``summary.csv``
+    (one row per completed step) and ``cells.csv`` (micro: one row per cell and written step).
+
+    With ``keep_until`` (resume), the rows of steps up to that one are kept (and, given a
+    ``schedule``, only those of its steps), later ones dropped.
+    """
+
+    def __init__(
+        self, path: Path, columns: list[str], comm: MPI.Comm, keep_until: int | None = None,
+        schedule: Schedule | None = None,
+    ) -> None:  # fmt: skip
+        self.path = path
+        self.columns = columns
+        self.comm = comm
+        if comm.rank == 0:
+            kept = []
+            if keep_until is not None and path.exists():
+                with open(path, newline="") as f:
+                    kept = [r for r in csv.DictReader(f) if _kept(r, columns, keep_until, schedule)]
+            text = (
+                ",".join(columns)
+                + "\n"
+                + "".join(",".join(r[c] for c in columns) + "\n" for r in kept)
+            )
+            atomic_write_text(path, text)
+
+    def write(self, row: dict[str, float]) -> None:
+        self.write_rows([row])
+
+    def write_rows(self, rows: list[dict[str, float]]) -> None:
+        """Append the rows (rank 0; the others pass through) in one write."""
+        if self.comm.rank != 0:
+            return
+        with open(self.path, "a", newline="") as f:
+            csv.writer(f).writerows([f"{row[c]:.17g}" for c in self.columns] for row in rows)
+            f.flush()
+            os.fsync(f.fileno())
+
+
+def _kept(row: dict, columns: list[str], last: int, schedule: Schedule | None) -> bool:
+    """A complete row (a kill can cut the last one short) of a step to keep on resume."""
+    if any(row.get(c) in (None, "") for c in columns):
+        return False
+    step = int(float(row["step"]))
+    return step <= last and (schedule is None or step in schedule)

@@ -1,0 +1,120 @@
+"""Scenes: one TOML file describes one simulation (MODEL.md sections 4-6 and 9).
+
+Every table and key is optional and defaults to the reference scene of MODEL.md section 9,
+except ``growth.law``. Unknown keys, wrong types, NaN/inf and out-of-range values are errors
+(:class:`SceneError`) whose message starts with the dotted key, e.g. ``material.nu = 0.5 is out
+of range: ...``. Integers are accepted for floats. Everything is non-dimensional (wall E = 1,
+inclined wall length l2 = 1)::
+
+    model = "macro"            # "macro" | "micro" | "both"
+    kinematics = "linear"      # "linear": the paper's eps_el; "finite": F = Fe Fg, Green-Lagrange
+                               # Ee, Newton's method (MODEL.md 10, docs/finite_kinematics.md)
+    [tissue]                   # the rectangle [0, width] x [0, height]; x2 = 0 is a symmetry plane
+    width = 6.928203230275509  # 8 cos(30 deg), at most 1e6
+    height = 3.0               # at most 1e6
+    # or outline = [[x1, x2], ...]: a simple polygon (3 to 500 points, either orientation, in
+    #   [0, 1e6]^2) with at least one edge on x2 = 0; edge i runs from point i to point i + 1
+    #   and is loaded as loads.edge<i> (not the edges on x2 = 0)
+    # or mesh = "file.msh": a gmsh mesh (relative to the scene file) with the curve group
+    #   "symmetry" on x2 = 0, the point group "pinned" and named curve groups, loaded as
+    #   loads.<name>
+    # (docs/shapes.md; not with width or height: the shape's bounding box sets them)
+    h = 0.1                    # (preset) fine-mesh edge: 0 < h <= min(width, height)/2,
+                               # at most 4e6 cells
+    H = 0.5                    # (preset) coarse-mesh edge (cell-problem nodes):
+                               # h <= H <= max(width, height)
+    [cell]                     # honeycomb unit cell, MODEL.md section 2
+    l1 = 1.0                   # vertical wall length, > 0
+    l2 = 1.0                   # inclined wall length, > 0
+    theta = 30.0               # inclined wall angle in degrees, in (0, 90)
+    w = 0.05                   # one cell's own wall thickness, > 0 and leaving a void
+    [material]                 # wall material, MODEL.md section 1
+    E = 1.0                    # Young modulus, > 0
+    nu = 0.3                   # Poisson ratio, in (-1, 0.5)
+    [pressure]
+    P1 = 0.001                 # turgor pressure, >= 0 (MODEL.md section 6)
+    [growth]                   # growth law, MODEL.md section 4
+    law = "stress"             # REQUIRED: "stress" | "strain" | "none"
+    eta = 1.0                  # extensibility, >= 0
+    tau = 0.0                  # yield threshold, >= 0
+    clamp = 1.0                # M: G is clipped component-wise to [-M, M], M > 0
+    Fg0 = [[1.0, 0.0], [0.0, 1.0]]  # initial growth tensor, finite entries (numbers or
+                               # fields), det > 0 wherever it is used
+    [time]
+    t_max = 60.0               # end time, a whole number (<= 1e6) of steps dt
+    dt = 1.0                   # (preset) time step, > 0
+    integrator = "exp"         # (preset) "exp": Fg <- expm(dt G) Fg (det Fg >= 1); "euler":
+                               # the paper's Fg <- Fg + dt G Fg; "adaptive": exp with step
+                               # doubling (below)
+    tolerance = 1e-3           # adaptive: largest relative local error of Fg per step, (0, 0.1]
+    [loads]                    # traction f on an edge (default none); "bottom" cannot be loaded
+    right = [0.0, 0.0]         # also "left", "top"; an outline's "edge<i>", a mesh's group names;
+                               # on left/right/top a component may be {expr = "..."} of s, the
+                               # coordinate along the edge (x2 on left/right, x1 on top)
+    [output]
+    fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these, "eps_hom" and the growth
+                               # outputs (docs/outputs.md), computed only when listed:
+                               # "trG" (tr G, areal growth rate), "growth_anisotropy"
+                               # ((g1 - g2)/(|g1| + |g2|) of G's principal rates g1 >= g2, in
+                               # [0, 1], 0 when both vanish), "growth_direction" (unit vector of
+                               # g1, x1 >= 0; zero vector where G is isotropic), "stress_direction"
+                               # (same for sigma_hom; micro: the cells' mean wall stress).
+                               # Micro runs write u, Fg, G, cell_id and the growth outputs
+                               # listed, plus cells.csv and cells.xdmf (cell outlines)
+    every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has
+                               # every step), integer in [1, 1e6]
+    precision = "float32"      # of the written fields: "float32" | "float64" (the resume
+                               # state is float64 either way)
+    [accuracy]
+    preset = "balanced"        # "draft" | "balanced" | "fine": sets the keys marked (preset)
+    cell_resolution = 2        # (preset) P2 elements across a cell wall, integer in [1, 64]
+    key_tolerance = 1e-6       # cell-problem inputs are rounded to this before caching, (0, 1e-2]
+    cell_tolerance = 1e-3      # (preset) surrogate's relative error of the homogenized tensors,
+                               # [0, 0.1] (0: solve every distinct input exactly; surrogate.py)
+    [micro]
+    nx = 16                    # cells per row of the micro model, even integer in [2, 256]
+    resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
+    [solver]                   # linear solvers: speed only, results agree to the solver tolerance
+    macro = "auto"             # "direct" (LU), "iterative" (CG + GAMG, true relative residual
+                               # <= 1e-10) or "auto": iterative from macro_threshold fine dofs on
+    macro_threshold = 200000   # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
+
+The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
+holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is
+0 to a relative 1e-6. With an outline or mesh the pinned point is the bottom-left-most vertex on
+x2 = 0 or the mesh's "pinned" point, coarse nodes outside the tissue get no cell problem, and
+only ``model = "macro"`` is possible (the micro model builds its own honeycomb tissue).
+
+Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/scene/presets.py; the values
+shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped
+to the tissue (``h <= min(width, height)/2``, ``h <= H <= max(width, height)``).
+
+The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta``, ``growth.tau`` and each
+entry of ``growth.Fg0`` are *fields* (docs/fields.md):
+
+- a number;
+- ``{from = a, to = b}`` (``along = "x1"``, the default) or ``{from = a, to = b, along = "x2"}``:
+  linear from a at 0 to b at the end of the tissue simulated along that axis (MODEL.md sections
+  7, 9): the macro rectangle's width or height, the cellular tissue's own extent for micro runs
+  and the macro side of ``both`` and ``compare``, so a field never leaves [a, b];
+- ``{expr = "..."}``: an expression of x1 and x2 (plantgrowth/scene/expression.py: numbers, pi,
+  ``+ - * / **``, parentheses, comparisons, exp log sqrt sin cos tanh abs min max and
+  ``where(cond, a, b)``; never Python's eval), in absolute coordinates.
+
+A number's and a linear field's range is checked at its ends when the scene is built, the cell
+geometry at the ends and middle of each axis a field varies along. A non-constant expression, or
+a varying Fg0, is checked where the run uses it (plantgrowth/scene/places.py): at every coarse node
+and fine cell of the macro domain and at every cell centre of a micro tissue, before anything is
+written; the error names the key, the place (x1, x2) and the range. Magnitudes above 1e12 (1e6
+for lengths and Fg0) are rejected as typos: the model is non-dimensional with reference values of
+order 1.
+
+Load with :func:`load_scene` (a file), :func:`parse_scene` or ``Scene.from_dict`` (a dict);
+``Scene.to_toml()`` writes the fully resolved scene, which loads back to an equal ``Scene``.
+"""
+
+from plantgrowth.base.errors import SceneError
+from plantgrowth.scene.loader import load_scene, parse_scene
+from plantgrowth.scene.schema import Scene
+
+__all__ = ["Scene", "SceneError", "load_scene", "parse_scene"]

@@ -1,0 +1,45 @@
+"""The limits of a scene's values: ranges, choices and the largest accepted sizes."""
+
+from __future__ import annotations
+
+import math
+
+from plantgrowth.meshes.tissue import MAX_NX as TISSUE_MAX_NX
+
+BIG = 1e12
+"""Largest magnitude accepted for a non-dimensional parameter without a natural bound."""
+MAX_LENGTH = 1e6  # tissue and cell lengths, |Fg0 entries|
+MAX_CELLS = 4e6  # triangles of the fine mesh
+MAX_STEPS = 1e6  # t_max / dt
+MAX_RESOLUTION = 64  # accuracy.cell_resolution
+MAX_NX = TISSUE_MAX_NX  # micro.nx
+LAWS = ("stress", "strain", "none")
+INTEGRATORS = ("euler", "exp", "adaptive")
+MODELS = ("macro", "micro", "both")
+KINEMATICS = ("linear", "finite")
+MACRO_SOLVERS = ("auto", "direct", "iterative")
+MACRO_THRESHOLD = 200_000
+"""Fine dofs from which ``solver.macro = "auto"`` solves iteratively: where CG + GAMG's time per
+step meets LU's on the E-gradient scene, 1 rank (measured 1.96e5; scripts/scaling.py)."""
+GROWTH_FIELDS = ("trG", "growth_anisotropy", "growth_direction", "stress_direction")
+"""Outputs derived from G and sigma_hom (plantgrowth/models/growth_fields.py, docs/outputs.md)."""
+OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", *GROWTH_FIELDS)
+DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
+EDGES = ("left", "right", "top")
+RANGES = {
+    "cell.l1": (0.0, MAX_LENGTH, True, False),
+    "cell.l2": (0.0, MAX_LENGTH, True, False),
+    "cell.theta": (0.0, 90.0, True, True),
+    "cell.w": (0.0, MAX_LENGTH, True, False),
+    "material.E": (0.0, BIG, True, False),
+    "material.nu": (-1.0, 0.5, True, True),
+    "pressure.P1": (0.0, BIG, False, False),
+    "growth.eta": (0.0, BIG, False, False),
+    "growth.tau": (0.0, BIG, False, False),
+}
+"""Each field's interval (low, high, low end open, high end open), checked wherever it is used."""
+FG0_RANGE = (-MAX_LENGTH, MAX_LENGTH, False, False)
+"""The interval of each entry of growth.Fg0 (and det Fg0 > 0)."""
+IDENTITY = ((1.0, 0.0), (0.0, 1.0))
+REFERENCE_WIDTH = 4.0 * math.sqrt(3.0)  # = 8 cos(30 deg), exactly rounded
+"""Reference tissue width 8c = 6.928203230275509 (MODEL.md section 9)."""

@@ -1,0 +1,248 @@
+"""Micro-macro comparison in delta = 1/Nx (MODEL.md sections 7-8, paper Fig. 2 d-j).
+
+For each Nx the macro model runs on the region the micro tissue covers (the union of its cells'
+mid-line hexagons, cut at x2 = 0) and the micro model on the walls. At the first time step the
+macro displacement is evaluated on the micro walls and compared with [error]:
+``e = sqrt( int (a - A)^2 / int A^2 )`` for u1 and u2.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from matplotlib.tri import TrapezoidMapTriFinder, Triangulation
+from mpi4py import MPI
+from scipy.spatial import cKDTree
+
+from plantgrowth.base.gather import MeshGather
+from plantgrowth.meshes.tissue import TissueLayout
+from plantgrowth.models.macro.domain import MacroDomain, macro_domain
+from plantgrowth.models.macro.model import model_on
+from plantgrowth.models.micro.model import MicroModel, scene_cell
+from plantgrowth.runner.output import prepare_directory
+from plantgrowth.runner.timeloop import run_model
+from plantgrowth.scene import Scene
+
+log = logging.getLogger("plantgrowth")
+
+COLUMNS = [
+    "nx", "delta", "err_u1", "err_u2", "err_ubar", "err_G", "err_u1_pinned",
+    "rate_macro_t0", "rate_micro_t0", "rate_macro_tmax", "rate_micro_tmax",
+    "seconds_macro", "seconds_micro", "dofs_macro", "dofs_micro",
+    "err_u1_tmax", "err_u2_tmax", "err_ubar_tmax", "err_G_tmax",
+]  # fmt: skip
+"""The ``_tmax`` errors are the first-step ones at the last step (empty if only the first step
+ran): both models are Lagrangian on their reference meshes, so u at t_max compares as at t = 0."""
+
+
+@dataclass(frozen=True)
+class P1Snapshot:
+    """A P1 vector field gathered on every rank: node coordinates, triangles, nodal values."""
+
+    points: np.ndarray  # (n, 2)
+    triangles: np.ndarray  # (m, 3)
+    values: np.ndarray  # (n, 2)
+
+    @classmethod
+    def gather(cls, u: fem.Function) -> P1Snapshot:
+        """Collect a (distributed) P1 vector function on all ranks."""
+        everywhere = MeshGather(u.function_space, root=None)
+        return cls(everywhere.points(), everywhere.triangles(), everywhere.function(u))
+
+    def evaluate(self, x: np.ndarray) -> np.ndarray:
+        """Values at points x (k, 2); points outside (round-off at the boundary) extrapolate
+        linearly from a triangle at their nearest node."""
+        tri = Triangulation(self.points[:, 0], self.points[:, 1], self.triangles)
+        found = TrapezoidMapTriFinder(tri)(x[:, 0], x[:, 1])
+        missing = found < 0
+        if np.any(missing):
+            nearest = cKDTree(self.points).query(x[missing])[1]
+            first_triangle = np.full(len(self.points), -1)
+            first_triangle[self.triangles[::-1].ravel()] = np.repeat(
+                np.arange(len(self.triangles))[::-1], 3
+            )
+            found[missing] = first_triangle[nearest]
+        corners = self.points[self.triangles[found]]  # (k, 3, 2)
+        T = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=2)
+        lam = np.linalg.solve(T, (x - corners[:, 0])[..., None])[..., 0]
+        weights = np.column_stack([1.0 - lam.sum(axis=1), lam])
+        return np.einsum("kj,kjd->kd", weights, self.values[self.triangles[found]])
+
+
+def macro_on_walls(u_micro: fem.Function, macro: P1Snapshot) -> fem.Function:
+    """The macro displacement interpolated on the micro walls' P2 nodes."""
+    V = u_micro.function_space
+    A = fem.Function(V)
+    A.x.array[:] = macro.evaluate(V.tabulate_dof_coordinates()[:, :2]).ravel()
+    return A
+
+
+def cell_mean_error(micro: MicroModel, A: fem.Function) -> float:
+    """Relative error of the cell-mean displacement, [error] over cells instead of points:
+    ``sqrt( sum_c Y_c |ubar_c - Abar_c|^2 / sum_c Y_c |Abar_c|^2 )`` with ubar_c, Abar_c the
+    means of the micro and macro displacements over cell c's own walls and Y_c its hexagon's
+    area; u1 in the zero-mean gauge (see :func:`relative_errors`). Averaging over a cell
+    removes most of the periodic corrector delta (w^ij eps_el + v P1), which dominates the
+    pointwise errors at small Nx, so this error sees the macro displacement itself: the
+    stiffness E_hom and the turgor response K_hom."""
+    weights = micro.hexagon_area / micro.hexagon_area.sum()
+    ubar, Abar = micro.cell_means(micro.u), micro.cell_means(A)
+    for mean in (ubar, Abar):
+        mean[:, 0] -= weights @ mean[:, 0]
+    return float(
+        np.sqrt(weights @ np.sum((ubar - Abar) ** 2, axis=1) / (weights @ np.sum(Abar**2, axis=1)))
+    )
+
+
+def relative_errors(u_micro: fem.Function, A: fem.Function) -> dict[str, float]:
+    """[error] for u1 and u2 on the micro walls (the macro field interpolated on their P2 nodes).
+
+    u2 has no gauge freedom (u2 = 0 on the symmetry plane). u1 is defined up to a rigid shift
+    along x1, which both models fix by u1 = 0 at the origin (MODEL.md 4). In the micro tissue the
+    origin lies in the middle of an outer wall, which turgor bows outwards by O(delta): that
+    bulge shifts the whole micro u1 field. ``err_u1`` therefore compares both fields in the
+    other gauge MODEL.md allows, zero mean of u1 over the walls (the rigid shift removed from
+    each); ``err_u1_pinned`` is the same measure in the pinned gauge.
+    """
+    V = u_micro.function_space
+    comm = V.mesh.comm
+
+    def integral(expr) -> float:
+        return comm.allreduce(fem.assemble_scalar(fem.form(expr * ufl.dx)), op=MPI.SUM)
+
+    def error(a, b) -> float:
+        return float(np.sqrt(integral((a - b) ** 2) / integral(b**2)))
+
+    area = integral(fem.Constant(V.mesh, 1.0))
+    shift_micro, shift_macro = integral(u_micro[0]) / area, integral(A[0]) / area
+    return {
+        "err_u1": error(u_micro[0] - shift_micro, A[0] - shift_macro),
+        "err_u2": error(u_micro[1], A[1]),
+        "err_u1_pinned": error(u_micro[0], A[0]),
+    }
+
+
+def growth_rate_error(
+    micro_G: np.ndarray, weights: np.ndarray, centres: np.ndarray, macro_G: CellSnapshot
+) -> float:
+    """Relative difference of the first-step growth rates, cell by cell:
+    ``sqrt( sum_c A_c |G_c - G(x_c)|^2 / sum_c A_c |G(x_c)|^2 )`` with A_c the cells' areas and
+    G(x) the macro rate in the fine cell nearest to the cell centre x_c."""
+    G = macro_G.values[cKDTree(macro_G.points).query(centres)[1]].reshape(-1, 2, 2)
+    num = np.sum(weights * np.sum((micro_G - G) ** 2, axis=(1, 2)))
+    den = np.sum(weights * np.sum(G**2, axis=(1, 2)))
+    return float(np.sqrt(num / den)) if den > 0.0 else float(np.sqrt(num))
+
+
+@dataclass(frozen=True)
+class CellSnapshot:
+    """Per-cell values of a DG0 field and the cells' midpoints, gathered on every rank."""
+
+    points: np.ndarray  # (n, 2)
+    values: np.ndarray  # (n, k)
+
+    @classmethod
+    def gather(cls, points: np.ndarray, values: np.ndarray, comm: MPI.Comm) -> CellSnapshot:
+        return cls(np.vstack(comm.allgather(points)), np.vstack(comm.allgather(values)))
+
+
+def compare_one(
+    scene: Scene, domain: MacroDomain, nx: int, outdir: Path, comm: MPI.Comm,
+    resolution: int | None, n_steps: int | None,
+) -> dict[str, float | None]:  # fmt: skip
+    """Macro on the outline of the Nx tissue, then micro; errors at the first and the last step
+    (the t_max rates and errors are None when only the first step runs)."""
+    layout = TissueLayout(scene_cell(scene), nx)
+    last = scene.time.n_steps if n_steps is None else n_steps
+    measured = (0, last) if last > 0 else (0,)
+    snapshot: dict[tuple[str, int], P1Snapshot | CellSnapshot] = {}
+    errors: dict[int, dict[str, float]] = {}
+
+    def keep_macro(step: int, model) -> None:
+        if step in measured:
+            problem = model.problem
+            snapshot["u", step] = P1Snapshot.gather(problem.u)
+            n = problem.n_owned
+            G = problem.cell_values(model.out.G)[:n]
+            snapshot["G", step] = CellSnapshot.gather(problem.midpoints[:n, :2], G, comm)
+
+    def measure_micro(step: int, model) -> None:
+        if step in measured:
+            A = macro_on_walls(model.u, snapshot["u", step])
+            errors[step] = relative_errors(model.u, A) | {
+                "err_ubar": cell_mean_error(model, A),
+                "err_G": growth_rate_error(
+                    model.last_G, model.hexagon_area, layout.centres, snapshot["G", step]
+                ),
+            }
+
+    start = time.perf_counter()
+    prepare_directory(outdir / "macro", comm)
+    macro = model_on(domain, comm)
+    macro_rows = run_model(
+        macro, scene, outdir / "macro", comm, n_steps, keep_macro, label=f"Nx = {nx}, macro"
+    )
+    seconds_macro = time.perf_counter() - start
+    start = time.perf_counter()
+    prepare_directory(outdir / "micro", comm)
+    micro = MicroModel(scene, comm, nx, resolution)
+    micro_rows = run_model(
+        micro, scene, outdir / "micro", comm, n_steps, measure_micro, label=f"Nx = {nx}, micro"
+    )
+    seconds_micro = time.perf_counter() - start
+    for step, e in errors.items():
+        log.info(
+            "Nx = %d, step %d, relative errors: err_u1 = %.4g (pinned gauge %.4g), err_u2 = %.4g, "
+            "err_ubar = %.4g, err_G = %.4g",
+            nx, step, e["err_u1"], e["err_u1_pinned"], e["err_u2"], e["err_ubar"], e["err_G"],
+        )  # fmt: skip
+    at_tmax = errors.get(last) if last > 0 else None
+    return {
+        "nx": nx, "delta": 1.0 / nx, **errors[0],
+        **{f"{k}_tmax": None if at_tmax is None else at_tmax[k]
+           for k in ("err_u1", "err_u2", "err_ubar", "err_G")},
+        "rate_macro_t0": macro_rows[0]["growth_rate_area"],
+        "rate_micro_t0": micro_rows[0]["growth_rate_area"],
+        "rate_macro_tmax": None if n_steps == 0 else macro_rows[-1]["growth_rate_area"],
+        "rate_micro_tmax": None if n_steps == 0 else micro_rows[-1]["growth_rate_area"],
+        "seconds_macro": seconds_macro, "seconds_micro": seconds_micro,
+        "dofs_macro": macro.problem.ndofs, "dofs_micro": micro.ndofs,
+    }  # fmt: skip
+
+
+def fitted_rate(nx: list[int], errors: list[float]) -> float:
+    """Least-squares slope p of ``log e = log C - p log Nx`` (e ~ delta^p)."""
+    return float(-np.polyfit(np.log(nx), np.log(errors), 1)[0])
+
+
+def run_compare(
+    scene: Scene, nxs: list[int], outdir: Path, comm: MPI.Comm,
+    resolution: int | None = None, first_step_only: bool = False,
+    domains: dict[int, MacroDomain] | None = None,
+) -> list[dict[str, float | None]]:  # fmt: skip
+    """Compare macro and micro for each Nx; writes ``outdir/compare.csv`` and per-Nx runs. The
+    macro side of each Nx runs on ``domains[nx]`` (the checked domains of
+    :func:`plantgrowth.runner.scene_run.checked_domain`), else on a domain built here."""
+    n_steps = 0 if first_step_only else None
+    rows = []
+    for nx in nxs:
+        domain = domains[nx] if domains is not None else macro_domain(scene, comm, nx)
+        rows.append(compare_one(scene, domain, nx, outdir / f"nx{nx}", comm, resolution, n_steps))
+        if comm.rank == 0:
+            with open(outdir / "compare.csv", "w", newline="") as f:
+                writer = csv.writer(f)
+                writer.writerow(COLUMNS)
+                writer.writerows([["" if r[c] is None else f"{r[c]:.10g}" for c in COLUMNS]
+                                  for r in rows])  # fmt: skip
+    if len(rows) > 1:
+        for key in ("err_u1", "err_u2", "err_ubar", "err_G"):
+            rate = fitted_rate([r["nx"] for r in rows], [r[key] for r in rows])
+            log.info("%s ~ delta^%.2f (least-squares fit over Nx = %s)", key, rate, nxs)
+    return rows

@@ -1,0 +1,231 @@
+"""Cell problems at the coarse nodes, solved once per distinct input (paper Algorithm 3).
+
+Inputs are reduced before solving, by exact invariances of the cell problems (MODEL.md 3):
+- ``Fg -> Fg / sqrt(det Fg)``: scaling Fg by g scales the cell solutions by g and leaves every
+  homogenized quantity unchanged;
+- ``E -> 1``: E_hom scales with E, dbar[v] with 1/E; K_hom, dbar[w^ij] do not depend on E.
+The reduced inputs are rounded to ``key_tolerance``; each distinct key is solved once per run
+(results are cached across time steps). Keys are shared among the ranks by estimated cost
+(:mod:`plantgrowth.unitcell.scheduler`), each solving on ``COMM_SELF``, and the results are
+exchanged with one ``allgather``.
+
+With ``cell_tolerance > 0`` the growth state goes through :mod:`plantgrowth.unitcell.surrogate`
+instead (rotation split off exactly, the stretch interpolated on lattices refined to the tolerance),
+backed by the on-disk cache of :mod:`plantgrowth.unitcell.cache`; every ``CHECK_EVERY``-th call
+also solves one of its queries exactly and logs the surrogate's error there.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+from mpi4py import MPI
+
+from plantgrowth.base.tensors import rotate2, rotate4, tensor_from_voigt, voigt_matrix
+from plantgrowth.meshes.honeycomb import HoneycombCell
+from plantgrowth.unitcell import surrogate
+from plantgrowth.unitcell.cache import CellCache, cache_root
+from plantgrowth.unitcell.scheduler import CellScheduler
+from plantgrowth.unitcell.solver import CellResult, CellSolver
+
+log = logging.getLogger("plantgrowth")
+
+CHECK_EVERY = 10
+"""The surrogate is checked against an exact solve at one random node every this many calls."""
+
+
+@dataclass(frozen=True)
+class NodeTensors:
+    """Homogenized fields at the coarse nodes (n nodes). Absent pieces are None."""
+
+    C: np.ndarray  # (n, 3, 3) Voigt matrix of E_hom
+    phi_w: np.ndarray  # (n,)
+    K: np.ndarray | None  # (n, 2, 2)
+    dbar_w: np.ndarray | None  # (n, 2, 2, 2, 2)
+    dbar_v: np.ndarray | None  # (n, 2, 2)
+    P2_matrix: np.ndarray  # (n, 2, 2), P2vec = P2_matrix grad(P1)
+
+
+def _pack(result: CellResult) -> np.ndarray:
+    parts = [voigt_matrix(result.E_hom).ravel(), [result.phi_w], result.P2_matrix.ravel()]
+    for optional in (result.K_hom, result.dbar_w, result.dbar_v):
+        if optional is not None:
+            parts.append(optional.ravel())
+    return np.concatenate(parts)
+
+
+class Homogenizer:
+    """Solves and caches the cell problems of a run.
+
+    Args:
+        resolution: elements across a wall in each cell mesh.
+        key_tolerance: absolute rounding of the reduced inputs (geometry, nu, Fg/sqrt(det Fg)).
+        pressure: solve the pressure problem [UCw_weak] (only when P1 is not zero).
+        strain_averages: compute dbar[w^ij], dbar[v] (strain law or eps_hom output only).
+        comm: the communicator whose ranks share the cell problems.
+        cell_tolerance: relative error accepted from the surrogate (0: solve every distinct
+            rounded input exactly).
+    """
+
+    def __init__(
+        self,
+        resolution: int,
+        key_tolerance: float,
+        pressure: bool,
+        strain_averages: bool,
+        comm: MPI.Comm,
+        cell_tolerance: float = 0.0,
+    ) -> None:
+        self.resolution = resolution
+        self.tol = key_tolerance
+        self.pressure = pressure
+        self.strain_averages = strain_averages
+        self.comm = comm
+        self.scheduler = CellScheduler(comm)
+        self._solvers: dict[tuple, CellSolver] = {}
+        self._results: dict[tuple, np.ndarray] = {}
+        self.solves_last_call = 0
+        self.seconds_last_call = 0.0
+        self.surrogate = None
+        if cell_tolerance > 0.0:
+            sizes = [9, 1, 4] + [4] * pressure + [16] * strain_averages
+            sizes += [4] * (pressure and strain_averages)
+            bounds = np.cumsum([0, *sizes])
+            segments = [slice(bounds[0], bounds[1])] + [
+                slice(a, b) for a, b in zip(bounds[3:-1], bounds[4:], strict=True)
+            ]  # E_hom and the optional pieces; phi_w and P2 depend on the geometry only
+            self.surrogate = surrogate.LatticeSurrogate(
+                self._solve_stretch, cell_tolerance, segments, comm, self.scheduler
+            )
+            fingerprint = (resolution, pressure, strain_averages)
+            self.cache = CellCache(cache_root(), fingerprint, comm)
+            self._tables: set[tuple] = set()
+            self._calls = 0
+            self._rng = np.random.default_rng(0)  # the same draws on every rank
+            self.checks = 0
+            self.largest_checked_error = 0.0
+
+    def _key(self, geometry: np.ndarray, nu: float, Fg: np.ndarray) -> tuple:
+        reduced = np.concatenate([geometry, [nu], (Fg / np.sqrt(np.linalg.det(Fg))).ravel()])
+        return tuple(int(k) for k in np.round(reduced / self.tol))
+
+    def _solve(self, key: tuple) -> np.ndarray:
+        values = np.array(key, dtype=float) * self.tol
+        return self._solve_exact(tuple(values[:4]), values[4], values[5:].reshape(2, 2))
+
+    def _solve_exact(self, geometry: tuple, nu: float, Fg: np.ndarray) -> np.ndarray:
+        """Packed results of one cell problem (E = 1) on this rank."""
+        solver = self._solvers.get(geometry)
+        if solver is None:
+            solver = CellSolver(HoneycombCell(*geometry), self.resolution, MPI.COMM_SELF)
+            self._solvers[geometry] = solver
+        return _pack(solver.solve(Fg, 1.0, nu, self.pressure, self.strain_averages))
+
+    def _solve_stretch(self, table: tuple, U: np.ndarray) -> np.ndarray:
+        values = np.array(table, dtype=float) * self.tol
+        return self._solve_exact(tuple(values[:4]), values[4], U)
+
+    def homogenize(
+        self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray
+    ) -> NodeTensors:
+        """Homogenized tensors at n nodes.
+
+        Args:
+            geometry: (n, 4) cell parameters (l1, l2, theta in degrees, w) per node.
+            E, nu: (n,) wall moduli per node.
+            Fg: (n, 2, 2) growth tensors per node.
+        """
+        start = time.perf_counter()
+        if self.surrogate is None:
+            keys = [self._key(g, v, F) for g, v, F in zip(geometry, nu, Fg, strict=True)]
+            new = sorted(set(keys) - self._results.keys())
+            self._results.update(self.scheduler.solve_all(new, lambda k: k[:4], self._solve))
+            self.solves_last_call = len(new)
+            packed = np.array([self._results[k] for k in keys])
+            tensors = self._unpack(packed, E)
+        else:
+            tensors = self._interpolate(geometry, E, nu, Fg)
+        self.seconds_last_call = time.perf_counter() - start
+        return tensors
+
+    def _interpolate(
+        self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray
+    ) -> NodeTensors:
+        """The surrogate's answer: stretch interpolated, rotation applied exactly, each rank
+        for its own block of the nodes, the blocks then exchanged."""
+        n, size, rank = len(Fg), self.comm.size, self.comm.rank
+        block = slice(n * rank // size, n * (rank + 1) // size)
+        rounded = np.round(np.column_stack([geometry, nu]) / self.tol).astype(np.int64)
+        for table in sorted(set(map(tuple, np.unique(rounded, axis=0).tolist())) - self._tables):
+            self.surrogate.add(self.cache.load(table))  # collective: all ranks' tables
+            self._tables.add(table)
+        R, s = surrogate.split_growth(Fg[block])
+        tables = [tuple(row) for row in rounded[block].tolist()]  # as in _key
+        queries = [surrogate.Query(t, q) for t, q in zip(tables, s, strict=True)]
+        answer = self.surrogate.evaluate(queries)
+        self.cache.save(self.surrogate.take_new_points())
+        self.solves_last_call = answer.solves + self._check(queries, answer)
+        tensors = self._unpack(answer.values, E[block])
+        C = voigt_matrix(rotate4(R, tensor_from_voigt(tensors.C)))
+        rotated = {"C": C}
+        for name in ("K", "dbar_v"):
+            if getattr(tensors, name) is not None:
+                rotated[name] = rotate2(R, getattr(tensors, name))
+        if tensors.dbar_w is not None:
+            rotated["dbar_w"] = rotate4(R, tensors.dbar_w)
+        return self._all_blocks(replace(tensors, **rotated))
+
+    def _all_blocks(self, mine: NodeTensors) -> NodeTensors:
+        """The tensors of all nodes from every rank's block (in rank order)."""
+        blocks = self.comm.allgather(mine)
+        names = ("C", "phi_w", "K", "dbar_w", "dbar_v", "P2_matrix")
+        joined = [[getattr(b, name) for b in blocks] for name in names]
+        return NodeTensors(*(None if p[0] is None else np.concatenate(p) for p in joined))
+
+    def _check(self, queries: list[surrogate.Query], answer: surrogate.Answer) -> int:
+        """Every CHECK_EVERY-th call: one random interpolated query (over all ranks' blocks)
+        solved exactly by the rank that holds it, the error logged. Returns the number of
+        exact solves made (the same on every rank)."""
+        self._calls += 1
+        flags = self.comm.allgather(answer.interpolated)
+        candidates = np.flatnonzero(np.concatenate(flags))
+        if (self._calls - 1) % CHECK_EVERY or not len(candidates):
+            return 0
+        k = int(candidates[self._rng.integers(len(candidates))])
+        owner = int(np.searchsorted(np.cumsum([len(f) for f in flags]), k, side="right"))
+        found = None
+        if self.comm.rank == owner:
+            local = k - sum(len(f) for f in flags[:owner])
+            q = queries[local]
+            exact = self._solve_stretch(q.table, surrogate.stretch(q.s))
+            found = (self.surrogate.relative_difference(answer.values[local], exact), q.s)
+        error, s = self.comm.bcast(found, root=owner)
+        self.checks += 1
+        self.largest_checked_error = max(self.largest_checked_error, error)
+        log.info(
+            "cell surrogate check %d: relative error %.2e at s = (%.4f, %.4f); largest "
+            "seen %.2e (tolerance %.1e)", self.checks, error, *s,
+            self.largest_checked_error, self.surrogate.tolerance,
+        )  # fmt: skip
+        return 1
+
+    def _unpack(self, packed: np.ndarray, E: np.ndarray) -> NodeTensors:
+        """NodeTensors from packed E = 1 results, scaled to the nodes' E."""
+        n = len(packed)
+        C = packed[:, :9].reshape(n, 3, 3) * E[:, None, None]
+        phi_w = packed[:, 9]
+        P2_matrix = packed[:, 10:14].reshape(n, 2, 2)
+        offset = 14
+        K = dbar_w = dbar_v = None
+        if self.pressure:
+            K = packed[:, offset : offset + 4].reshape(n, 2, 2)
+            offset += 4
+        if self.strain_averages:
+            dbar_w = packed[:, offset : offset + 16].reshape(n, 2, 2, 2, 2)
+            offset += 16
+            if self.pressure:
+                dbar_v = packed[:, offset : offset + 4].reshape(n, 2, 2) / E[:, None, None]
+        return NodeTensors(C, phi_w, K, dbar_w, dbar_v, P2_matrix)
