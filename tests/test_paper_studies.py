@@ -1,6 +1,6 @@
-"""The paper-study sweeps (scripts/paper_studies.py): every sweep file and every run's scene is
-valid, the script knows every file, and its sensitivity and exact-rate formulas are right. Runs
-nothing."""
+"""The paper-study sweeps (scripts/studies/paper_studies.py): every sweep file and every run's
+scene is valid, the script knows every file, and its sensitivity and exact-rate formulas are
+right. Runs nothing."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from plantgrowth.scene import load_scene
-from plantgrowth.studies.sweep import load_sweep
+from plantgrowth.studies.sweep_file import load_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 ROUND_OFF = 1e-12  # a few float64 operations on numbers of order 1
@@ -19,7 +19,7 @@ ROUND_OFF = 1e-12  # a few float64 operations on numbers of order 1
 
 def _load_script():
     spec = importlib.util.spec_from_file_location(
-        "paper_studies", ROOT / "scripts" / "paper_studies.py"
+        "paper_studies", ROOT / "scripts" / "studies" / "paper_studies.py"
     )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

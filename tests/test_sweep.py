@@ -33,7 +33,9 @@ from plantgrowth.base.errors import InputError
 from plantgrowth.cli import main
 from plantgrowth.runner.rundir import DirectoryLock
 from plantgrowth.scene.presets import knob
-from plantgrowth.studies.sweep import NUMBERS, Share, check_run_directory, load_sweep
+from plantgrowth.studies.sweep_directory import check_run_directory
+from plantgrowth.studies.sweep_file import NUMBERS, load_sweep
+from plantgrowth.studies.sweep_share import Share
 
 TIMEOUT = 120.0  # s; a sweep here takes a few seconds, under mpirun a few more
 SIZE = MPI.COMM_WORLD.size

@@ -154,7 +154,9 @@ def run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 def sweep_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.runner.scene_run import run_scene
-    from plantgrowth.studies.sweep import Share, dry_run, load_sweep, run_sweep
+    from plantgrowth.studies.sweep import run_sweep
+    from plantgrowth.studies.sweep_file import load_sweep
+    from plantgrowth.studies.sweep_share import Share, dry_run
 
     share = Share.check(comm.size, args.ranks_per_run, args.array_index, args.array_count)
     sweep = load_sweep(args.sweep)

@@ -114,7 +114,6 @@ Load with :func:`load_scene` (a file), :func:`parse_scene` or ``Scene.from_dict`
 """
 
 from plantgrowth.base.errors import SceneError
-from plantgrowth.scene.loader import load_scene, parse_scene
-from plantgrowth.scene.schema import Scene
+from plantgrowth.scene.schema import Scene, load_scene, parse_scene
 
 __all__ = ["Scene", "SceneError", "load_scene", "parse_scene"]

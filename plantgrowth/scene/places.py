@@ -26,7 +26,8 @@ from plantgrowth.meshes.honeycomb import GeometryError
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.scene.fields import ExprField, check_value
-from plantgrowth.scene.schema import FG0_RANGE, RANGES, Scene
+from plantgrowth.scene.limits import FG0_RANGE, RANGES
+from plantgrowth.scene.schema import Scene
 
 DET_RANGE = (0.0, np.inf, True, True)
 
