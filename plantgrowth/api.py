@@ -12,17 +12,25 @@ fails numerically :class:`RunError` (exit 3). Documented in docs/api.md::
 
 from __future__ import annotations
 
+import logging
 import os
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from mpi4py import MPI
 
+from plantgrowth.base.errors import InputError
+from plantgrowth.meshes.honeycomb import GeometryError
 from plantgrowth.results.run_results import Results, read_results
 from plantgrowth.runner.scene_run import run_scene
 from plantgrowth.scene import Scene
 from plantgrowth.unitcell.solver import cell_properties
 
 __all__ = ["Results", "cell", "read_results", "run"]
+
+log = logging.getLogger("plantgrowth")
 
 
 def run(
@@ -32,19 +40,51 @@ def run(
     """Run ``scene`` into ``outdir`` as ``plantgrowth run -o OUTDIR`` does (collective on
     ``comm``, default ``MPI.COMM_WORLD``); ``resume`` and ``overwrite`` as ``--resume`` and
     ``--overwrite``; ``label`` names the run in run.log's first line. Returns the run's
-    :class:`Results` (``model = "both"``: a dict with the ``"macro"`` and ``"micro"`` results).
+    :class:`Results` on every rank, once every file is complete (``model = "both"``: a dict
+    with the ``"macro"`` and ``"micro"`` results).
 
     Raises:
-        InputError: the scene is invalid where the run uses it, or the directory is refused.
+        InputError: the scene is invalid where the run uses it (nothing is written), or the
+            directory is refused (in use, holds an earlier run, cannot be resumed).
         RunError: a step failed (every completed step stays readable).
         Interrupted: SIGINT stopped the run after a completed step.
     """
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be a Scene (pg.load_scene, pg.Scene.from_dict), got {scene!r}")
     comm = MPI.COMM_WORLD if comm is None else comm
     outdir = Path(outdir)
-    run_scene(scene, outdir, comm, label, resume, overwrite)
+    try:
+        with _progress_logged(comm):
+            run_scene(scene, outdir, comm, label, resume, overwrite)
+    except GeometryError as err:  # an impossible cell met while building a model
+        raise InputError(str(err)) from None
+    comm.Barrier()  # rank 0 writes the last summary row and log line after the collectives
     if scene.model == "both":
         return {side: read_results(outdir / side) for side in ("macro", "micro")}
     return read_results(outdir)
+
+
+@contextmanager
+def _progress_logged(comm: MPI.Comm) -> Iterator[None]:
+    """During the run, unless the caller has configured the ``plantgrowth`` logger (its level
+    or handlers; the CLI does): its progress goes into run.log (rank 0) as under the CLI, and
+    only its warnings to stderr, as ``plantgrowth: warning: ...`` (errors are raised)."""
+    if log.level != logging.NOTSET or log.handlers:
+        yield
+        return
+    console = logging.StreamHandler(sys.stderr)
+    console.setLevel(logging.WARNING)
+    console.addFilter(lambda record: record.levelno < logging.ERROR)
+    console.setFormatter(logging.Formatter("plantgrowth: %(message)s"))
+    log.addHandler(console)
+    propagate, log.propagate = log.propagate, False  # dolfinx's root handler would print INFO
+    log.setLevel(logging.INFO if comm.rank == 0 else logging.ERROR)
+    try:
+        yield
+    finally:
+        log.setLevel(logging.NOTSET)
+        log.propagate = propagate
+        log.removeHandler(console)
 
 
 def cell(
@@ -54,7 +94,15 @@ def cell(
 ) -> dict[str, float]:  # fmt: skip
     """One honeycomb unit cell's homogenized properties, as ``plantgrowth cell --json`` prints
     them: E_hom's six components (E1111, ...), K11, K22, K12, the orthotropic moduli, phi_w,
-    ndofs and seconds. ``theta`` in degrees, ``Fg`` a 2x2 growth tensor, ``resolution`` P2
-    elements across a wall (default: about 0.3% error on the moduli)."""
+    ndofs (an int) and seconds. ``theta`` in degrees, ``Fg`` a 2x2 growth tensor,
+    ``resolution`` P2 elements across a wall (default: about 0.3% error on the moduli);
+    ``comm`` the ranks that share the solve (default ``MPI.COMM_SELF``: each caller alone).
+
+    Raises:
+        InputError: a parameter out of range or an impossible cell; the message names it.
+    """
     comm = MPI.COMM_SELF if comm is None else comm
-    return cell_properties(l1, l2, theta, w, E, nu, Fg, resolution, comm)
+    try:
+        return cell_properties(l1, l2, theta, w, E, nu, Fg, resolution, comm)
+    except GeometryError as err:
+        raise InputError(str(err)) from None

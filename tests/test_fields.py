@@ -1,5 +1,5 @@
 """Parameter fields along x2 and as expressions (issue 11, item 1; plantgrowth/scene/expression.py,
-fields.py, field_checks.py).
+scene/fields.py, scene/places.py).
 
 Parser: precedence, associativity, functions, named errors with positions, no eval. Fields:
 symbolic gradients against finite differences, TOML round trip. Validation at the places used

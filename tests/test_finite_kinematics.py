@@ -225,7 +225,7 @@ def test_gradient_scene_growth_rates_agree_to_the_square_of_the_elastic_strain()
     eps_hom / phi_w (Ee - eps_el = grad(u)^T grad(u) / 2 for Fg ~ I). Measured: max |G_fin -
     G_lin| = 5.4e-6 against max |G| = 1.05e-2 with elastic strains up to eps = 3.6e-2, i.e.
     dG = 0.39 |G| eps^2; the bound |G| eps^2 fails for any first-order difference (~|G| eps).
-    On the 14 shipped gradient scenes at their own resolution (scripts/finite_vs_linear.py,
+    On the 14 shipped gradient scenes at their own resolution (scripts/studies/finite_vs_linear.py,
     docs/finite_kinematics.md) the mean tr G differs by 1e-10-4.3e-6 at t = 1 and by
     1e-10-1.7e-3 at t = 60, the area by 2.5e-4-3.7e-2 at t = 60."""
     rows = {}

@@ -3,8 +3,9 @@ meshes.
 
 Every scene runs in process on COMM_WORLD at h = 0.35, H = 1 (2 for field scenes), one P2 element
 across a cell wall, with the recommended integrator ``adaptive`` (the scenes' own), and at most
-once per module. ``scripts/hard_cases.py`` runs the same scenes at full resolution, refined once,
-and the whole large-step study; its results are in ``benchmarks/results/hard_cases.json``.
+once per module. ``scripts/studies/hard_cases.py`` runs the same scenes at full resolution,
+refined once, and the whole large-step study; its results are in
+``benchmarks/results/hard_cases.json``.
 
 Four scenes are known limits of the (geometrically linear) macro model, not of the integrator
 (docs/stability.md): two of them stop even on the cheap mesh and must stop cleanly

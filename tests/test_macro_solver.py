@@ -25,7 +25,7 @@ from plantgrowth.base.errors import RunError
 from plantgrowth.models import diagnostics
 from plantgrowth.models.macro.problem import MACRO_RTOL, MacroProblem, rectangle_mesh
 from plantgrowth.scene import parse_scene
-from plantgrowth.scene.schema import Solver
+from plantgrowth.scene.parts import Solver
 from plantgrowth.scene.toml_text import dict_to_toml
 
 PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")

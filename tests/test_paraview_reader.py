@@ -2,8 +2,8 @@
 headless (skipped where ParaView is absent), and the optional install provides what that needs.
 
 ParaView is not part of the default install (it is large); `PLANTGROWTH_WITH_PARAVIEW=1 bash
-scripts/install.sh` provides `pvbatch`, which runs scripts/check_paraview.py, and `xvfb-run`:
-pvbatch aborts without an X server when it renders ("bad X server connection").
+scripts/install.sh` provides `pvbatch`, which runs scripts/figures/check_paraview.py, and
+`xvfb-run`: pvbatch aborts without an X server when it renders ("bad X server connection").
 """
 
 import json
@@ -20,6 +20,7 @@ from plantgrowth.base.tensors import VOIGT_NAMES
 from plantgrowth.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
+CHECK_PARAVIEW = REPO / "scripts" / "figures" / "check_paraview.py"
 SCENE = """
 [tissue]
 h = 0.5
@@ -57,7 +58,7 @@ def check(outdir: Path, *extra: str, xdmf: str = "fields.xdmf") -> dict:
             "no display and no xvfb-run: PLANTGROWTH_WITH_PARAVIEW=1 bash scripts/install.sh"
         )
     done = subprocess.run(
-        [*pvbatch(), str(REPO / "scripts" / "check_paraview.py"), str(outdir / xdmf), *extra],
+        [*pvbatch(), str(CHECK_PARAVIEW), str(outdir / xdmf), *extra],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
@@ -123,4 +124,4 @@ def test_the_paraview_install_brings_a_virtual_x_server():
     assert not optional & packages("0")
     assert "python3-dolfinx" in packages("0")
     readme = (REPO / "README.md").read_text()
-    assert "xvfb-run -a pvbatch scripts/check_paraview.py" in readme
+    assert "xvfb-run -a pvbatch scripts/figures/check_paraview.py" in readme

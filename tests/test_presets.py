@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from plantgrowth.scene import Scene, load_scene, parse_scene
+from plantgrowth.scene.parts import Accuracy, Time, Tissue
 from plantgrowth.scene.presets import DEFAULT_PRESET, PRESETS
-from plantgrowth.scene.schema import Accuracy, Time, Tissue
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 KNOBS = ("tissue.h", "tissue.H", "accuracy.cell_resolution", "accuracy.cell_tolerance",

@@ -14,8 +14,8 @@ from plantgrowth.base.errors import InputError
 from plantgrowth.scene import Scene, SceneError, load_scene, parse_scene
 from plantgrowth.scene.fields import Field
 from plantgrowth.scene.limits import DEFAULT_OUTPUT
+from plantgrowth.scene.parts import Material, Time
 from plantgrowth.scene.presets import PRESETS
-from plantgrowth.scene.schema import Material, Time
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 LAW = '[growth]\nlaw = "stress"\n'

@@ -7,6 +7,8 @@ The CLI turns them into a one-line message on stderr and exit code 2 (bad input)
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import TypeVar
 
 from plantgrowth.meshes.honeycomb import GeometryError
 
@@ -24,6 +26,7 @@ class RunError(RuntimeError):
 
 
 USER_ERRORS = (InputError, GeometryError)
+T = TypeVar("T")
 
 
 def check_number(
@@ -64,3 +67,18 @@ def check_growth_tensor(name: str, Fg: object) -> list[list[float]]:
     if det <= 0.0:
         raise InputError(f"{name} = {rows} is invalid: det {name} = {det:g} must be > 0")
     return rows
+
+
+def on_rank_zero(comm, action: Callable[[], T]) -> T | None:
+    """Collective: rank 0 runs ``action`` and gets its result (the other ranks get None); an
+    InputError it raises is raised on every rank, so all fail the same way."""
+    result, error = None, None
+    if comm.rank == 0:
+        try:
+            result = action()
+        except InputError as err:
+            error = str(err)
+    error = comm.bcast(error, root=0)
+    if error:
+        raise InputError(error)
+    return result

@@ -16,11 +16,6 @@ from plantgrowth.base.errors import USER_ERRORS, InputError, RunError
 
 log = logging.getLogger("plantgrowth")
 
-OVERWRITE_HELP = (
-    "replace an earlier run in the output directory (only the files plantgrowth wrote are "
-    "removed); without it such a directory is refused"
-)
-
 
 def cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.unitcell.solver import cell_properties

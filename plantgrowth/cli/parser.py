@@ -9,22 +9,7 @@ from pathlib import Path
 from plantgrowth.base.errors import InputError
 from plantgrowth.cli import commands
 
-
-class _Parser(argparse.ArgumentParser):
-    """argparse that raises InputError instead of exiting, so every rank fails the same way."""
-
-    def error(self, message: str):  # type: ignore[override]
-        raise InputError(message)
-
-
-def _floats(text: str) -> list[float]:
-    try:
-        return [float(x) for x in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected numbers a,b,...: {text!r}") from None
-
-
-commands.OVERWRITE_HELP = (
+OVERWRITE_HELP = (
     "replace an earlier run in the output directory (only the files plantgrowth wrote are "
     "removed); without it such a directory is refused"
 )
@@ -95,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="continue the run in DIR from its last completed step (a finished run is extended "
         "if the scene's only change is a larger time.t_max)",
     )  # fmt: skip
-    run.add_argument("--overwrite", action="store_true", help=commands.OVERWRITE_HELP)
+    run.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     run.set_defaults(handler=commands.run_command)
 
     compare = sub.add_parser(
@@ -126,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="stop both models after the first step (errors only; no t_max columns)",
     )
-    compare.add_argument("--overwrite", action="store_true", help=commands.OVERWRITE_HELP)
+    compare.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     compare.set_defaults(handler=commands.compare_command)
 
     validate = sub.add_parser(

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from plantgrowth.base.errors import InputError
+from plantgrowth.base.errors import InputError, on_rank_zero
 from plantgrowth.runner.output import remove_run_files, run_files
 from plantgrowth.scene import Scene, load_scene
 
@@ -130,16 +130,7 @@ def claim(
         InputError: on every rank: the directory is in use, holds an earlier run, or cannot be
             written. Nothing is changed then.
     """
-    lock, error = None, None
-    if comm.rank == 0:
-        try:
-            lock = _claim(directory, resume, overwrite)
-        except InputError as err:
-            error = str(err)
-    error = comm.bcast(error, root=0)
-    if error:
-        raise InputError(error)
-    return lock
+    return on_rank_zero(comm, lambda: _claim(directory, resume, overwrite))
 
 
 def _claim(directory: Path, resume: bool, overwrite: bool) -> DirectoryLock:

@@ -20,7 +20,7 @@ KINEMATICS = ("linear", "finite")
 MACRO_SOLVERS = ("auto", "direct", "iterative")
 MACRO_THRESHOLD = 200_000
 """Fine dofs from which ``solver.macro = "auto"`` solves iteratively: where CG + GAMG's time per
-step meets LU's on the E-gradient scene, 1 rank (measured 1.96e5; scripts/scaling.py)."""
+step meets LU's on the E-gradient scene, 1 rank (measured 1.96e5; scripts/benchmarks/scaling.py)."""
 GROWTH_FIELDS = ("trG", "growth_anisotropy", "growth_direction", "stress_direction")
 """Outputs derived from G and sigma_hom (plantgrowth/models/growth_fields.py, docs/outputs.md)."""
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", *GROWTH_FIELDS)

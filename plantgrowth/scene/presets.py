@@ -4,7 +4,7 @@ A preset sets the numerical knobs a scene leaves out: the fine and coarse mesh s
 (``tissue.h``, ``tissue.H``), the unit-cell resolution and surrogate tolerance
 (``accuracy.cell_resolution``, ``accuracy.cell_tolerance``) and the time stepping
 (``time.dt``, ``time.integrator``). Keys the scene gives override the preset. The values are
-read off the accuracy-cost map (``scripts/accuracy_cost.py``,
+read off the accuracy-cost map (``scripts/studies/accuracy_cost.py``,
 ``benchmarks/results/accuracy_cost.json``): each preset is a point on the error-time Pareto
 front of the map's scenes, ``balanced`` within 1% of the converged reference, ``draft``
 within 3% and ``fine`` within 0.1% (docs/accuracy_cost.md).

@@ -102,7 +102,7 @@ class Scene:
         if integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
             raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
         integer("micro.resolution", self.micro_resolution, 1, MAX_RESOLUTION)
-        try:  # the unit-cell meshes at the corners must be affordable (expressions: field_checks)
+        try:  # the unit-cell meshes at the corners must be affordable (expressions: scene.places)
             for x1, x2 in [] if self.cell.by_expression else self.corners():
                 mesh_size(
                     self.cell.at(x1, x2), self.accuracy.cell_resolution, "accuracy.cell_resolution"

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from plantgrowth.base.errors import InputError
+from plantgrowth.base.errors import InputError, on_rank_zero
 from plantgrowth.runner.output import atomic_write_text, temporary_path
 from plantgrowth.runner.rundir import (
     DirectoryLock,
@@ -45,16 +45,7 @@ def _table_lock(outdir: Path) -> Iterator[None]:
 def claim_sweep(sweep: Sweep, outdir: Path, comm: MPI.Comm, shared: bool, overwrite: bool):
     """Collective: lock DIR (rank 0 holds the lock), check what it holds, write sweep.toml and
     the first sweep.csv. InputError on every rank, with nothing changed, if DIR is refused."""
-    lock, error = None, None
-    if comm.rank == 0:
-        try:
-            lock = _hold(sweep, outdir, shared, overwrite)
-        except InputError as err:
-            error = str(err)
-    error = comm.bcast(error, root=0)
-    if error:
-        raise InputError(error)
-    return lock
+    return on_rank_zero(comm, lambda: _hold(sweep, outdir, shared, overwrite))
 
 
 def _hold(sweep: Sweep, outdir: Path, shared: bool, overwrite: bool) -> DirectoryLock:

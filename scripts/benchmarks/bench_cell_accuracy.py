@@ -10,7 +10,7 @@ relative to the reference resolution. When the reference is divisible by 4, the 
 also gives a Richardson extrapolation (observed order per quantity) that estimates the error of
 the reference itself.
 
-    python scripts/bench_cell_accuracy.py [--resolutions 1 2 ... 12] [--reference 32]
+    python scripts/benchmarks/bench_cell_accuracy.py [--resolutions 1 2 ... 12] [--reference 32]
 """
 
 from __future__ import annotations

@@ -10,7 +10,8 @@ current one, so that both see the same machine load; their results are compared 
 The machine is shared: the JSON records the load average before and after, each solve's wall
 time (``CellResult.seconds``) and the process CPU time of the call, and reports medians.
 
-    python scripts/bench_cell_solve.py [--resolutions 1 2 3] [--repeats 40] [--baseline REV]
+    python scripts/benchmarks/bench_cell_solve.py [--resolutions 1 2 3] [--repeats 40]
+        [--baseline REV]
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 MODES = {"strain law": (True, True), "stress law": (True, False)}
 BASELINE = "789cf8a"
 """The last commit whose cell solver assembles the UFL forms directly for every Fg."""

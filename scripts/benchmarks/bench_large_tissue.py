@@ -9,7 +9,7 @@ ratio to the coarse node count and the seconds per phase; the fine dofs and coar
 set-up from run.log; the wall time and peak memory of the run; the load average before and after.
 Target (issue 9): after the first five steps, cell solves per step below 10% of the nodes.
 
-    python scripts/bench_large_tissue.py [--scale 5] [--t-max 10] [--out FILE]
+    python scripts/benchmarks/bench_large_tissue.py [--scale 5] [--t-max 10] [--out FILE]
 """
 
 from __future__ import annotations
@@ -39,9 +39,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def large_scene(scale: float, t_max: float) -> str:
     """The resolved E-gradient scene on a tissue ``scale`` times wider and taller."""
-    from plantgrowth.scene import load_scene
+    import plantgrowth as pg
 
-    tissue = load_scene(SCENE).tissue
+    tissue = pg.load_scene(SCENE).tissue
     return scene_text(
         SCENE,
         t_max,

@@ -14,7 +14,7 @@ warm-up run with t_max = 1 (JIT cache), with ``PLANTGROWTH_CACHE_DIR=off``. The 
 area and u are compared with the exact run's, and with one more exact run whose cache keys are
 rounded to 1e-12 only (equal to round-off: the same model). Outputs go to a temporary directory.
 
-    python scripts/bench_naive.py [--repeats 3] [--t-max 10] [--out FILE]
+    python scripts/benchmarks/bench_naive.py [--repeats 3] [--t-max 10] [--out FILE]
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SCENE = REPO / "scenes" / "gradient_E_strain.toml"
 REFERENCE_TEST = REPO / "tests" / "test_cell_solver_fast.py"
 WARMUP_T_MAX = 1.0
@@ -43,7 +43,10 @@ WARMUP_T_MAX = 1.0
 FINE_KEY_TOLERANCE = 1e-12
 """``accuracy.key_tolerance`` of the verification run: the exact path with its cache keys
 rounded to round-off only."""
-IMPORTS = "from plantgrowth import cli, coupled, micro, output, rundir, scene, timeloop"
+IMPORTS = (
+    "import plantgrowth.api, plantgrowth.cli.commands, plantgrowth.runner.timeloop, "
+    "plantgrowth.scene"
+)
 """What ``plantgrowth run`` imports before it starts (cli.main and its ``run`` handler)."""
 PHASES = ("seconds", "seconds_cells", "seconds_solve", "seconds_growth", "seconds_io")
 
@@ -70,14 +73,14 @@ def scene_text(
 ) -> str:
     """The resolved scene of ``path`` with ``time.t_max`` and the given ``[accuracy]`` (and
     ``[tissue]``) keys."""
-    from plantgrowth.scene import parse_scene
+    import plantgrowth as pg
 
     with open(path, "rb") as f:
         data = tomllib.load(f)
     data.setdefault("time", {})["t_max"] = t_max
     data.setdefault("accuracy", {}).update(accuracy)
     data.setdefault("tissue", {}).update(tissue or {})
-    return parse_scene(data, str(path)).to_toml()
+    return pg.Scene.from_dict(data, directory=path.parent).to_toml()
 
 
 def _reference_route():
@@ -145,15 +148,15 @@ def run_naive(scene_path: Path, outdir: Path) -> None:
     cell-problem seconds) next to the run's usual files."""
     from mpi4py import MPI
 
+    import plantgrowth as pg
     from plantgrowth.models.macro.model import macro_model
     from plantgrowth.runner.output import prepare_directory
     from plantgrowth.runner.timeloop import run_model
-    from plantgrowth.scene import load_scene
 
     comm = MPI.COMM_WORLD
     if comm.size > 1:
         raise SystemExit("the naive solver runs on one rank (it solves every node itself)")
-    scene = load_scene(scene_path)
+    scene = pg.load_scene(scene_path)
     prepare_directory(outdir, comm)
     start = time.perf_counter()
     model = macro_model(scene, comm)
@@ -208,14 +211,13 @@ def run_record(outdir: Path, wall: float, memory: float) -> dict:
 
 def differences(outdir: Path, reference: Path) -> dict[str, float]:
     """Largest relative differences of area (over steps) and of u at the last step."""
-    from plantgrowth.results.reader import read_series
+    import plantgrowth as pg
 
     rows, ref_rows = summary_rows(outdir), summary_rows(reference)
     area = max(
         abs(a["area"] - b["area"]) / abs(b["area"]) for a, b in zip(rows, ref_rows, strict=True)
     )
-    series, ref_series = read_series(outdir), read_series(reference)
-    u, u_ref = series.displacement(series.times[-1]), ref_series.displacement(ref_series.times[-1])
+    u, u_ref = (pg.read_results(d).field("u") for d in (outdir, reference))  # at the last time
     return {
         "final_area": abs(rows[-1]["area"] - ref_rows[-1]["area"]) / abs(ref_rows[-1]["area"]),
         "area_any_step": area,

@@ -5,10 +5,10 @@ Runs ``plantgrowth run`` as a whole process (imports included), the cell cache o
 A B A B ... (reference_stress, then the E-gradient scene under each preset) so a drift of the
 machine's speed hits both alike; records the median wall and CPU seconds and the ratio to the
 reference scene pair by pair, with the load average before and after. The errors of the
-presets are those of ``benchmarks/results/accuracy_cost.json`` (``scripts/accuracy_cost.py``).
-Writes ``benchmarks/results/presets.json``.
+presets are those of ``benchmarks/results/accuracy_cost.json``
+(``scripts/studies/accuracy_cost.py``). Writes ``benchmarks/results/presets.json``.
 
-    python scripts/bench_presets.py [--repeats 5]
+    python scripts/benchmarks/bench_presets.py [--repeats 5]
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from plantgrowth.base.machine import machine_description
 from plantgrowth.scene.presets import PRESETS
 from plantgrowth.scene.toml_text import dict_to_toml
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "benchmarks/results/presets.json"
 REFERENCE = ROOT / "scenes/reference_stress.toml"
 SCENE = ROOT / "scenes/gradient_E_strain.toml"

@@ -15,7 +15,8 @@ checkout with its own .venv, e.g. ``git worktree add /tmp/base fd1571a``) the sa
 version are recorded beside. Load averages before and after go with the numbers: the machine
 has 2 cores, and a 2-rank run measured while anything else runs is meaningless.
 
-    python scripts/bench_ranks.py [--repeats 3] [--only NAME ...] [--baseline DIR] [--out FILE]
+    python scripts/benchmarks/bench_ranks.py [--repeats 3] [--only NAME ...] [--baseline DIR]
+        [--out FILE]
 """
 
 from __future__ import annotations
@@ -58,13 +59,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def resolved_scene(name: str) -> str:
     """The scene text of one benchmark case."""
-    from plantgrowth.scene import load_scene
+    import plantgrowth as pg
 
     file, t_max, solver, tissue = SCENES[name]
     path = REPO / "scenes" / file
     size = {}
     if "scale" in tissue:
-        t = load_scene(path).tissue
+        t = pg.load_scene(path).tissue
         size = {"width": tissue["scale"] * t.width, "height": tissue["scale"] * t.height}
     text = scene_text(path, t_max, {}, size)
     if solver:  # the resolved scene has a [solver] table: replace its macro key
@@ -123,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
 
     result = {
         "description": "whole wall time of plantgrowth run, 1 rank against mpirun -n 2",
-        "command": "python scripts/bench_ranks.py " + " ".join(sys.argv[1:]),
+        "command": "python scripts/benchmarks/bench_ranks.py " + " ".join(sys.argv[1:]),
         "scenes": {name: resolved_scene(name) for name in args.only},
         "repeats": args.repeats,
         "machine": machine_description(),

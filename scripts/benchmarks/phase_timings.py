@@ -4,7 +4,7 @@ Runs each scene (default: the reference stress scene and the E-gradient strain s
 results/phase_timings/<name> and writes the totals of summary.csv's seconds_* columns, the set-up
 time and the number of cell solves to benchmarks/results/phase_timings.json with the machine.
 
-    python scripts/phase_timings.py [SCENE.toml ...]
+    python scripts/benchmarks/phase_timings.py [SCENE.toml ...]
 """
 
 import argparse

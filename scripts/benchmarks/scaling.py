@@ -18,7 +18,7 @@ are kept):
 - ``organ``: ``scenes/organ_E_gradient.toml`` as shipped (60 steps) on 2 ranks, with the load
   average at start and end (run it last, on an otherwise idle machine).
 
-    python scripts/scaling.py [--parts crossover scaling micro organ] [--out FILE]
+    python scripts/benchmarks/scaling.py [--parts crossover scaling micro organ] [--out FILE]
 """
 
 from __future__ import annotations
@@ -38,12 +38,12 @@ import time
 import tomllib
 from pathlib import Path
 
+import plantgrowth as pg
 from plantgrowth.base.machine import machine_description
-from plantgrowth.scene import parse_scene
 from plantgrowth.scene.limits import MACRO_THRESHOLD
 from plantgrowth.scene.toml_text import dict_to_toml
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 BASE = REPO / "scenes" / "gradient_E_strain.toml"
 ORGAN = REPO / "scenes" / "organ_E_gradient.toml"
 PLANTGROWTH = str(Path(sys.executable).with_name("plantgrowth"))
@@ -82,7 +82,7 @@ def scaled_scene(target_dofs: float, t_max: float, solver: dict) -> dict:
     P1 dofs (2 per node of the rectangle mesh at the preset's h)."""
     with open(BASE, "rb") as f:
         data = tomllib.load(f)
-    tissue = parse_scene(data).tissue
+    tissue = pg.Scene.from_dict(data).tissue
 
     def dofs(s: float) -> int:
         nx, ny = round(s * tissue.width / tissue.h), round(s * tissue.height / tissue.h)
@@ -212,10 +212,9 @@ def micro_solves(nx: int, kind: str, out: Path) -> None:
 
     from plantgrowth.models.linear import gamg_solver
     from plantgrowth.models.micro.model import MicroModel
-    from plantgrowth.scene import load_scene
 
     start = time.perf_counter()
-    model = MicroModel(load_scene(REPO / "scenes" / "reference_strain.toml"), MPI.COMM_WORLD, nx)
+    model = MicroModel(pg.load_scene(REPO / "scenes" / "reference_strain.toml"), MPI.COMM_WORLD, nx)
     setup = time.perf_counter() - start
     if kind == "iterative":
         model.ksp = gamg_solver(model.A, model.V, "micro_", MICRO_RTOL, max_it=5000)
@@ -261,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     results = json.loads(args.out.read_text()) if args.out.exists() else {}
     results["description"] = __doc__.split("\n\n")[0]
-    results["command"] = "python scripts/scaling.py --parts " + " ".join(args.parts)
+    results["command"] = "python scripts/benchmarks/scaling.py --parts " + " ".join(args.parts)
     parts = {"crossover": crossover, "scaling": scaling, "micro": micro, "organ": organ}
     with tempfile.TemporaryDirectory() as tmp:
         run(scaled_scene(SCALING_DOFS[0], 1.0, {}), 1, Path(tmp) / "warm-up")  # JIT cache

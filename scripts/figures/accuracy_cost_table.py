@@ -4,16 +4,17 @@ Prints, per scene, every run's relative errors (final area, final mean tr G, u a
 cost, then one table of the presets over all scenes; the docs and README tables are pasted
 from it. Never solves.
 
-    python scripts/accuracy_cost_table.py
+    python scripts/figures/accuracy_cost_table.py
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "benchmarks/results/accuracy_cost.json"
 
 
@@ -63,8 +64,11 @@ def preset_table(scenes: dict) -> list[str]:
     return lines
 
 
-def main() -> int:
-    scenes = json.loads(DATA.read_text())["scenes"]
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", type=Path, default=DATA, help="(default: %(default)s)")
+    args = parser.parse_args(argv)
+    scenes = json.loads(args.data.read_text())["scenes"]
     for stem, entry in scenes.items():
         print("\n".join(scene_table(stem, entry)))
     print("\n".join(preset_table(scenes)))

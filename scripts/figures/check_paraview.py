@@ -2,7 +2,7 @@
 
 Run with ParaView's batch interpreter (Debian: apt-get install paraview python3-paraview xvfb
 xauth); without a display, under a virtual X server (pvbatch needs one to render):
-    xvfb-run -a pvbatch scripts/check_paraview.py results/reference_stress/fields.xdmf
+    xvfb-run -a pvbatch scripts/figures/check_paraview.py results/reference_stress/fields.xdmf
 Prints one JSON line: the time values, point/cell counts and the array names at the last time.
 With ``--png FILE`` it also renders the last time (coloured by u, or by the first point array
 where there is no u, as in ``coarse.xdmf``) into FILE.

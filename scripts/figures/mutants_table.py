@@ -1,15 +1,16 @@
-"""Print benchmarks/results/mutants.json (written by scripts/mutation_study.py) as Markdown.
+"""Print benchmarks/results/mutants.json (written by scripts/studies/mutation_study.py) as Markdown.
 
-python scripts/mutants_table.py [path/to/mutants.json]
+python scripts/figures/mutants_table.py [path/to/mutants.json]
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
 
-DEFAULT = Path(__file__).resolve().parent.parent / "benchmarks" / "results" / "mutants.json"
+DEFAULT = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "mutants.json"
 
 
 def table(data: dict) -> str:
@@ -32,11 +33,15 @@ def table(data: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str]) -> int:
-    path = Path(argv[0]) if argv else DEFAULT
-    print(table(json.loads(path.read_text())))
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument(
+        "json", nargs="?", type=Path, default=DEFAULT, help="(default: %(default)s)"
+    )
+    args = parser.parse_args(argv)
+    print(table(json.loads(args.json.read_text())))
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(main())

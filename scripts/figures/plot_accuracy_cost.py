@@ -1,15 +1,16 @@
 """Figure of the accuracy-cost map: error versus CPU time, log-log, one panel per scene.
 
-Reads ``benchmarks/results/accuracy_cost.json`` (``scripts/accuracy_cost.py``; never solves)
+Reads ``benchmarks/results/accuracy_cost.json`` (``scripts/studies/accuracy_cost.py``; never solves)
 and writes ``benchmarks/results/accuracy_cost.png``. Each knob varied alone from the shipped
 scene is one line (its levels as points); the presets are stars, the shipped scene a circle.
 The error is the largest of the relative errors of final area, final mean tr G and u at t_max.
 
-    python scripts/plot_accuracy_cost.py
+    python scripts/figures/plot_accuracy_cost.py
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -19,7 +20,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "benchmarks/results/accuracy_cost.json"
 OUT = ROOT / "benchmarks/results/accuracy_cost.png"
 FLOOR = 1e-7  # errors below this (round-off: the run equals the reference) are drawn here
@@ -32,8 +33,12 @@ def _point(entry: dict, name: str) -> tuple[float, float] | None:
     return run["cpu_seconds"], max(error["err_max"], FLOOR)
 
 
-def main() -> int:
-    data = json.loads(DATA.read_text())
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", type=Path, default=DATA, help="(default: %(default)s)")
+    parser.add_argument("--out", type=Path, default=OUT, help="(default: %(default)s)")
+    args = parser.parse_args(argv)
+    data = json.loads(args.data.read_text())
     scenes = data["scenes"]
     fig, axes = plt.subplots(1, len(scenes), figsize=(5.2 * len(scenes), 4.6), squeeze=False)
     knobs = ("h", "H", "cell_resolution", "cell_tolerance", "dt", "integrator")
@@ -55,8 +60,8 @@ def main() -> int:
         ax.grid(True, which="major", lw=0.3)
     axes[0][0].legend(fontsize=7, loc="lower left")
     fig.tight_layout()
-    fig.savefig(OUT, dpi=110)
-    print(f"wrote {OUT}")
+    fig.savefig(args.out, dpi=110)
+    print(f"wrote {args.out}")
     return 0
 
 

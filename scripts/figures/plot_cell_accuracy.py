@@ -5,7 +5,7 @@ log-log, points labelled with the resolution. Right: the same errors versus reso
 Filled markers: error against the reference resolution; open markers: error against the
 Richardson extrapolation (when the benchmark could compute one).
 
-    python scripts/plot_cell_accuracy.py [--data benchmarks/results/cell_accuracy.json]
+    python scripts/figures/plot_cell_accuracy.py [--data benchmarks/results/cell_accuracy.json]
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Writes two 2x3 figures (E1, E2, nu12, G12, K11, K22), one line per l1/l2 (red, green, blue as in
 the paper): versus w/l2 (log axis) and versus g for Fg = diag(g, 1).
 
-    python scripts/plot_cell_moduli.py [--data benchmarks/results/cell_moduli.json]
+    python scripts/figures/plot_cell_moduli.py [--data benchmarks/results/cell_moduli.json]
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@
 Reads only result files (``--bench``: index.json, compare.csv, summary.csv; ``--raw``: fields);
 nothing is solved here.
 
-    python scripts/plot_compare.py [--bench benchmarks/results/compare] [--out docs/figures]
+    python scripts/figures/plot_compare.py [--bench benchmarks/results/compare] [--out docs/figures]
 """
 
 from __future__ import annotations
@@ -31,7 +31,8 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch, PathPatch, Rectangle  # noqa: E402
 from matplotlib.path import Path as MplPath  # noqa: E402
 
-from plantgrowth.results.reader import boundary_outline, read_series  # noqa: E402
+import plantgrowth as pg  # noqa: E402
+from plantgrowth.results.reader import boundary_outline  # noqa: E402
 
 WIDTH_COLOURS = {0.05: "tab:blue", 0.1: "tab:orange", 0.2: "tab:green"}
 LAW_MARKERS = {"strain": dict(marker="o", mfc="none", ms=9), "stress": dict(marker="x", ms=6)}
@@ -163,15 +164,17 @@ def _loops_path(points: np.ndarray, loops: list[np.ndarray]) -> MplPath:
     return MplPath(np.vstack(vertices), np.concatenate(codes))
 
 
-def draw_tissue(ax, macro, micro, t: float) -> None:
+def draw_tissue(ax, macro: pg.Results, micro: pg.Results, t: float) -> None:
     """Initial tissue shaded, micro walls at x + u filled, macro outline at x + u as a line."""
-    outline = boundary_outline(macro.points, macro.triangles)[0]
-    ax.fill(*macro.points[outline].T, color="0.85", lw=0, zorder=0)
+    points = macro.points
+    outline = boundary_outline(points, macro.triangles)[0]
+    ax.fill(*points[outline].T, color="0.85", lw=0, zorder=0)
     t_micro = min(micro.times, key=lambda s: abs(s - t))
-    x_micro = micro.points + micro.displacement(t_micro)
-    walls = _loops_path(x_micro, boundary_outline(micro.points, micro.triangles))
+    micro_points = micro.points
+    x_micro = micro_points + micro.field("u", t_micro)
+    walls = _loops_path(x_micro, boundary_outline(micro_points, micro.triangles))
     ax.add_patch(PathPatch(walls, facecolor="tab:green", edgecolor="none", zorder=1))
-    x_macro = macro.points + macro.displacement(t)
+    x_macro = points + macro.field("u", t)
     ring = np.append(outline, outline[0])
     ax.plot(*x_macro[ring].T, color="k", lw=1.2, zorder=2)
 
@@ -183,9 +186,11 @@ def plot_shapes(index: dict, raw: Path, nx: int, out: Path) -> None:
     missing = [str(run) for run in runs if not (run / "fields.h5").is_file()]
     if not dirs or missing:
         reason = ", ".join(missing) or "no full-time cases in the index"
-        print(f"skipped {out}: raw fields not found ({reason}); run scripts/compare_study.py first")
+        print(f"skipped {out}: raw fields not found ({reason}); "
+              "run scripts/studies/compare_study.py first")  # fmt: skip
         return
-    series = {law: (read_series(d / "macro"), read_series(d / "micro")) for law, d in dirs.items()}
+    series = {law: (pg.read_results(d / "macro"), pg.read_results(d / "micro"))
+              for law, d in dirs.items()}  # fmt: skip
     first = "strain" if "strain" in series else next(iter(series))
     panels = [("(d) both laws", first, series[first][0].times[0])]
     for law, letter in zip(("strain", "stress"), "ef", strict=True):
@@ -212,7 +217,7 @@ def plot_shapes(index: dict, raw: Path, nx: int, out: Path) -> None:
     if zoom is not None:
         macro, micro = series[zoom_law]
         draw_tissue(zoom, macro, micro, zoom_t)
-        x = macro.points + macro.displacement(zoom_t)
+        x = macro.points + macro.field("u", zoom_t)
         x1, x2 = x[:, 0].max(), x[:, 1].max()
         box = (x1 - 2.2, x1 + 0.35, x2 - 1.3, x2 + 0.25)
         zoom.set_xlim(box[0], box[1])
@@ -242,7 +247,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     index_path = args.bench / "index.json"
     if not index_path.is_file():
-        print(f"{index_path} not found: run scripts/compare_study.py first", file=sys.stderr)
+        print(f"{index_path} not found: run scripts/studies/compare_study.py first",
+              file=sys.stderr)  # fmt: skip
         return 2
     index = json.loads(index_path.read_text())
     args.out.mkdir(parents=True, exist_ok=True)

@@ -1,18 +1,18 @@
 """Figures of the finite-kinematics studies (issue 12, MODEL.md section 10).
 
 - ``finite_vs_linear.png``: from ``benchmarks/results/finite_vs_linear.json``
-  (``scripts/finite_vs_linear.py``), |finite - linear| / |linear| of the tissue's mean growth
-  rate tr G and of its area, per step, against the growth ratio area(t) / area(0), one line per
-  gradient scene (grey: hard cases that ran both kinematics to a common step);
+  (``scripts/studies/finite_vs_linear.py``), |finite - linear| / |linear| of the tissue's mean
+  growth rate tr G and of its area, per step, against the growth ratio area(t) / area(0), one
+  line per gradient scene (grey: hard cases that ran both kinematics to a common step);
 - ``finite_micro_macro.png``: from ``benchmarks/results/compare_finite`` and
-  ``benchmarks/results/compare`` (``scripts/compare_study.py [--kinematics finite]``), the
+  ``benchmarks/results/compare`` (``scripts/studies/compare_study.py [--kinematics finite]``), the
   micro-macro errors err_u1, err_u2, err_ubar, err_G at t = 0 and t = t_max against Nx, finite
   (solid) and linear (dashed), and the area of the long gradient run (macro and micro, both
   kinematics) against time.
 
 Reads result files only; nothing is solved here.
 
-    python scripts/plot_finite.py [--out docs/figures]
+    python scripts/figures/plot_finite.py [--out docs/figures]
 """
 
 from __future__ import annotations

@@ -1,19 +1,19 @@
 """Tissue shapes grown under linear parameter gradients (the paper's Fig. 3, columns 2-3).
 
-Reads the runs of ``scripts/run_gradient_scenes.py`` (``results/gradients/gradient_<p>_<law>``);
-never re-solves. One row per parameter (E, nu, P1, tau, eta, w, l1 = l2), one column per growth
-law (strain, stress). Each panel shows the initial tissue (grey) and its outline at t = t_max; the
-row label gives the parameter's interval, read from the resolved ``scene.toml`` of the run (the
-parameter rises linearly in x1 from the first value at x1 = 0 to the second at the right edge).
+Reads the runs of ``scripts/studies/run_gradient_scenes.py``
+(``results/gradients/gradient_<p>_<law>``) with ``pg.read_results``; never re-solves. One row per
+parameter (E, nu, P1, tau, eta, w, l1 = l2), one column per growth law (strain, stress). Each
+panel shows the initial tissue (grey) and its outline at t = t_max; the row label gives the
+parameter's interval, read from the resolved ``scene.toml`` of the run (the parameter rises
+linearly in x1 from the first value at x1 = 0 to the second at the right edge).
 
-    python scripts/plot_gradient_shapes.py [--results results/gradients]
+    python scripts/figures/plot_gradient_shapes.py [--results results/gradients]
         [--out docs/figures/gradient_shapes.png]
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 import tomllib
 from pathlib import Path
@@ -24,7 +24,8 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from plantgrowth.results.reader import boundary_outline, read_series  # noqa: E402
+import plantgrowth as pg  # noqa: E402
+from plantgrowth.results.reader import boundary_outline  # noqa: E402
 
 LAWS = ("strain", "stress")
 ROWS = (  # (scene tag, scene keys as (table, key), row label)
@@ -60,11 +61,6 @@ def interval(run_dir: Path, keys: tuple[tuple[str, str], ...]) -> str:
     return " / ".join(sorted(texts))
 
 
-def final_area(run_dir: Path) -> float:
-    with open(run_dir / "summary.csv", newline="") as f:
-        return float(list(csv.DictReader(f))[-1]["area"])
-
-
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     runs = {}
@@ -72,7 +68,8 @@ def main(argv: list[str] | None = None) -> int:
         for law in LAWS:
             run_dir = args.results / f"gradient_{tag}_{law}"
             if not (run_dir / "fields.xdmf").is_file():
-                print(f"missing {run_dir}: run scripts/run_gradient_scenes.py", file=sys.stderr)
+                print(f"missing {run_dir}: run scripts/studies/run_gradient_scenes.py",
+                      file=sys.stderr)  # fmt: skip
                 return 1
             runs[tag, law] = run_dir
 
@@ -85,18 +82,18 @@ def main(argv: list[str] | None = None) -> int:
         same = len(set(ranges.values())) == 1
         for col, law in enumerate(LAWS):
             ax = axes[row, col]
-            series = read_series(runs[tag, law])
-            t = series.times[-1]
-            x0 = series.points
-            x = x0 + series.displacement(t)
+            results = pg.read_results(runs[tag, law])
+            t = results.times[-1]
+            x0 = results.points
+            x = x0 + results.field("u", t)
             lows.append(x.min(axis=0))
             highs.append(x.max(axis=0))
-            for loop in boundary_outline(x0, series.triangles):
+            for loop in boundary_outline(x0, results.triangles):
                 ax.fill(*x0[loop].T, color="0.75", ec="0.45", lw=0.6)
                 closed = list(loop) + [loop[0]]
                 ax.plot(*x[closed].T, color=COLOURS[law], lw=1.4)
             ax.plot([0.0], [0.0], "k+", ms=6)
-            title = f"{law} law: area {final_area(runs[tag, law]):.1f} at t = {t:g}"
+            title = f"{law} law: area {results.summary['area'][-1]:.1f} at t = {t:g}"
             if not same:
                 title += f", {label} in {ranges[law]}"
             ax.set_title(title, fontsize=8.5, color=COLOURS[law])

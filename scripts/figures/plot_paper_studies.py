@@ -1,5 +1,6 @@
 """Figures of the paper's studies from ``benchmarks/results/paper_studies.json`` (and, for the
-tissue shapes, the raw run directories of ``scripts/paper_studies.py``); nothing is solved here.
+tissue shapes, the raw run directories of ``scripts/studies/paper_studies.py``); nothing is
+solved here.
 
 - ``fig2c_sensitivity.png`` (Fig. 2c): phi = (x0 / X(x0)) dX/dx of the mean tr G per parameter,
   both laws, bars from the sweeps, crosses from the exact homogeneous rate;
@@ -11,7 +12,7 @@ tissue shapes, the raw run directories of ``scripts/paper_studies.py``); nothing
 
 ``--tables`` prints the Markdown tables of docs/paper_studies.md.
 
-    python scripts/plot_paper_studies.py [--json benchmarks/results/paper_studies.json]
+    python scripts/figures/plot_paper_studies.py [--json benchmarks/results/paper_studies.json]
         [--results results/paper_studies] [--out docs/figures] [--tables]
 """
 
@@ -29,11 +30,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
-from plot_compare import draw_tissue  # noqa: E402  (scripts/, next to this file)
+from plot_compare import draw_tissue  # noqa: E402  (scripts/figures/, next to this file)
 
-from plantgrowth.results.reader import read_series  # noqa: E402
+import plantgrowth as pg  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LAWS = ("strain", "stress")
 COLOURS = {"strain": "tab:blue", "stress": "tab:red"}
 MARKERS = {"strain": "o", "stress": "s"}
@@ -135,7 +136,7 @@ def plot_micro_macro(data: dict, results: Path, law: str, out: Path) -> None:
                 ax.set_axis_off()
             continue
         run = results / name / "run_0000"
-        macro, micro = read_series(run / "macro"), read_series(run / "micro")
+        macro, micro = pg.read_results(run / "macro"), pg.read_results(run / "micro")
         draw_tissue(shape, macro, micro, macro.times[-1])
         shape.set_aspect("equal")
         areas = (f"area x {entry['area_growth_micro']:.3f} micro, "
@@ -202,7 +203,7 @@ def tables(data: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if not args.json.is_file():
-        print(f"{args.json} not found: run scripts/paper_studies.py first", file=sys.stderr)
+        print(f"{args.json} not found: run scripts/studies/paper_studies.py first", file=sys.stderr)
         return 2
     data = json.loads(args.json.read_text())
     args.out.mkdir(parents=True, exist_ok=True)

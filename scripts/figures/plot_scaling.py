@@ -4,7 +4,7 @@ Left: seconds per step and fine dof by phase (steps 1..n) against the fine dofs,
 and 2 ranks (dashed), the organ scene as a star; middle: peak memory summed over the ranks;
 right: the macro solve per step of LU and CG + GAMG on 1 rank and the ``auto`` threshold.
 
-    python scripts/plot_scaling.py [--results FILE] [--out FILE]
+    python scripts/figures/plot_scaling.py [--results FILE] [--out FILE]
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PHASES = {"seconds": "whole step", "seconds_cells": "cell problems", "seconds_solve": "macro solve",
           "seconds_growth": "growth law", "seconds_io": "output"}  # fmt: skip
 STYLE = {1: "-", 2: "--"}

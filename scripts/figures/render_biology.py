@@ -1,9 +1,11 @@
-"""The README gallery of the biology scenes (issue 11, item 5): each scene of scenes/biology/ run
-as shipped into ``results/biology/<name>/`` (a run that reached t_max is kept: delete it to
-rerun; about 15 s each on one core), then ``plantgrowth render <run> --field trG`` at the last
-step into ``docs/figures/biology_<name>.png``.
+"""The README gallery of the biology scenes (issue 11, item 5): ``plantgrowth render <run> --field
+trG`` at the last step of each run in ``results/biology/<name>/`` into
+``docs/figures/biology_<name>.png``.
 
-    python scripts/render_biology.py [--only NAME ...]
+Reads the runs of ``scripts/studies/run_biology_scenes.py`` (never re-solves): a scene whose run
+is missing or has not reached the scene's t_max is an error that names the study command.
+
+    python scripts/figures/render_biology.py [--only NAME ...]
 """
 
 from __future__ import annotations
@@ -13,29 +15,44 @@ import subprocess
 import sys
 from pathlib import Path
 
-from run_gradient_scenes import is_complete
+import plantgrowth as pg
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
+STUDY = "python scripts/studies/run_biology_scenes.py"
+
+
+def reached_t_max(scene: Path, run: Path) -> bool:
+    """Whether the run in ``run`` holds the scene's last step (its summary reaches t_max)."""
+    try:
+        t = pg.read_results(run).summary["t"]
+    except (pg.InputError, OSError):
+        return False
+    t_max = pg.load_scene(scene).time.t_max
+    return len(t) > 0 and t[-1] >= t_max - 1e-9 * max(1.0, t_max)
 
 
 def main(argv: list[str] | None = None) -> int:
     scenes = sorted((REPO / "scenes" / "biology").glob("*.toml"))
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", nargs="*", choices=[s.stem for s in scenes])
+    parser.add_argument("--results", type=Path, default=REPO / "results" / "biology")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "figures")
     args = parser.parse_args(argv)
-    for scene in scenes:
-        if args.only and scene.stem not in args.only:
-            continue
-        run = REPO / "results" / "biology" / scene.stem
-        if not is_complete(scene, run):
-            command = [PLANTGROWTH, "run", str(scene), "-o", str(run)]
-            subprocess.run(command + (["--overwrite"] if run.exists() else []), check=True)
-        picture = REPO / "docs" / "figures" / f"biology_{scene.stem}.png"
+    chosen = [s for s in scenes if not args.only or s.stem in args.only]
+    missing = [s.stem for s in chosen if not reached_t_max(s, args.results / s.stem)]
+    if missing:
+        print(f"no complete run of {', '.join(missing)} in {args.results}: run {STUDY} first",
+              file=sys.stderr)  # fmt: skip
+        return 1
+    args.out.mkdir(parents=True, exist_ok=True)
+    for scene in chosen:
+        picture = args.out / f"biology_{scene.stem}.png"
         subprocess.run(
-            [PLANTGROWTH, "render", str(run), "--field", "trG", "-o", str(picture), "--force"],
+            [PLANTGROWTH, "render", str(args.results / scene.stem), "--field", "trG",
+             "-o", str(picture), "--force"],
             check=True,
-        )
+        )  # fmt: skip
     return 0
 
 

@@ -6,7 +6,7 @@ draws the field on the grown tissue x + u(t) at the last written time, the initi
 dashed (plantgrowth/results/render.py). ``--field NAME[:COMPONENT]``: e.g. ``G:tr`` (the default,
 the areal growth rate tr G), ``trG``, ``growth_direction``, ``E1111``. Replaces ``--out``.
 
-    python scripts/render_tissue.py results/reference_stress --out PNG [--field G:tr]
+    python scripts/figures/render_tissue.py results/reference_stress --out PNG [--field G:tr]
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ machine), and its wall seconds. Writes
 there with the same scene text and resolved knobs; ``--redo NAME`` repeats some); the sampled
 u fields are kept in ``results/accuracy_cost/`` (not committed), which a rerun needs.
 
-    python scripts/accuracy_cost.py [--scenes S ...] [--redo preset:balanced ...]
+    python scripts/studies/accuracy_cost.py [--scenes S ...] [--redo preset:balanced ...]
 """
 
 from __future__ import annotations
@@ -46,13 +46,12 @@ from pathlib import Path
 import numpy as np
 from matplotlib.tri import LinearTriInterpolator, Triangulation
 
+import plantgrowth as pg
 from plantgrowth.base.machine import machine_description
-from plantgrowth.results.reader import read_series
-from plantgrowth.scene import Scene, load_scene, parse_scene
 from plantgrowth.scene.presets import PRESETS
 from plantgrowth.scene.toml_text import dict_to_toml
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = ("gradient_E_strain.toml", "gradient_P1_stress.toml", "hard/E_contrast_100.toml")
 OUT = ROOT / "benchmarks/results/accuracy_cost.json"
 SAMPLES_DIR = ROOT / "results/accuracy_cost"
@@ -125,11 +124,11 @@ def run(scene_text: str, workdir: Path, samples: Path) -> dict:
         "area": float(rows[-1]["area"]),
         "mean_trG": float(rows[-1]["growth_rate_area"]),
         "cell_solves": sum(int(float(r["n_cell_solves"])) for r in rows),
-        "resolved": resolved_knobs(load_scene(outdir / "scene.toml")),
+        "resolved": resolved_knobs(pg.load_scene(outdir / "scene.toml")),
     }
 
 
-def resolved_knobs(scene: Scene) -> dict:
+def resolved_knobs(scene: pg.Scene) -> dict:
     """The numerical knobs of a resolved scene (all of [accuracy], h, H, dt, integrator)."""
     knobs = ("tissue.h", "tissue.H", "time.dt", "time.integrator")
     return {k: v for k, v in scene.dotted().items() if k in knobs or k.startswith("accuracy.")}
@@ -137,18 +136,18 @@ def resolved_knobs(scene: Scene) -> dict:
 
 def knobs_of(text: str) -> dict:
     """The knobs a scene text resolves to (under the current presets)."""
-    return resolved_knobs(parse_scene(tomllib.loads(text)))
+    return resolved_knobs(pg.Scene.from_dict(tomllib.loads(text)))
 
 
 def sample_u(outdir: Path, t: float, tissue: dict) -> np.ndarray:
     """u at t on the cell centres of a uniform grid of the rectangle (P1 interpolation)."""
-    series = read_series(outdir)
-    tri = Triangulation(*series.points.T, series.triangles)
+    results = pg.read_results(outdir)
+    tri = Triangulation(*results.points.T, results.triangles)
     nx, ny = SAMPLES
     x1 = (np.arange(nx) + 0.5) * tissue["width"] / nx
     x2 = (np.arange(ny) + 0.5) * tissue["height"] / ny
     X1, X2 = np.meshgrid(x1, x2)
-    u = series.displacement(t)
+    u = results.field("u", t)
     return np.stack([LinearTriInterpolator(tri, u[:, i])(X1, X2).filled(np.nan) for i in (0, 1)])
 
 
@@ -241,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     data = json.loads(args.out.read_text()) if args.out.exists() else {"scenes": {}}
     data["machine"] = machine_description()
-    data["command"] = "python scripts/accuracy_cost.py"
+    data["command"] = "python scripts/studies/accuracy_cost.py"
     data["cost"] = "CPU seconds of the whole plantgrowth process (user + system), cache off"
     for name in args.scenes:
         path = ROOT / "scenes" / name

@@ -1,11 +1,12 @@
 """Homogenized moduli versus wall thickness and versus growth (the paper's Fig. 1 d-o).
 
 Two sweeps over l1/l2 in {1, 1.5, 2} (l2 = 1, theta = 30 deg, E = 1, nu = 0.3):
-(i) thickness: w/l2 log-spaced in [0.01, 0.8], Fg = I, one CellSolver per geometry;
+(i) thickness: w/l2 log-spaced in [0.01, 0.8], Fg = I, one cell per geometry (``pg.cell``);
 (ii) growth along x1: Fg = diag(g, 1), g in [1, 3], w/l2 = 0.05, one CellSolver per l1/l2
-reused for every g. Writes the full ``CellResult.summary()`` of every point as columns.
+reused for every g. Writes the full summary of every point (``pg.cell``'s keys, which are
+``CellResult.summary()``'s) as columns.
 
-    python scripts/cell_moduli_curves.py [--resolution 3] [--out FILE.json]
+    python scripts/studies/cell_moduli_curves.py [--resolution 3] [--out FILE.json]
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+import plantgrowth as pg
 from plantgrowth.base.machine import machine_description
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.unitcell.solver import DEFAULT_RESOLUTION, CellSolver
@@ -47,11 +49,11 @@ def columns(summaries: list[dict]) -> dict[str, list]:
 
 
 def thickness_sweep(args: argparse.Namespace, ratio: float, ws: np.ndarray) -> dict:
-    summaries = []
-    for w in ws:
-        cell = HoneycombCell(l1=ratio, l2=1.0, theta_deg=args.theta, w=float(w))
-        solver = CellSolver(cell, resolution=args.resolution, comm=MPI.COMM_SELF)
-        summaries.append(solver.solve(None, args.E, args.nu).summary())
+    summaries = [
+        pg.cell(l1=ratio, l2=1.0, theta=args.theta, w=float(w), E=args.E, nu=args.nu,
+                resolution=args.resolution, comm=MPI.COMM_SELF)
+        for w in ws
+    ]  # fmt: skip
     return {"w_over_l2": [float(w) for w in ws], **columns(summaries)}
 
 

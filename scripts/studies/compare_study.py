@@ -18,7 +18,7 @@ git-ignored); ``compare.csv`` and every ``summary.csv`` are copied to
 ``--bench`` (default ``benchmarks/results/compare/<case>/``) with ``index.json``: the machine
 description, the cases, their command lines and wall times.
 
-    python scripts/compare_study.py [--jobs 2] [--skip-existing] [--only error|full]
+    python scripts/studies/compare_study.py [--jobs 2] [--skip-existing] [--only error|full]
         [--kinematics finite] [--gradient gradient_P1_strain]
 """
 
@@ -39,8 +39,8 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import plantgrowth as pg
 from plantgrowth.base.machine import machine_description
-from plantgrowth.scene import load_scene
 
 LAWS = ("strain", "stress")
 WIDTHS = (0.05, 0.1, 0.2)
@@ -161,7 +161,7 @@ def write_scene(case: Case, scenes: Path, path: Path) -> Path:
     assert data.get("kinematics", "linear") == case.kinematics
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
-    load_scene(path).check_micro()  # bad input fails here, before any run
+    pg.load_scene(path).check_micro()  # bad input fails here, before any run
     return path
 
 
@@ -188,7 +188,7 @@ def is_complete(case: Case, scene: Path, out: Path) -> bool:
         return False
     if case.first_step_only:
         return True
-    last = load_scene(scene).time.n_steps
+    last = pg.load_scene(scene).time.n_steps
     for nx in case.nx:
         summary = out / f"nx{nx}" / "micro" / "summary.csv"
         if not summary.is_file():
@@ -284,7 +284,7 @@ def main(argv: list[str] | None = None) -> int:
         index["cases"][case.name] = entry
     index["machine"] = machine_description()
     index["study_command"] = shlex.join(
-        ["python", "scripts/compare_study.py", *(sys.argv[1:] if argv is None else argv)]
+        ["python", "scripts/studies/compare_study.py", *(sys.argv[1:] if argv is None else argv)]
     )
     index["notes"] = (
         "Error cases: first step only (the errors are measured at t = 0, where Fg = I, so the "

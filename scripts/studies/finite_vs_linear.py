@@ -9,8 +9,8 @@ the largest elastic strain (eps_el or Ee) over the run. Gradient scenes: ``scene
 hard cases: ``scenes/hard`` (``--hard``). Results: ``benchmarks/results/finite_vs_linear.json``
 (merged with what is there); run directories under ``results/finite_vs_linear/``.
 
-    python scripts/finite_vs_linear.py [--only gradient_E_strain,...] [--hard] [--preset draft]
-        [--t-max 60]
+    python scripts/studies/finite_vs_linear.py [--only gradient_E_strain,...] [--hard]
+        [--preset draft] [--t-max 60]
 """
 
 from __future__ import annotations
@@ -26,13 +26,13 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.base.errors import RunError
+import plantgrowth as pg
 from plantgrowth.base.machine import machine_description
 from plantgrowth.models import growth
 from plantgrowth.models.macro.model import MacroModel, macro_model
+from plantgrowth.models.step import largest_strain
 from plantgrowth.runner.output import prepare_directory
 from plantgrowth.runner.timeloop import run_model
-from plantgrowth.scene import Scene, parse_scene, plausibility
 
 log = logging.getLogger("plantgrowth")
 
@@ -57,7 +57,7 @@ def scene_files(hard: bool, only: list[str] | None) -> list[Path]:
     return [f for f in files if only is None or f.stem in only]
 
 
-def variant(path: Path, kinematics: str, preset: str | None, t_max: float | None) -> Scene:
+def variant(path: Path, kinematics: str, preset: str | None, t_max: float | None) -> pg.Scene:
     """The scene of ``path`` with the given kinematics (and preset / t_max overrides)."""
     data = tomllib.loads(path.read_text(encoding="utf-8"))
     data["kinematics"] = kinematics
@@ -68,10 +68,10 @@ def variant(path: Path, kinematics: str, preset: str | None, t_max: float | None
         data.get("time", {}).pop("dt", None)
     if t_max is not None:
         data.setdefault("time", {})["t_max"] = t_max
-    return parse_scene(data, source=str(path))
+    return pg.Scene.from_dict(data, directory=path.parent)
 
 
-def run(scene: Scene, outdir: Path) -> dict:
+def run(scene: pg.Scene, outdir: Path) -> dict:
     """One macro run: its summary rows, the time reached, the cause of a stop, the largest
     elastic strain over the steps run, the wall time."""
     comm = MPI.COMM_WORLD
@@ -84,14 +84,14 @@ def run(scene: Scene, outdir: Path) -> dict:
         Fg = p.cell_values(p.Fg).reshape(-1, 2, 2)[:n]
         kinematics = growth.green_lagrange_strain if p.finite else growth.elastic_strain
         eps = kinematics(p.grad_u()[:n], Fg)
-        largest[0] = max(largest[0], plausibility.largest_strain(eps, comm))
+        largest[0] = max(largest[0], largest_strain(eps, comm))
 
     start = time.perf_counter()
     model = macro_model(scene, comm)
     cause, rows = "", []
     try:
         rows = run_model(model, scene, outdir, comm, on_step=strain)
-    except RunError as err:
+    except pg.RunError as err:
         cause = str(err)
         rows = _read_rows(outdir / "summary.csv")
     return {

@@ -1,6 +1,6 @@
 """Run every input of the malformed-input generator through the CLI; write a JSON report.
 
-    python scripts/fuzz_inputs.py [--seed 20240611] [--n 1200]
+    python scripts/studies/fuzz_inputs.py [--seed 20240611] [--n 1200]
         -> benchmarks/results/bad_inputs.json
 
 Each case runs in-process (``plantgrowth.cli.main``) in a fresh directory that is also the working
@@ -26,7 +26,7 @@ from pathlib import Path
 from plantgrowth.base.machine import machine_description
 from plantgrowth.cli import main
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 OUTPUT = REPO / "benchmarks" / "results" / "bad_inputs.json"
 ISOLATED_TIMEOUT = 30.0  # seconds; a refused input takes ~1 s (interpreter and import)
 

@@ -4,7 +4,7 @@ A trapezoid [[0, 0], [6, 0], [4, 3], [0, 3]] meshed by gmsh with edges about h, 
 ``tissue.mesh`` needs: the curve ``symmetry`` (x2 = 0), the point ``pinned`` (the origin) and the
 named loadable curves ``slope``, ``top`` and ``left``.
 
-    python scripts/make_example_mesh.py [--h 0.3] [--out scenes/shapes/trapezoid.msh]
+    python scripts/studies/make_example_mesh.py [--h 0.3] [--out scenes/shapes/trapezoid.msh]
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 
 from plantgrowth.meshes.polygon import write_polygon_msh
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 POINTS = [[0.0, 0.0], [6.0, 0.0], [4.0, 3.0], [0.0, 3.0]]
 GROUPS = {"symmetry": [0], "slope": [1], "top": [2], "left": [3]}  # name -> edge indices
 

@@ -14,13 +14,13 @@ replacements in one file of the committed tree. The study never touches the work
    pass), run ``python -m pytest -q -m "not slow" -x -p no:cacheprovider tests`` and record the
    first failing test (``-x``: the test that killed the mutant) and the wall time.
 
-Results go to ``benchmarks/results/mutants.json`` (``scripts/mutants_table.py`` prints them as a
-Markdown table). The exit code is 1 if a mutant survives or the baseline fails.
+Results go to ``benchmarks/results/mutants.json`` (``scripts/figures/mutants_table.py`` prints
+them as a Markdown table). The exit code is 1 if a mutant survives or the baseline fails.
 
-    python scripts/mutation_study.py                 # everything (~1 h on 2 cores)
-    python scripts/mutation_study.py --list          # the mutants, nothing run
-    python scripts/mutation_study.py --only cell_pressure_sign --only E_hom_doubled
-    python scripts/mutation_study.py --workdir /scratch/mutants --skip-baseline --only ...
+    python scripts/studies/mutation_study.py                 # everything (~1 h on 2 cores)
+    python scripts/studies/mutation_study.py --list          # the mutants, nothing run
+    python scripts/studies/mutation_study.py --only cell_pressure_sign --only E_hom_doubled
+    python scripts/studies/mutation_study.py --workdir /scratch/mutants --skip-baseline --only ...
 
 An *equivalent* mutant (one that changes no result) is no bug and is replaced, never kept as a
 survivor: the first run's ``micro_mean_weighted_by_walls`` (tissue-mean growth rate weighted by
@@ -46,7 +46,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 OUTPUT = REPO / "benchmarks" / "results" / "mutants.json"
 DEFAULT_WORKDIR = Path("/tmp/plantgrowth-mutation-study")
 PYTEST_ARGS = ["-m", "pytest", "-q", "-m", "not slow", "-x", "-p", "no:cacheprovider", "tests"]
@@ -473,7 +473,7 @@ def write_results(
     data = {
         "description": "physics mutants against the default serial CI suite (issue 8); "
         "killed_by is the first failing test (pytest -x)",
-        "command": "python scripts/mutation_study.py",
+        "command": "python scripts/studies/mutation_study.py",
         "suite": command,
         "commit": commit,
         "baseline": old.get("baseline") if baseline is None else {"commit": commit, **baseline},

@@ -27,7 +27,7 @@ wall-averaged strain is the wall compliance times the wall-averaged stress, so G
 constant in time: tr G = 2 eta [c (1 - phi_w) / phi_w P1 - tau]_+ (clipped to M per component),
 c = 1 (stress law), (1 - nu) / E (strain law); phi_w is the cell's exact wall fraction.
 
-    python scripts/paper_studies.py [--results results/paper_studies] [--only NAME ...]
+    python scripts/studies/paper_studies.py [--results results/paper_studies] [--only NAME ...]
         [--analyse-only]
 """
 
@@ -43,11 +43,11 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import plantgrowth as pg
 from plantgrowth.base.machine import machine_description
-from plantgrowth.scene import Scene
-from plantgrowth.studies.sweep import Run, Sweep, load_sweep
+from plantgrowth.studies.sweep_file import Run, Sweep, load_sweep
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SWEEPS_DIR = ROOT / "scenes" / "sweeps" / "paper"
 LAWS = ("strain", "stress")
 GRADIENTS = ("E", "nu", "P1", "tau", "eta")
@@ -127,7 +127,7 @@ def run_sweeps(args: argparse.Namespace) -> int:
 # --- the numbers ----------------------------------------------------------------------------------
 
 
-def exact_rate(scene: Scene) -> float:
+def exact_rate(scene: pg.Scene) -> float:
     """Exact mean tr G of a homogeneous scene (module docstring; MODEL.md 4)."""
     g, m = scene.growth, scene.material
     phi_w = scene.cell.at(0.0, 0.0).phi_w
@@ -266,7 +266,7 @@ def write_json(results: Path, path: Path) -> dict:
     worst = [v["max_relative_difference"] for law in scans.values() for v in law.values()
              if isinstance(v, dict)]  # fmt: skip
     data = {
-        "command": "python scripts/paper_studies.py",
+        "command": "python scripts/studies/paper_studies.py",
         "machine": machine_description(),
         "measure": "X = mean tr G over the tissue (reference-area weights), sweep.csv's "
         "growth_rate_area, at t_max",

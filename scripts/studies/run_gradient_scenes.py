@@ -8,7 +8,7 @@ A run whose ``summary.csv`` already reaches the scene's last step is skipped unl
 ``--jobs 2`` runs two scenes at a time (each a serial ``plantgrowth`` process). Prints the wall
 time of each run; exits non-zero if any run failed.
 
-    python scripts/run_gradient_scenes.py [--jobs 2] [--force] [--only E,nu]
+    python scripts/studies/run_gradient_scenes.py [--jobs 2] [--force] [--only E,nu]
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from plantgrowth.scene import load_scene
+import plantgrowth as pg
 
 PARAMS = ("E", "nu", "P1", "tau", "eta", "w", "l")
 LAWS = ("strain", "stress")
@@ -48,7 +48,7 @@ def is_complete(scene_path: Path, result_dir: Path) -> bool:
         return False
     with open(summary, newline="") as f:
         steps = [int(row["step"]) for row in csv.DictReader(f) if row.get("step")]
-    return bool(steps) and max(steps) >= load_scene(scene_path).time.n_steps
+    return bool(steps) and max(steps) >= pg.load_scene(scene_path).time.n_steps
 
 
 def run_one(command: str, scene: Path, out: Path) -> tuple[str, int, float]:
@@ -74,17 +74,22 @@ def main(argv: list[str] | None = None) -> int:
         print("plantgrowth is not on PATH; pass --plantgrowth", file=sys.stderr)
         return 2
     params = args.only or PARAMS
+    jobs = [(args.scenes / f"gradient_{p}_{law}.toml", args.out) for p in params for law in LAWS]
+    return run_all(command, jobs, args.jobs, args.force)
+
+
+def run_all(command: str, jobs: list[tuple[Path, Path]], workers: int, force: bool) -> int:
+    """Run each (scene, result root) into ``root/<scene stem>``, ``workers`` at a time, skipping
+    complete results unless ``force``; prints the wall time; 1 if any run failed, else 0."""
     todo = []
-    for param in params:
-        for law in LAWS:
-            scene = args.scenes / f"gradient_{param}_{law}.toml"
-            out = args.out / scene.stem
-            if not args.force and is_complete(scene, out):
-                print(f"{scene.stem:24s} complete, skipped (--force reruns it)")
-                continue
-            todo.append((scene, out))
+    for scene, root in jobs:
+        out = root / scene.stem
+        if not force and is_complete(scene, out):
+            print(f"{scene.stem:24s} complete, skipped (--force reruns it)")
+            continue
+        todo.append((scene, out))
     start = time.perf_counter()
-    with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
         results = list(pool.map(lambda job: run_one(command, *job), todo))
     failed = [stem for stem, rc, _ in results if rc != 0]
     print(f"{len(results)} runs in {time.perf_counter() - start:.1f} s wall; failed: {failed or 0}")

@@ -1,0 +1,428 @@
+"""Tables and text of docs/stability.md from ``benchmarks/results/hard_cases.json``.
+
+Reads the JSON that ``scripts/studies/hard_cases.py`` writes (never solves) and writes the
+section "Numerical stability" as Markdown: the hard cases' criteria and refinement changes, the
+limits of the model, the large-step study, the cost of 'adaptive', the long run and the text
+with the measured numbers. docs/stability.md holds it below its first lines.
+
+    python scripts/figures/hard_cases_tables.py [--json benchmarks/results/hard_cases.json]
+        [--out docs_snippets/hard_cases_readme.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from plantgrowth.studies import hard_cases as hc
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies"))
+from hard_cases import INTEGRATORS, run_status, stop_at  # noqa: E402  (the study script)
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--json", type=Path, default=Path("benchmarks/results/hard_cases.json"))
+    parser.add_argument(
+        "--out", type=Path, default=Path("docs_snippets/hard_cases_readme.md"),
+        help="the Markdown file to write ('-': print it)",
+    )  # fmt: skip
+    return parser.parse_args(argv)
+
+
+def _g(x, digits: int = 3) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:.{digits}g}"
+
+
+def _pct(x, digits: int = 2) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{100 * x:.{digits}g}%"
+
+
+def _t_stop(r: dict | None) -> str:
+    """The time at which a run stopped ("t = 13", "t = 10+" inside the advance from 10)."""
+    stop = (r or {}).get("stop")
+    if not r or not stop or "t" not in stop:
+        return "-" if not r else "none"
+    return f"t = {stop['t']:g}{'+' if stop['during_advance'] else ''}"
+
+
+def render(summary: dict) -> str:
+    """The section "Numerical stability" (docs/stability.md) from the collected results."""
+    cases, limits = summary["cases"], summary["limits"]
+    lines = [
+        "## Numerical stability",
+        "",
+        "`python scripts/studies/hard_cases.py --jobs 2` runs the hard cases of `scenes/hard/`",
+        "(h = 0.1, H = 1, cell_resolution 2, integrator `adaptive`, the scenes' own) and once",
+        "refined (h = 0.05, cell_resolution 3), and writes `benchmarks/results/hard_cases.json`;",
+        "`tests/test_hard_cases.py` asserts the same criteria on cheap versions (h = 0.35,",
+        "cell_resolution 1). Criteria, over all steps and cells (coarse nodes for E_hom): no",
+        "NaN/Inf; `min det Fg / det Fg0 >= 1 - 1e-12`; E_hom symmetric positive definite",
+        "(smallest eigenvalue of its Voigt matrix); PETSc reason > 0 and true relative residual",
+        f"<= {hc.RESIDUAL_BOUND:g} (`diagnostics.RESIDUAL_BOUND`); `det(I + grad u) > 0`;",
+        "`|G_ij| <= M`; `ln sigma_max(Fg Fg0^-1) / t <= 2 M`; under refinement, final area and",
+        f"final mean growth rate tr G change by < {hc.REFINEMENT_TOLERANCE:.0%}. A case passes",
+        "when the base and the refined run pass every criterion and the refinement changes are",
+        "within the tolerance.",
+        "",
+        "| case | status | min det Fg/Fg0 | min eig E_hom | max residual | min det(I+grad u) "
+        "| max ln s_max/t (2M) | Fg ratio | d area | d rate | d E1 | s (base/ref.) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, c in cases.items():
+        b, f, ch = c["base"], c["refined"], c["refinement"] or {}
+        if "criteria" not in b:
+            lines.append(f"| {name} | {run_status(b)} |" + " - |" * 10)
+            continue
+        secs = f"{b['seconds']:.0f}/{f['seconds']:.0f}" if f and f.get("seconds") else "-"
+        rate = f"{_g(b['growth_log_rate_max'])} ({_g(b['growth_rate_bound'])})"
+        status = run_status(b)
+        if f is None or not f.get("passed"):
+            status += f"; refined: {run_status(f)}"
+        elif ch and not ch.get("passed"):
+            status = "FAIL (refinement change)"
+        lines.append(
+            f"| {name} | {status} | {_g(b['det_Fg_min_ratio'], 6)} "
+            f"| {_g(b['E_hom_min_eig'])} | {_g(b['residual_max'], 2)} "
+            f"| {_g(b['det_deformation_min'])} | {rate} | {_g(b['anisotropy_max'])} "
+            f"| {_pct(ch.get('area'))} | {_pct(ch.get('growth_rate'))} "
+            f"| {_pct(ch.get('E1_step0'))} | {secs} |"
+        )
+    lines += [
+        "",
+        "`d area`, `d rate`: relative change of the final area and final mean tr G from the",
+        "base to the refined run; `d E1`: of the coarse-node mean E1 of E_hom at t = 0 (the",
+        "cell-problem discretisation error). `Fg ratio`: largest principal growth ratio",
+        "sigma_max/sigma_min of Fg reached. The values are those of the base run.",
+    ]
+    if summary.get("unexpected"):
+        lines += ["", "**Unexpected failures of passing cases (adaptive):**", ""]
+        lines += [f"- {u}" for u in summary["unexpected"]]
+    lines += _render_limits(limits)
+    lines += _render_study(summary)
+    return "\n".join(lines) + "\n" + narrative(summary)
+
+
+def _render_limits(limits: dict) -> list[str]:
+    lines = [
+        "",
+        "### Limits of the model",
+        "",
+        "Four scenes stop with the model's own RunError (step, time, place, cause) instead of",
+        "running to t_max. They are not part of the table above: each stops at every resolution",
+        "and with every integrator tried (rows `dt = ...`: base resolution).",
+        "",
+        "| case | run | status | stops at | where (x) | cause | Fg ratio reached "
+        "| min det(I+grad u) before | s |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    likely = set()
+    for name, L in limits.items():
+        rows = [("h = 0.1, dt = {dt:g} {integrator}", L["base"])]
+        rows += [("h = 0.05, dt = {dt:g} {integrator}", L["refined"])] if L["refined"] else []
+        rows += [("h = 0.1, dt = {dt:g} {integrator}", c) for c in L["checks"]]
+        for label, r in rows:
+            stop = r.get("stop") or {}
+            if stop.get("likely_cause"):
+                likely.add(stop["likely_cause"])
+            x = stop.get("x")
+            where = f"({x[0]:.3g}, {x[1]:.3g}), {stop.get('places')} place(s)" if x else "-"
+            ratio = _g(r.get("anisotropy_max"))
+            if r.get("anisotropy_max") is None:
+                ratio = f"{_g(L['Fg0_ratio'])} (Fg0; no step completed)"
+            status = "ran to t_max" if r["error"] is None else "stopped"
+            if r["error"] is None and not r["passed"]:
+                status = run_status(r)
+            lines.append(
+                f"| {name} | {label.format(**r)} | {status} | {stop_at(stop)} | {where} "
+                f"| {stop.get('cause', '-')} | {ratio} | {_g(r.get('det_deformation_min'))} "
+                f"| {_g(r.get('seconds'), 2)} |"
+            )
+    lines += [
+        "",
+        "`stops at`: `step N, t = T` failed in the solve of step N; `after step N, t = T` while",
+        "advancing the growth from T to T + dt (for `adaptive`: in one of its sub-steps, whose",
+        "midpoint solve sees the inversion first). `min det(I+grad u) before`: over the",
+        "completed steps. The model's message gives as likely cause: "
+        + "; ".join(f'"{c}"' for c in sorted(likely))
+        + ".",
+    ]
+    return lines
+
+
+def _render_study(summary: dict) -> list[str]:
+    study, ref_dt = summary["dt_study"], hc.DT_STUDY["reference_dt"]
+    ref_int = hc.DT_STUDY["reference_integrator"]
+    lines = [
+        "",
+        f"### Large steps: final-area error versus dt = {ref_dt:g} (`{ref_int}`)",
+        "",
+        f"Reference: the same scene at dt = {ref_dt:g} with `{ref_int}` (the recommended",
+        "integrator at a step 4x below the scenes' own). Cells: relative error of the final",
+        "area, or where the run stopped; in brackets the wall seconds.",
+        "",
+        "| scene | dt | " + " | ".join(INTEGRATORS) + " |",
+        "|---|---|" + "---|" * len(INTEGRATORS),
+    ]
+    for name, s in study.items():
+        ref = s["reference"]
+        if ref is None or ref["error"] is not None:
+            lines.append(f"| {name} | {ref_dt:g} (reference) | {run_status(ref)} |")
+        for dt in hc.DT_STUDY["dts"]:
+            cell = {}
+            for r in s["runs"]:
+                if r["dt"] != dt:
+                    continue
+                if r["error"] is not None:
+                    text = f"stopped at {_t_stop(r)}"
+                elif not r["passed"]:
+                    text = f"{_pct(r['area_error'])}, {run_status(r)}"
+                else:
+                    text = _pct(r["area_error"])
+                cell[r["integrator"]] = f"{text} ({_g(r['seconds'], 2)} s)"
+            cells = " | ".join(cell.get(i, "-") for i in INTEGRATORS)
+            lines.append(f"| {name} | {dt:g} | {cells} |")
+    lines += [
+        "",
+        "Cost of `adaptive` against `exp` at the same dt (wall seconds of the whole run;",
+        "sub-steps: accepted sub-steps per step; every sub-step costs one extra macro solve with",
+        "its cell problems, every sub-step after the first one more, every rejected one more):",
+        "",
+        "| scene | dt | s exp | s adaptive | ratio | sub-steps per step |",
+        "|---|---|---|---|---|---|",
+    ]
+    for c in summary["integrator_cost"]:
+        note = " (exp stopped early)" if c["exp_stopped"] else ""
+        lines.append(
+            f"| {c['case']} | {c['dt']:g} | {_g(c['seconds_exp'], 2)}{note} "
+            f"| {_g(c['seconds_adaptive'], 2)} | {_g(c['ratio'], 2)} "
+            f"| {_g(c['substeps_per_step'], 3)} |"
+        )
+    lr = summary["long_run"]
+    lines += [
+        "",
+        f"Long run (homogeneous, t_max = 600; exact mean tr G = {_g(lr['exact_rate'], 6)},",
+        f"{lr['exact_rate_formula']}):",
+        "",
+        "| dt | integrator | status | t reached | final mean tr G | Fg ratio | s |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in lr["runs"]:
+        lines.append(
+            f"| {r['dt']:g} | {r['integrator']} | {run_status(r)} | {_g(r['t_reached'])} "
+            f"| {_g(r['growth_rate_final'], 6)} | {_g(r['anisotropy_max'], 4)} "
+            f"| {_g(r['seconds'], 2)} |"
+        )
+    return lines
+
+
+def _run(summary: dict, name: str, dt: float, integrator: str) -> dict | None:
+    """A run of the step-size study or the long run (None if absent)."""
+    s = summary["dt_study"].get(name)
+    runs = list(s["runs"]) + [s["reference"]] if s else []
+    if name == "long_run":
+        runs = summary["long_run"]["runs"]
+    for r in runs:
+        if r and r["dt"] == dt and r["integrator"] == integrator:
+            return r
+    return None
+
+
+def _err(summary: dict, name: str, dt: float, integrator: str) -> str:
+    r = _run(summary, name, dt, integrator)
+    if r is None:
+        return "-"
+    return _pct(r["area_error"]) if r["error"] is None else f"stopped at {_t_stop(r)}"
+
+
+def _errs(summary: dict, name: str, integrator: str) -> str:
+    return " / ".join(_err(summary, name, dt, integrator) for dt in hc.DT_STUDY["dts"])
+
+
+def _range(values: list[float], digits: int = 2) -> str:
+    values = [v for v in values if v is not None and math.isfinite(v)]
+    if not values:
+        return "-"
+    lo, hi = min(values), max(values)
+    return (
+        _g(lo, digits) if _g(lo, digits) == _g(hi, digits) else f"{_g(lo, digits)}-{_g(hi, digits)}"
+    )
+
+
+def _limit_line(L: dict) -> str:
+    checks = ", ".join(f"dt = {c['dt']:g} {c['integrator']}: {_t_stop(c)}" for c in L["checks"])
+    return (
+        f"stops at {_t_stop(L['base'])} at h = 0.1 and {_t_stop(L['refined'])} at h = 0.05 "
+        f"({checks}); Fg ratio reached {_g(L['base']['anisotropy_max'])} / "
+        f"{_g((L['refined'] or {}).get('anisotropy_max'))}, min det(I + grad u) before the stop "
+        f"{_g(L['base']['det_deformation_min'])} / "
+        f"{_g((L['refined'] or {}).get('det_deformation_min'))}"
+    )
+
+
+def narrative(summary: dict) -> str:
+    """Which integrator, the failure modes of the explicit schemes and the limits of the model,
+    with the measured numbers."""
+    dts = " / ".join(f"{dt:g}" for dt in hc.DT_STUDY["dts"])
+    lr = summary["long_run"]
+    exact = lr["exact_rate"]
+    long = {(r["dt"], r["integrator"]): r for r in lr["runs"]}
+    ad10, exp10, eu10 = (long.get((10.0, i), {}) for i in ("adaptive", "exp", "euler"))
+    exp5, ad5 = long.get((5.0, "exp"), {}), long.get((5.0, "adaptive"), {})
+    cost = summary["integrator_cost"]
+    comparable = [c for c in cost if not (c["exp_stopped"] or c["adaptive_stopped"])]
+    ratio = _range([c["ratio"] for c in comparable])
+    ratio_dt1 = _range([c["ratio"] for c in comparable if c["dt"] == 1.0])
+    subs_dt1 = _range([c["substeps_per_step"] for c in comparable if c["dt"] == 1.0], 3)
+    subs = _range([c["substeps_per_step"] for c in cost], 3)
+    heavy = max(cost, key=lambda c: c["substeps_per_step"], default=None)
+    formula = summary["dt_study"].get("reference", {}).get("euler_formula", [])
+    euler_ref = ", ".join(
+        f"{_pct(f['measured'], 3)} (formula {_pct(f['predicted'], 3)}) at dt = {f['dt']:g}"
+        for f in formula
+    )
+
+    def rel(r: dict) -> str:
+        return _pct(hc.relative_change(exact, r.get("growth_rate_final") or math.nan), 2)
+
+    limits = summary["limits"]
+    shear = limits.get("clamp_shear", {}).get("base", {})
+    aniso = limits.get("anisotropic_Fg0_x1", {})
+    aniso_stop = (aniso.get("base") or {}).get("stop") or {}
+    explicit_stops = [
+        f"{name} at dt = {r['dt']:g} `{r['integrator']}` stops at {_t_stop(r)} "
+        f"({(r['stop'] or {}).get('cause', r['error'][:60])}; mean tr G at the last completed "
+        f"step t = {_g(r['t_reached'])}: {_g(r['growth_rate_final'], 4)}, against "
+        f"{_g((_run(summary, name, r['dt'], 'adaptive') or {}).get('growth_rate_final'), 4)} "
+        f"at the end with `adaptive` at the same dt, "
+        f"{run_status(_run(summary, name, r['dt'], 'adaptive'))})"
+        for name, s in summary["dt_study"].items() for r in s["runs"]
+        if r["integrator"] != "adaptive" and r["error"] is not None
+    ]  # fmt: skip
+    explicit_stops = "; ".join(explicit_stops) or "none"
+    stops = [L[v] for L in limits.values() for v in ("base", "refined") if L.get(v)]
+    stops += [c for L in limits.values() for c in L["checks"]]
+    located = [r for r in stops if r.get("stop_at_corner") is not None]
+    corners = sum(1 for r in located if r["stop_at_corner"])
+    earlier = [
+        name for name, L in limits.items()
+        if L.get("refined") and (L["refined"].get("stop") or {}).get("t", math.inf)
+        < (L["base"].get("stop") or {}).get("t", math.inf)
+    ]  # fmt: skip
+    abrupt = [
+        name for name, L in limits.items()
+        if all((r or {}).get("det_deformation_min") is not None
+               and r["det_deformation_min"] > 1.0
+               for r in [L["base"], L["refined"], *L["checks"]])
+    ]  # fmt: skip
+    M = shear.get("clamp") or math.nan
+    lam_min = shear.get("G_lambda_min")
+    return f"""
+### Which integrator
+
+Use `integrator = "adaptive"` (every scene in `scenes/hard` does). It takes exponential steps
+`Fg <- expm(h G) Fg` with step-doubling error control (`time.tolerance`, default 1e-3): each
+step is taken once whole and as two halves, the second half with G re-evaluated at the
+half-step state. That midpoint solve removes the one-step lag between growth and elasticity
+that makes the explicit schemes oscillate: on the homogeneous long run at dt = 10 `adaptive`
+ends with mean tr G {_g(ad10.get("growth_rate_final"), 6)} (exact {_g(exact, 6)}, error
+{rel(ad10)}) and an Fg ratio of {_g(ad10.get("anisotropy_max"), 6)}, where `exp` stops at
+{_t_stop(exp10)} and `euler` ends with tr G {_g(eu10.get("growth_rate_final"), 4)}. Final-area
+error against dt = {hc.DT_STUDY["reference_dt"]:g}, dt = {dts}: gradient_E
+{_errs(summary, "gradient_E", "adaptive")}, E_contrast_100
+{_errs(summary, "E_contrast_100", "adaptive")}, reference {_errs(summary, "reference", "adaptive")}.
+
+Cost: every step solves the macro problem (with its cell problems) at least twice, plus once
+more per extra sub-step when the local error exceeds the tolerance. Measured against `exp` at
+the same dt: {ratio_dt1}x the wall time at the scenes' dt = 1 ({subs_dt1} accepted sub-step(s)
+per step: the second macro solve is the whole extra cost), {ratio}x over all compared runs, with
+{subs} accepted sub-steps per step (most: {heavy["case"] if heavy else "-"} at
+dt = {_g(heavy["dt"] if heavy else None)}, {_g(heavy["substeps_per_step"] if heavy else None, 3)}:
+at large dt the error control splits the step, and adaptive buys its accuracy with time).
+Homogeneous scenes cost less than 2x, likely because their cell problems are cached.
+
+`exp` (`Fg <- expm(dt G) Fg` with G from the start of the step) is exact on homogeneous scenes
+for any dt (reference: {_errs(summary, "reference", "exp")} at dt = {dts}) and accurate for
+dt <= 5: the long run at dt = 5 ends with tr G {_g(exp5.get("growth_rate_final"), 6)}
+({run_status(exp5) if exp5 else "not run"}; `adaptive` at dt = 5: \
+{_g(ad5.get("growth_rate_final"), 6)}); on gradient_E its error is
+{_errs(summary, "gradient_E", "exp")} at dt = {dts}. `det Fg = exp(dt tr G) det Fg_old` never
+decreases. `euler` is the paper's explicit scheme: use it only to reproduce the paper.
+
+### Failure modes of the explicit schemes
+
+1. **Under-predicted growth (`euler`, every dt).** Euler compounds `(1 + g dt)^(t/dt)` where
+   the exact solution has `exp(g t)`, so on the homogeneous reference the final-area error is
+   `1 - ((1 + g dt)^(t/dt) / e^(g t))^2` with g = tr G / 2: measured {euler_ref}. On
+   gradient_E: {_errs(summary, "gradient_E", "euler")}; on E_contrast_100:
+   {_errs(summary, "E_contrast_100", "euler")} (dt = {dts}).
+2. **Lagged-coupling oscillation (`euler` and `exp`, dt = 10 on the long run).** G is taken
+   from the start of the step, so a round-off perturbation of the uniform state changes sign
+   every step and grows. `euler` reaches t = {_g(eu10.get("t_reached"))} with mean tr G
+   {_g(eu10.get("growth_rate_final"), 4)} instead of {_g(exact, 4)} ({rel(eu10)} off) and an Fg
+   ratio of {_g(eu10.get("anisotropy_max"))} on a scene that should stay isotropic; `exp`
+   stops at {_t_stop(exp10)} ({(exp10.get("stop") or {}).get("cause", "-")}; Fg ratio
+   {_g(exp10.get("anisotropy_max"))}). At dt = 5 `exp` stays on the exact rate
+   ({rel(exp5)} off, Fg ratio {_g(exp5.get("anisotropy_max"), 6)}).
+3. **Lagged coupling on the heterogeneous scenes (large dt).** Runs of the explicit schemes
+   that stopped in the step-size study: {explicit_stops}. `adaptive` at the same dt keeps
+   the constant rate of the dt = {hc.DT_STUDY["reference_dt"]:g} run
+   ({_g((summary["dt_study"].get("E_contrast_100", {}).get("reference") or {}).get(
+       "growth_rate_final"), 4)} on E_contrast_100), so this is most likely the same
+   instability as in (2), with an earlier onset; at dt = 30 the run has only two steps,
+   likely too few for it to grow.
+
+### Limits of the model
+
+The four scenes of the limits table stop with "element inverted" at every step size and with
+every integrator tried, so the stop is a property of the model, not of the time stepping
+(`t = T+`: while advancing from T, in a sub-step of `adaptive`, whose midpoint solve looks
+half a step ahead; `euler` stops later because it under-predicts the growth):
+
+- **E_contrast_100_strain** (100x stiffness contrast under the strain law: the soft side grows
+  much faster): {_limit_line(limits["E_contrast_100_strain"])}.
+- **long_run_gradient_E** (E gradient grown to t = 600):
+  {_limit_line(limits["long_run_gradient_E"])}.
+- **clamp_shear** (steep turgor gradient, eta = 50, M = {_g(M)}, max |G_ij| reached
+  {_g(shear.get("G_abs_max"))}): {_limit_line(limits["clamp_shear"])}.
+- **anisotropic_Fg0_x1** (pre-grown 4:1, Fg0 = diag(4, 1)): stops at {_t_stop(aniso.get("base"))}
+  ({aniso_stop.get("places")} place(s) inverted at h = 0.1) at every resolution and step; no
+  step completes.
+
+Likely causes (not proven): the macro problem is geometrically linear, `eps = sym(grad u)`,
+so it cannot represent the large rotations that strong differential growth produces. In
+{", ".join(abrupt) or "none of them"} the smallest det(I + grad u) over the completed steps is
+still > 1 (its value under the initial turgor) at every resolution and step: the element
+inverts within a single step, even at dt = 0.25, rather than by gradual thinning. The first
+inverted element is within 2 h of a tissue corner in {corners} of the {len(located)} stopped
+runs above; the refined mesh stops earlier in {", ".join(earlier) or "none of them"}.
+In clamp_shear the component-wise clamp (`G = clip(G~, -M, M)`, [def_G_11]) saturates G
+towards the rank-one shear `[[M, M], [M, M]]` (eigenvalues 2M and 0), which grows along one
+diagonal only; measured: largest eigenvalue {_g(shear.get("G_lambda_max"))}
+(2M = {_g(2 * M)}), smallest {_g(lam_min, 2)} ({_g((lam_min or math.nan) / M, 2)} M: the
+clipped G is slightly indefinite, i.e. shrinks the other diagonal). In anisotropic_Fg0_x1 the
+reduced cell diag(2, 1/2) has long, thin inclined walls and is so compliant that the linear
+response to the reference turgor inverts every element at t = 0 (the scene file estimates
+grad u22 ~ 47); Fg0 = diag(1, 4) (anisotropic_Fg0_x2) passes.
+"""
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    text = render(json.loads(args.json.read_text()))
+    if str(args.out) == "-":
+        print(text, end="")
+        return 0
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(text)
+    print(f"docs section -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
