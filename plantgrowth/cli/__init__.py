@@ -5,6 +5,12 @@ run's ``run.log``. Exit codes: 0 done, 2 bad input (one line naming the field an
 range), 3 a run that failed numerically (step, time, place, cause; ``sweep``: some run failed,
 see its sweep.csv), 130 interrupted by SIGINT at the end of a step. A closed stdout
 (``plantgrowth ... | head``) silences the progress only.
+
+A thin layer over the Python API (:mod:`plantgrowth.api`) and the studies: the handlers
+(:mod:`plantgrowth.cli.commands`) import what a command needs when it runs, so ``--help`` and
+bad arguments load neither dolfinx nor gmsh.
+
+May import: everything else in plantgrowth.
 """
 
 from __future__ import annotations
