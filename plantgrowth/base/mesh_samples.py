@@ -21,7 +21,7 @@ def det_degree(u: fem.Function) -> int:
     return 2 * (u.function_space.ufl_element().degree() - 1)
 
 
-class CellSamples:
+class MeshSamples:
     """``expr`` at the nodes of DG(``degree``) on this rank's owned cells."""
 
     def __init__(self, expr: ufl.core.expr.Expr, msh: mesh.Mesh, degree: int) -> None:

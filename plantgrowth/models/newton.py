@@ -26,7 +26,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth.base.errors import RunError
-from plantgrowth.base.mesh_samples import CellSamples, det_degree
+from plantgrowth.base.mesh_samples import MeshSamples, det_degree
 from plantgrowth.forms.finite import deformation_gradient, jacobian, smallest_elastic_stretch
 from plantgrowth.models import diagnostics
 from plantgrowth.models.linear import relative_residual
@@ -118,8 +118,8 @@ class NewtonSolver:
         self.du = self.A.createVecRight()
         self.ksp = make_ksp(self.A)
         msh, degree = u.function_space.mesh, det_degree(u)
-        self._det = CellSamples(ufl.det(deformation_gradient(u)), msh, degree)
-        self._stretch = CellSamples(smallest_elastic_stretch(u, Fg), msh, degree)
+        self._det = MeshSamples(ufl.det(deformation_gradient(u)), msh, degree)
+        self._stretch = MeshSamples(smallest_elastic_stretch(u, Fg), msh, degree)
         V = u.function_space
         n_nodes = V.dofmap.index_map.size_local
         self._node_points = V.tabulate_dof_coordinates()[:n_nodes, :2]
@@ -155,7 +155,7 @@ class NewtonSolver:
         """Smallest principal elastic stretch over all cells (the same points) and where."""
         return self._minimum(self._stretch)
 
-    def _minimum(self, samples: CellSamples) -> tuple[float, np.ndarray]:
+    def _minimum(self, samples: MeshSamples) -> tuple[float, np.ndarray]:
         return _global_extreme(samples.values(), samples.points, self.comm, np.argmin)
 
     def _rank(self, r: float) -> tuple:

@@ -20,7 +20,7 @@ from petsc4py import PETSc
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import dof_state, restore_dofs
-from plantgrowth.base.mesh_samples import CellSamples, det_degree
+from plantgrowth.base.mesh_samples import MeshSamples, det_degree
 from plantgrowth.forms import cell_measures
 from plantgrowth.forms import finite as finite_forms
 from plantgrowth.forms import micro as micro_forms
@@ -141,7 +141,7 @@ class MicroModel:
         self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
         self.cell_table = self.outlines  # cells.csv
         self._E, self._nu = E, nu
-        self._deformation_det = CellSamples(
+        self._deformation_det = MeshSamples(
             ufl.det(ufl.Identity(2) + ufl.grad(self.u)), msh, det_degree(self.u)
         )
         self.output_space = self.u_out.function_space
