@@ -38,10 +38,16 @@ def growth_weighted_work(stress, psi, Fg, dx) -> ufl.Form:
     return ufl.det(Fg) * ufl.inner(stress, grad_g(psi, Fg)) * dx
 
 
-def boundary_traction(f, psi, Fg, n, ds) -> ufl.Form:
-    """``int Jg |Fg^{-T} N| f . psi ds``, a traction f given per current length (MODEL.md 4)."""
+def grown_length(Fg, n):
+    """``Jg |Fg^{-T} N|``: the grown length of a boundary element of unit reference length and
+    reference normal N (Nanson's formula for the growth map Fg)."""
     FinvT_n = ufl.dot(ufl.inv(Fg).T, n)
-    return ufl.det(Fg) * ufl.sqrt(ufl.inner(FinvT_n, FinvT_n)) * ufl.inner(f, psi) * ds
+    return ufl.det(Fg) * ufl.sqrt(ufl.inner(FinvT_n, FinvT_n))
+
+
+def boundary_traction(f, psi, Fg, n, ds) -> ufl.Form:
+    """``int Jg |Fg^{-T} N| f . psi ds``, a traction f given per grown length (MODEL.md 4)."""
+    return grown_length(Fg, n) * ufl.inner(f, psi) * ds
 
 
 def growth_strain(Fg):

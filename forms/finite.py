@@ -64,10 +64,16 @@ def macro_residual(u, psi, Fg, C, K, phi_w, P1, dx) -> ufl.Form:
     return growth_weighted_work(Fe * macro_stress(u, Fg, C, K, phi_w, P1), psi, Fg, dx)
 
 
+def current_length(u, n):
+    """``|cof(F) N|``: the current length of a boundary element of unit reference length and
+    reference normal N (Nanson's formula)."""
+    cN = ufl.dot(cofactor(deformation_gradient(u)), n)
+    return ufl.sqrt(ufl.inner(cN, cN))
+
+
 def follower_traction(u, f, psi, n, ds) -> ufl.Form:
     """``int |cof(F) N| f . psi ds``: a traction f given per current length."""
-    cN = ufl.dot(cofactor(deformation_gradient(u)), n)
-    return ufl.sqrt(ufl.inner(cN, cN)) * ufl.inner(f, psi) * ds
+    return current_length(u, n) * ufl.inner(f, psi) * ds
 
 
 def wall_second_piola(u, Fg, E, nu):

@@ -36,6 +36,44 @@ class SideMesh:
     values: dict[str, np.ndarray] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class LoadBalance:
+    """The x1 resultants of the applied loads at one step, in the configuration the forms use.
+
+    Attributes:
+        resultants: edge -> its load's x1 force.
+        lengths: edge -> its length in that configuration.
+        length: "grown" (linear kinematics) or "current" (finite).
+    """
+
+    resultants: dict[str, float]
+    lengths: dict[str, float]
+    length: str = "grown"  # what the tractions are given per: "grown" or "current" length
+
+    @property
+    def net(self) -> float:
+        return sum(self.resultants.values())
+
+    @property
+    def imbalance(self) -> float:
+        """|net x1 force| over the largest edge's |x1 force| (0 without x1 forces)."""
+        largest = max(abs(f) for f in self.resultants.values())
+        return abs(self.net) / largest if largest > 0.0 else 0.0
+
+    def describe(self) -> str:
+        """What the pinned point carries and the change of one load that would balance it."""
+        edge = max(self.resultants, key=lambda e: abs(self.resultants[e]))
+        change = -self.net
+        return (
+            f"the loads' net x1 force is {self.net:.6g}, {self.imbalance:.1%} of the largest "
+            f"edge force (loads.{edge}): the pinned point carries it as a point force. Tractions "
+            f"act per {self.length} length, so edges that grow or stretch unequally pull "
+            f"unequally; at this step, {change:+.6g} on loads.{edge}'s x1 force (its x1 "
+            f"traction {change / self.lengths[edge]:+.6g}) would balance it. Loads given as "
+            "each edge's total force, loads.<edge> = {force = [F1, F2]}, stay balanced"
+        )
+
+
 @dataclass
 class StepResult:
     """What a model reports for one step at the current Fg."""
@@ -49,6 +87,7 @@ class StepResult:
     clamped_fraction: float | None = None  # area fraction where some |G_ij| reaches the clamp M
     newton_iterations: int = 0  # finite kinematics: Newton iterations of the step's solve
     newton_residual: float = 0.0  # finite kinematics: its final relative residual
+    load_balance: LoadBalance | None = None  # macro with loads: their x1 resultants
 
 
 class GrowthModel(Protocol):

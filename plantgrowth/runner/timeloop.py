@@ -27,7 +27,7 @@ from plantgrowth.runner.output import (
     SummaryWriter,
     last_summary_step,
 )
-from plantgrowth.runner.step_warnings import StepWarnings
+from plantgrowth.runner.step_warnings import MAX_LOAD_IMBALANCE, StepWarnings
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -41,9 +41,15 @@ NEWTON_COLUMNS = ["newton_iterations", "newton_residual"]
 """Appended to SUMMARY_COLUMNS for ``kinematics = "finite"`` (linear runs keep those above)."""
 
 
+LOAD_COLUMNS = ["load_imbalance"]
+"""Appended for a scene with loads: the net x1 force of the applied loads over the largest edge
+force, in the configuration the forms apply them (plantgrowth.models.macro.edge_loads)."""
+
+
 def summary_columns(scene: Scene) -> list[str]:
     """The columns of a scene's summary.csv."""
-    return SUMMARY_COLUMNS + (NEWTON_COLUMNS if scene.kinematics == "finite" else [])
+    newton = NEWTON_COLUMNS if scene.kinematics == "finite" else []
+    return SUMMARY_COLUMNS + newton + (LOAD_COLUMNS if scene.loads else [])
 
 
 class Interrupted(Exception):
@@ -200,6 +206,8 @@ def run_model(
                        residual=result.residual, seconds=t2 - t0, seconds_io=t2 - t1,
                        substeps=substeps[0], newton_iterations=result.newton_iterations,
                        newton_residual=result.newton_residual, **result.seconds)  # fmt: skip
+            if result.load_balance is not None:
+                row["load_imbalance"] = result.load_balance.imbalance
             row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
                    for k, v in row.items()}  # fmt: skip
             # fields (and cell rows), row, state: a kill between them leaves the state one step
@@ -220,6 +228,10 @@ def run_model(
             )  # fmt: skip
             for text in warnings.check(step, t, result):
                 log.warning("warning: %s%s", prefix, text)
+            balance = result.load_balance
+            if balance is not None and balance.imbalance > MAX_LOAD_IMBALANCE:
+                raise RunError(f"step {step}, t = {t:g}: {balance.describe()} (more than "
+                               f"{MAX_LOAD_IMBALANCE:.0%}: the run stops)")  # fmt: skip
             if step < n_steps:
                 if comm.allreduce(interrupt["set"], op=MPI.LOR):
                     raise Interrupted(step, t)

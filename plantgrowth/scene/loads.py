@@ -1,7 +1,13 @@
-"""Edge loads of a scene (``[loads]``, MODEL.md 4): each component of an edge's traction is a
-number or ``{expr = "..."}``, an expression of ``s``, the coordinate along the edge: ``s = x2``
-on the left and right edges, ``s = x1`` on the top edge (the arc length from the edge's end on
-x2 = 0, resp. x1 = 0, of the macro rectangle; loads exist for model = "macro" only).
+"""Edge loads of a scene (``[loads]``, MODEL.md 4), model = "macro" only, of two kinds:
+
+- a traction ``[f1, f2]`` per unit length of the edge as the forms see it: the grown length
+  (``Jg |Fg^-T N|`` times the reference length) with linear kinematics, the current length
+  (``|cof(F) N|``) with finite kinematics; each component a number or ``{expr = "..."}``, an
+  expression of ``s``, the coordinate along the edge: ``s = x2`` on the left and right edges,
+  ``s = x1`` on the top edge (the arc length from the edge's end on x2 = 0, resp. x1 = 0, of the
+  macro rectangle). Its resultant follows the edge's length as the tissue grows;
+- a force ``{force = [F1, F2]}``: the edge's total force, spread uniformly over that same
+  length (:class:`EdgeForce`; how a weight or a clamp pulls), whatever the edge grows to.
 
 An expression's values are checked, and its resultant force computed, with composite
 Gauss-Legendre quadrature on the edge (:data:`INTERVALS` intervals of :data:`GAUSS_POINTS`
@@ -10,6 +16,8 @@ most ``jump * length / INTERVALS``.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,6 +31,24 @@ INTERVALS = 2000
 GAUSS_POINTS = 5
 
 Component = float | Expression
+
+
+@dataclass(frozen=True)
+class EdgeForce:
+    """An edge's total force ``[F1, F2]``, spread uniformly over the edge's length."""
+
+    force: tuple[float, float]
+
+
+Load = tuple[Component, Component] | EdgeForce
+"""What ``loads.<edge>`` holds."""
+
+
+def x1_resultant(load: Load, length: float) -> float:
+    """The x1 force of a load on an edge of reference length ``length``, before any growth."""
+    if isinstance(load, EdgeForce):
+        return load.force[0]
+    return resultant(load[0], length)
 
 
 def _quadrature(length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -54,5 +80,8 @@ def resultant(component: Component, length: float) -> float:
     return float(weights @ component(s=s))
 
 
-def to_toml(component: Component) -> float | dict[str, str]:
-    return component if not isinstance(component, Expression) else {"expr": component.text}
+def to_toml(load: Load) -> list | dict:
+    """A load as the scene file writes it."""
+    if isinstance(load, EdgeForce):
+        return {"force": list(load.force)}
+    return [c if not isinstance(c, Expression) else {"expr": c.text} for c in load]

@@ -358,6 +358,29 @@ def load_component(key: str, x: object, length: float, along: bool) -> edge_load
     return x
 
 
+def edge_load(edge: str, raw: object, length: float) -> edge_loads.Load:
+    """``loads.<edge>``: a traction ``[f1, f2]`` (each a number or, on the rectangle's edges,
+    ``{expr = "..."}`` of s) or a total force ``{force = [F1, F2]}`` (scene/loads.py)."""
+    key = f"loads.{edge}"
+    if isinstance(raw, edge_loads.EdgeForce):  # already checked (a scene rebuilt by replace)
+        return raw
+    if isinstance(raw, dict):
+        check_keys(raw, f"{key}.", ("force",))
+        if "force" not in raw:
+            raise SceneError(
+                f"{key}: a load is a traction [f1, f2] or a total force {{force = [F1, F2]}}"
+            )
+        force = array(f"{key}.force", raw["force"], 2)
+        return edge_loads.EdgeForce(
+            tuple(in_range(f"{key}.force[{i}]", x, -BIG, BIG, False, False)
+                  for i, x in enumerate(force))
+        )  # fmt: skip
+    along = edge in edge_loads.ALONG  # s is defined on the rectangle's edges only
+    return tuple(
+        load_component(f"{key}[{i}]", x, length, along) for i, x in enumerate(array(key, raw, 2))
+    )
+
+
 def check_edge(edge: str, shape: Shape | None) -> None:
     """SceneError unless ``loads.<edge>`` names a loadable edge of the tissue."""
     if shape is not None:

@@ -40,14 +40,13 @@ from plantgrowth.scene.parts import (
     Time,
     Tissue,
     check_edge,
-    load_component,
+    edge_load,
 )
 from plantgrowth.scene.presets import DEFAULT_PRESET, PRESETS
 from plantgrowth.scene.shapes import mesh_shape, outline_points, outline_shape
 from plantgrowth.scene.toml_text import dict_to_toml
 from plantgrowth.scene.values import (
     TABLES,
-    array,
     check_keys,
     choice,
     in_range,
@@ -69,7 +68,7 @@ class Scene:
     P1: AnyField
     growth: Growth
     time: Time
-    loads: dict[str, tuple[edge_loads.Component, ...]] = field(default_factory=dict)
+    loads: dict[str, edge_loads.Load] = field(default_factory=dict)
     output: Output = Output()
     accuracy: Accuracy = Accuracy()
     micro_nx: int = 16
@@ -90,14 +89,9 @@ class Scene:
         lengths = self.tissue.edge_lengths()
         for edge, f in self.loads.items():
             check_edge(edge, self.tissue.shape)
-            pair = array(f"loads.{edge}", f, 2)
-            along = edge in edge_loads.ALONG  # s is defined on the rectangle's edges only
-            pair = tuple(
-                load_component(f"loads.{edge}[{i}]", x, lengths[edge][0], along)
-                for i, x in enumerate(pair)
-            )
-            if pair != (0.0, 0.0):  # only non-zero loads are kept
-                loads[edge] = pair
+            load = edge_load(edge, f, lengths[edge][0])
+            if load not in ((0.0, 0.0), edge_loads.EdgeForce((0.0, 0.0))):  # non-zero loads only
+                loads[edge] = load
         set_fields(self, loads=loads)
         if integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
             raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
@@ -206,7 +200,7 @@ class Scene:
         out["time"] = {
             "t_max": t.t_max, "dt": t.dt, "integrator": t.integrator, "tolerance": t.tolerance
         }  # fmt: skip
-        out["loads"] = {edge: [edge_loads.to_toml(c) for c in f] for edge, f in self.loads.items()}
+        out["loads"] = {edge: edge_loads.to_toml(load) for edge, load in self.loads.items()}
         out["output"] = {f.name: getattr(self.output, f.name) for f in fields(self.output)}
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
         out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}

@@ -226,7 +226,8 @@ class MacroModel:
             {"seconds_cells": t1 - t0, "seconds_solve": t2 - t1, "seconds_growth": t3 - t2},
             largest_strain(eps_el[:n], self.comm),
             clamped_fraction(G[:n], M, problem.areas, self.comm),
-            *((newton.iterations, newton.residual) if newton else ()),
+            *((newton.iterations, newton.residual) if newton else (0, 0.0)),
+            problem.loads.balance() if self.scene.loads else None,
         )  # fmt: skip
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:

@@ -14,6 +14,7 @@ LU where GMRES stops).
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 import ufl
@@ -21,14 +22,14 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from plantgrowth.base.errors import RunError
 from plantgrowth.forms import finite, macro
-from plantgrowth.forms.elasticity import boundary_traction
-from plantgrowth.forms.expressions import UFL_OPS
+from plantgrowth.forms.elasticity import boundary_traction, grown_length
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
 from plantgrowth.models.macro.boundary import Boundary, pinned_vertices, rectangle_boundary
+from plantgrowth.models.macro.edge_loads import FORCE_LENGTH_RTOL, EdgeLoads
 from plantgrowth.models.newton import NewtonReport, NewtonSolver, log_report
 from plantgrowth.scene import Scene
-from plantgrowth.scene.loads import ALONG
 
 log = logging.getLogger("plantgrowth")
 
@@ -44,6 +45,8 @@ NEWTON_PREFIX = PREFIX + "newton_"  # its own GAMG options (see linear.gamg_solv
 NEWTON_KRYLOV_MAX_IT = 500
 """GMRES iterations on a Newton step before LU takes over (NewtonSolver's fallback): 5 times
 the 90-111 a solve needs on gradient_E_strain with finite kinematics."""
+MAX_FORCE_UPDATES = 10
+"""Newton solves after the first that may still move a total force's traction ``F / L``."""
 
 
 def mesh_bounding_box(msh: mesh.Mesh) -> tuple[float, float]:
@@ -60,15 +63,6 @@ def rectangle_mesh(scene: Scene, comm: MPI.Comm) -> mesh.Mesh:
     nx, ny = max(1, round(t.width / t.h)), max(1, round(t.height / t.h))
     corners = [np.zeros(2), np.array([t.width, t.height])]
     return mesh.create_rectangle(comm, corners, [nx, ny], mesh.CellType.triangle)
-
-
-def _traction(msh: mesh.Mesh, edge: str, f: tuple) -> ufl.core.expr.Expr:
-    """The traction on an edge: a Constant, or a UFL vector of its expressions of s, the
-    coordinate along the edge (plantgrowth/scene/loads.py)."""
-    if all(isinstance(c, float) for c in f):
-        return fem.Constant(msh, np.asarray(f, dtype=PETSc.ScalarType))
-    s = ufl.SpatialCoordinate(msh)[ALONG[edge]]
-    return ufl.as_vector([c if isinstance(c, float) else c.evaluate(UFL_OPS, s=s) for c in f])
 
 
 class MacroProblem:
@@ -121,6 +115,13 @@ class MacroProblem:
                 grad_P1 = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)))
                 self.set_cell_values(grad_P1, scene.P1.gradient(*at_cells))
         self.active_terms += [f"traction on {name}" for name in sorted(scene.loads)]
+        length = (lambda n: finite.current_length(self.u, n)) if self.finite else (
+            lambda n: grown_length(self.Fg, n)
+        )  # fmt: skip
+        self.loads = EdgeLoads(
+            scene.loads, msh, self.boundary.facets, self.boundary.edges, length,
+            "current" if self.finite else "grown",
+        )  # fmt: skip
         self.bcs = self._boundary_conditions()
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         self.solver = scene.solver.macro_kind(self.ndofs)
@@ -147,9 +148,7 @@ class MacroProblem:
                     psi, self.Fg, self.phi_w, grad_P1, self.P2vec, dx
                 )
                 self.active_terms.append("pressure gradient (grad P1, P2)")
-        rhs += self._traction_terms(
-            scene, lambda f, n, ds: boundary_traction(f, psi, self.Fg, n, ds)
-        )
+        rhs += self.loads.terms(lambda f, n, ds: boundary_traction(f, psi, self.Fg, n, ds))
         self.a = fem.form(macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx))
         self.L = fem.form(rhs)
         self.A = fem.petsc.create_matrix(self.a)
@@ -161,9 +160,7 @@ class MacroProblem:
         solver; tractions follow the deformed edges."""
         u, dx = self.u, ufl.dx
         residual = finite.macro_residual(u, psi, self.Fg, self.C, self.K, self.phi_w, P1, dx)
-        residual -= self._traction_terms(
-            scene, lambda f, n, ds: finite.follower_traction(u, f, psi, n, ds)
-        )
+        residual -= self.loads.terms(lambda f, n, ds: finite.follower_traction(u, f, psi, n, ds))
         self.active_terms.append("finite kinematics (Newton, linear predictor)")
         self.newton = NewtonSolver(
             residual, self.u, self.Fg, self.bcs, self._jacobian_solver,
@@ -195,19 +192,6 @@ class MacroProblem:
     def _direct_jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
         return lu_solver(J, self.mesh.comm, NEWTON_PREFIX)
 
-    def _traction_terms(self, scene: Scene, term) -> ufl.Form | int:
-        """``term(f, n, ds)`` summed over the loaded edges (0 without loads): the traction
-        ``int_{Gamma_N} Jg |Fg^{-T} N| f . psi ds`` (MODEL.md 4) or its finite variant."""
-        terms = 0
-        if not scene.loads:
-            return terms
-        msh = self.mesh
-        ds = ufl.Measure("ds", domain=msh, subdomain_data=self.boundary.facets)
-        n = ufl.FacetNormal(msh)
-        for name, f in sorted(scene.loads.items()):
-            terms += term(_traction(msh, name, f), n, ds(self.boundary.edges[name]))
-        return terms
-
     def _boundary_conditions(self) -> list:
         facets = self.boundary.facets
         bottom = np.concatenate([facets.find(tag) for tag in self.boundary.symmetry])
@@ -235,8 +219,9 @@ class MacroProblem:
     def solve(self) -> SolveReport:
         """Assemble the active terms and solve for u; returns the solver diagnostics (finite
         kinematics: those of the worst linear solve; Newton's in ``newton_report``)."""
+        self.loads.update_forces()
         if self.finite:
-            self.newton_report = report = self.newton.solve()
+            self.newton_report = report = self._newton_solve()
             log_report("macro", report)
             return SolveReport(report.reason, report.linear_residual)
         report = self._linear_solve()
@@ -246,6 +231,20 @@ class MacroProblem:
                 report.iterations, report.residual,
             )  # fmt: skip
         return report
+
+    def _newton_solve(self) -> NewtonReport:
+        """Newton's solve; with total forces, again until their tractions ``F / L`` hold at the
+        solution's edge lengths (a few extra iterations: L moves by the last correction only)."""
+        report = self.newton.solve()
+        for _ in range(MAX_FORCE_UPDATES):
+            if self.loads.update_forces() <= FORCE_LENGTH_RTOL:
+                return report
+            again = self.newton.solve()
+            report = replace(again, iterations=report.iterations + again.iterations)
+        raise RunError(
+            f"the total forces' tractions F / L did not settle in {MAX_FORCE_UPDATES} Newton "
+            "solves: the loaded edges' lengths keep changing (loads too large?)"
+        )
 
     def _linear_solve(self) -> SolveReport:
         """The linear-kinematics solve (MODEL.md 4) into u."""
