@@ -264,6 +264,23 @@ MUTANTS = (
         (("growth_weighted_work(Fe * macro_stress(u, Fg, C, K, phi_w, P1), psi, Fg, dx)",
           "growth_weighted_work(macro_stress(u, Fg, C, K, phi_w, P1) * Fe, psi, Fg, dx)"),),
     ),
+    # --- issue 20 ----------------------------------------------------------------------------
+    Mutant(
+        "load_imbalance_reference_length", "plantgrowth/models/macro/edge_loads.py",
+        "wrong configuration",
+        "load_imbalance summed with the tractions per reference length (the scene's balance "
+        "check once more) instead of per grown or current length",
+        (("n: fem.form(self.tractions[n][0] * factor * self.ds(self.tags[n])) for n in self.names",
+          "n: fem.form(self.tractions[n][0] * self.ds(self.tags[n])) for n in self.names"),),
+    ),
+    Mutant(
+        "edge_force_reference_length", "plantgrowth/models/macro/edge_loads.py",
+        "wrong configuration",
+        "a total force's traction F / L0 with the reference length L0 instead of the edge's "
+        "grown or current length L",
+        (("self._length = {n: fem.form(factor * self.ds(self.tags[n])) for n in self.names}",
+          "self._length = {n: fem.form(1.0 * self.ds(self.tags[n])) for n in self.names}"),),
+    ),
 )  # fmt: skip
 
 
