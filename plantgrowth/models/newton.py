@@ -147,9 +147,9 @@ class NewtonSolver:
         return value
 
     def min_det(self) -> tuple[float, np.ndarray]:
-        """Smallest ``det F`` over all cells (at the nodes of :mod:`plantgrowth.base.mesh_samples`)
-        and where it is."""
-        return self._minimum(self._det)
+        """Smallest ``det F`` over all cells (the exact minimum of its polynomial on each cell:
+        :meth:`plantgrowth.base.mesh_samples.MeshSamples.cell_minima`) and where it is."""
+        return _global_extreme(*self._det.cell_minima(), self.comm, np.argmin)
 
     def min_stretch(self) -> tuple[float, np.ndarray]:
         """Smallest principal elastic stretch over all cells (the same points) and where."""

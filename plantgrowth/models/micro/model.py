@@ -219,7 +219,7 @@ class MicroModel:
         det = self._deformation_det
         diagnostics.stop_if(
             diagnostics.growth_problems(Fg, self.layout.centres, G)
-            + diagnostics.inversion_problems(det.values(), det.points),
+            + diagnostics.inversion_problems(*det.cell_minima()),
             self.comm,
         )
         self.last_G = G
