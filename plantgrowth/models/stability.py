@@ -24,11 +24,13 @@ import numpy as np
 
 VOIGT_INDEX = np.array([[0, 2], [2, 1]])
 """v(M, J): the Voigt row of the tensor index pair (M, J)."""
-DIRECTIONS = 180
+DIRECTIONS = 90
 """Directions N = (cos phi, sin phi), phi in [0, pi), sampled before the parabolic refinement
-around the best one: Q(N) is a trigonometric polynomial of degree 2 in phi, so its smallest
-eigenvalue is smooth wherever it is simple, and a parabola through three samples 1 degree
-apart finds its minimum to ~1e-8 of the tensor's scale."""
+around the best one: Q(N) is a trigonometric polynomial of degree 1 in 2 phi, so its smallest
+eigenvalue is smooth wherever it is simple, and a parabola through three samples 2 degrees
+apart, then one 8 times closer (REFINEMENTS), find its minimum to ~1e-10 of the tensor's
+scale (tests/test_stability.py)."""
+REFINEMENTS = 2
 
 
 def elasticity_tensor(C_voigt: np.ndarray) -> np.ndarray:
@@ -45,54 +47,57 @@ def acoustic_tensor(Fe: np.ndarray, S: np.ndarray, C4: np.ndarray, N: np.ndarray
     return NSN[..., None, None] * np.eye(2) + np.einsum("nim,nkmp,njp->nkij", Fe, M, Fe)
 
 
-def _smallest_eigenvalue(Q: np.ndarray) -> np.ndarray:
-    """Smallest eigenvalue of symmetric 2x2 matrices (..., 2, 2), in closed form."""
-    a, b, d = Q[..., 0, 0], 0.5 * (Q[..., 0, 1] + Q[..., 1, 0]), Q[..., 1, 1]
-    return 0.5 * (a + d) - np.hypot(0.5 * (a - d), b)
-
-
 def smallest_acoustic_eigenvalue(
-    Fe: np.ndarray, S: np.ndarray, C_voigt: np.ndarray, chunk: int = 4096
+    Fe: np.ndarray, S: np.ndarray, C_voigt: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """The smallest eigenvalue of Q(N) over all unit directions N, per state, and the angle
     phi of that N (radians, in [0, pi)); (n,) each.
+
+    Q is linear in ``N (x) N = (I + cos(2 phi) J1 + sin(2 phi) J2) / 2`` (J1 = diag(1, -1),
+    J2 the symmetric swap), so ``Q(phi) = (Q[I] + cos(2 phi) Q[J1] + sin(2 phi) Q[J2]) / 2``:
+    three 2x2 matrices per state, then only elementwise arithmetic on the angle grid.
 
     Args:
         Fe: (n, 2, 2) elastic deformation (any rotation: only its stretch matters).
         S: (n, 2, 2) second Piola stress at that state (the pressure term included).
         C_voigt: (n, 3, 3) tangent ``dS/dE`` in Voigt storage (constant for St Venant-
             Kirchhoff laws and the homogenized ``S = E_hom Ee``).
-        chunk: states per vectorised block (memory: chunk x DIRECTIONS x 4 floats).
     """
+    C4 = elasticity_tensor(C_voigt)
+    X = np.array([np.eye(2), np.diag([1.0, -1.0]), np.array([[0.0, 1.0], [1.0, 0.0]])])
+    M = np.einsum("nmjpl,xjl->nxmp", C4, X)
+    SX = np.einsum("njl,xjl->nx", S, X)
+    Qx = 0.5 * (SX[..., None, None] * np.eye(2) + np.einsum("nim,nxmp,njp->nxij", Fe, M, Fe))
+
+    a, b, d = Qx[..., 0, 0], 0.5 * (Qx[..., 0, 1] + Qx[..., 1, 0]), Qx[..., 1, 1]  # (n, 3)
+
+    def at(c: np.ndarray, s: np.ndarray) -> np.ndarray:  # cos, sin of 2 phi -> eigenvalues
+        A = a[:, :1] + c * a[:, 1:2] + s * a[:, 2:]
+        B = b[:, :1] + c * b[:, 1:2] + s * b[:, 2:]
+        D = d[:, :1] + c * d[:, 1:2] + s * d[:, 2:]
+        half = 0.5 * (A - D)
+        return 0.5 * (A + D) - np.sqrt(half * half + B * B)
+
+    def at_angles(phi: np.ndarray) -> np.ndarray:
+        return at(np.cos(2.0 * phi), np.sin(2.0 * phi))
+
     step = np.pi / DIRECTIONS
-    phi = np.arange(DIRECTIONS) * step
-    out_value = np.empty(len(Fe))
-    out_phi = np.empty(len(Fe))
-    for start in range(0, len(Fe), chunk):
-        part = slice(start, start + chunk)
-        C4 = elasticity_tensor(C_voigt[part])
-
-        def at(angles: np.ndarray, C4=C4, part=part) -> np.ndarray:  # (n, k) for angles (n, k)
-            N = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-            return _smallest_eigenvalue(acoustic_tensor(Fe[part], S[part], C4, N))
-
-        n = len(C4)
-        grid = np.broadcast_to(phi, (n, DIRECTIONS))
-        values = at(grid)
-        best = np.argmin(values, axis=1)
-        rows = np.arange(n)
-        centre = phi[best]
-        trio = at(np.stack([centre - step, centre, centre + step], axis=1))
-        lo, mid, hi = trio.T
-        curvature = lo - 2.0 * mid + hi
+    grid = np.arange(DIRECTIONS) * step
+    values = at(np.cos(2.0 * grid), np.sin(2.0 * grid))
+    rows = np.arange(len(Fe))
+    best = np.argmin(values, axis=1)
+    phi, value = grid[best], values[rows, best]
+    for _ in range(REFINEMENTS):  # a parabola through phi and its neighbours, then closer
+        lo, hi = at_angles(np.stack([phi - step, phi + step], axis=1)).T
+        curvature = lo - 2.0 * value + hi
         with np.errstate(divide="ignore", invalid="ignore"):
             shift = np.where(curvature > 0.0, 0.5 * (lo - hi) / curvature, 0.0)
-        refined = centre + np.clip(shift, -1.0, 1.0) * step
-        value = at(refined[:, None])[:, 0]
-        keep = value < values[rows, best]
-        out_value[part] = np.where(keep, value, values[rows, best])
-        out_phi[part] = np.mod(np.where(keep, refined, centre), np.pi)
-    return out_value, out_phi
+        trial = phi + np.clip(shift, -1.0, 1.0) * step
+        at_trial = at_angles(trial[:, None])[:, 0]
+        better = at_trial < value
+        phi, value = np.where(better, trial, phi), np.where(better, at_trial, value)
+        step /= 8.0
+    return value, np.mod(phi, np.pi)
 
 
 def isotropic_voigt(E: float, nu: float) -> np.ndarray:
