@@ -189,8 +189,8 @@ MUTANTS = (
     Mutant(
         "interpolation_points_swapped", "plantgrowth/models/macro/model.py", "transposition",
         "coarse-node tensors interpolated at (x2, x1) instead of the fine cells' (x1, x2)",
-        (("interpolation_matrix(problem.midpoints[:, :2])",
-          "interpolation_matrix(problem.midpoints[:, 1::-1])"),),
+        (("scene.tissue.H, problem.midpoints[:, :2], comm",
+          "scene.tissue.H, problem.midpoints[:, 1::-1], comm"),),
     ),
     Mutant(
         "Fg_projection_transposed", "plantgrowth/models/macro/model.py", "transposition",

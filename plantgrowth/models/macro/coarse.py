@@ -82,6 +82,16 @@ def active_nodes(W: sp.csr_matrix, comm: MPI.Comm) -> np.ndarray:
     return comm.allreduce(local, op=MPI.SUM) > 0
 
 
+def coarse_grid_for(
+    width: float, height: float, H: float, midpoints: np.ndarray, comm: MPI.Comm
+) -> tuple[CoarseGrid, sp.csr_matrix, np.ndarray]:
+    """Collective: the coarse grid of edge about H on the box [0, width] x [0, height], its P1
+    weights at this rank's fine-cell ``midpoints`` (n, 2) and the :func:`active_nodes` mask."""
+    grid = CoarseGrid.with_edge(width, height, H)
+    W = grid.interpolation_matrix(midpoints)
+    return grid, W, active_nodes(W, comm)
+
+
 def project_to_nodes(
     W: sp.csr_matrix, areas: np.ndarray, values: np.ndarray, comm: MPI.Comm
 ) -> np.ndarray:

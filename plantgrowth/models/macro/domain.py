@@ -11,7 +11,7 @@ from mpi4py import MPI
 
 from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
 from plantgrowth.models.macro.boundary import Boundary, shape_domain
-from plantgrowth.models.macro.coarse import CoarseGrid, active_nodes
+from plantgrowth.models.macro.coarse import coarse_grid_for
 from plantgrowth.models.macro.problem import mesh_bounding_box, rectangle_mesh
 from plantgrowth.scene import Scene
 
@@ -30,12 +30,11 @@ class MacroDomain:
         non-rectangular tissue leaves some out: :func:`coarse.active_nodes`) and this rank's
         owned fine-cell midpoints, both (n, 2)."""
         msh = self.mesh
-        width, height = mesh_bounding_box(msh)
-        grid = CoarseGrid.with_edge(width, height, self.scene.tissue.H)
         owned = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
         midpoints = mesh.compute_midpoints(msh, 2, owned)[:, :2]
-        nodes = grid.nodes[active_nodes(grid.interpolation_matrix(midpoints), msh.comm)]
-        return nodes, midpoints
+        H = self.scene.tissue.H
+        grid, _, active = coarse_grid_for(*mesh_bounding_box(msh), H, midpoints, msh.comm)
+        return grid.nodes[active], midpoints
 
 
 def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroDomain:

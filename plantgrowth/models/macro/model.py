@@ -21,7 +21,7 @@ from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS
 from plantgrowth.models import diagnostics, growth
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.macro.boundary import Boundary
-from plantgrowth.models.macro.coarse import CoarseGrid, active_nodes, project_to_nodes
+from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.models.step import (
@@ -94,12 +94,12 @@ class MacroModel:
         self.problem = problem = MacroProblem(scene, mesh, boundary)
         self.mesh = problem.mesh
         width, height = problem.bounding_box
-        self.grid = CoarseGrid.with_edge(width, height, scene.tissue.H)
-        nodes = self.grid.nodes
-        self.W = self.grid.interpolation_matrix(problem.midpoints[:, :2])
         # cell problems only at the nodes the fine cells see; the others show (coarse.xdmf) the
         # values of their nearest active node
-        self.active = active_nodes(self.W, comm)
+        self.grid, self.W, self.active = coarse_grid_for(
+            width, height, scene.tissue.H, problem.midpoints[:, :2], comm
+        )
+        nodes = self.grid.nodes
         self._W_active = self.W[:, self.active]
         self._nearest = cKDTree(nodes[self.active]).query(nodes)[1]  # into the active nodes
         at_nodes, at_cells = (nodes[:, 0], nodes[:, 1]), problem.midpoints[:, :2].T
