@@ -53,15 +53,25 @@ def macro_stress(u, Fg, C, K, phi_w, P1):
     """Second Piola-Kirchhoff stress ``S = E_hom Ee + (K_hom + (phi_w - 1) I) P1`` (K = None:
     no pressure term)."""
     S = from_voigt(ufl.dot(C, voigt(green_lagrange_strain(u, Fg))))
-    if K is None:
-        return S
-    return S + (K + (phi_w - 1.0) * ufl.Identity(2)) * P1
+    return S if K is None else S + turgor_prestress(K, phi_w, P1)
+
+
+def turgor_prestress(K, phi_w, P1):
+    """``S_P = (K_hom + (phi_w - 1) I) P1``, the turgor part of the macro stress (MODEL.md 10)."""
+    return (K + (phi_w - 1.0) * ufl.Identity(2)) * P1
 
 
 def macro_residual(u, psi, Fg, C, K, phi_w, P1, dx) -> ufl.Form:
     """Volume part of the macro residual, ``int Jg (Fe S) : grad(psi) Fg^{-1} dx``."""
     Fe = elastic_deformation(u, Fg)
     return growth_weighted_work(Fe * macro_stress(u, Fg, C, K, phi_w, P1), psi, Fg, dx)
+
+
+def macro_prestress_work(u, psi, Fg, K, phi_w, P1, dx) -> ufl.Form:
+    """The turgor part of the macro residual, ``int Jg (Fe S_P) : grad(psi) Fg^{-1} dx`` with
+    ``S_P = (K_hom + (phi_w - 1) I) P1``: the step's external load from turgor."""
+    S_P = turgor_prestress(K, phi_w, P1)
+    return growth_weighted_work(elastic_deformation(u, Fg) * S_P, psi, Fg, dx)
 
 
 def current_length(u, n):

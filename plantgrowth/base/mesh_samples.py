@@ -38,6 +38,13 @@ class MeshSamples:
         geometry = msh.geometry.dofmap.array.reshape(-1, 3)[:owned]  # affine triangles
         self._vertices = msh.geometry.x[geometry, :2]
 
+    @property
+    def cell_areas(self) -> np.ndarray:
+        """(n_cells,) the owned cells' areas."""
+        a, b, c = (self._vertices[:, k] for k in range(3))
+        ab, ac = b - a, c - a
+        return 0.5 * np.abs(ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0])
+
     def values(self) -> np.ndarray:
         """The expression at :attr:`points`, evaluated now."""
         self._function.interpolate(self._expr)

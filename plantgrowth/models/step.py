@@ -10,6 +10,8 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from plantgrowth.models.stability import Ellipticity
+
 
 @dataclass
 class SideMesh:
@@ -88,6 +90,7 @@ class StepResult:
     newton_iterations: int = 0  # finite kinematics: Newton iterations of the step's solve
     newton_residual: float = 0.0  # finite kinematics: its final relative residual
     load_balance: LoadBalance | None = None  # macro with loads: their x1 resultants
+    ellipticity: Ellipticity | None = None  # where the material law is strongly elliptic
 
 
 class GrowthModel(Protocol):

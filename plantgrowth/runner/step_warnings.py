@@ -4,6 +4,9 @@
   elasticity for small strains;
 - the applied loads' net x1 force passes ``WARN_LOAD_IMBALANCE`` (1%) of the largest edge force
   (the pinned point carries it; above ``MAX_LOAD_IMBALANCE`` the run stops: runner.timeloop);
+- the material law loses strong ellipticity somewhere (the tissue is compressed beyond where its
+  walls would buckle: plantgrowth.models.stability); with ``numerics.on_instability = "stop"``,
+  the default, the run stops there instead (runner.timeloop);
 - the clamp M is active (some ``|G_ij| = M``) on more than ``MAX_CLAMPED_FRACTION`` (10%) of the
   tissue, area-weighted (macro: fine cells, micro: biological cells by their reference areas).
 """
@@ -48,6 +51,9 @@ class StepWarnings:
         balance = result.load_balance
         if balance is not None and balance.imbalance > WARN_LOAD_IMBALANCE:
             out += self._once("loads", f"step {step}, t = {t:g}: {balance.describe()}")
+        lost = result.ellipticity
+        if lost is not None and lost.nonelliptic_area_fraction > 0.0:
+            out += self._once("ellipticity", f"step {step}, t = {t:g}: {lost.describe(t)}")
         return out
 
     def _once(self, kind: str, text: str) -> list[str]:

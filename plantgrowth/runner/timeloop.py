@@ -36,6 +36,7 @@ SUMMARY_COLUMNS = [
     "step", "t", "area", "growth_rate_11", "growth_rate_22", "growth_rate_area",
     "u1_max", "u2_max", "det_Fg_min", "n_cell_solves", "residual",
     "substeps", "seconds", "seconds_cells", "seconds_solve", "seconds_growth", "seconds_io",
+    "nonelliptic_area_fraction",
 ]  # fmt: skip
 NEWTON_COLUMNS = ["newton_iterations", "newton_residual"]
 """Appended to SUMMARY_COLUMNS for ``kinematics = "finite"`` (linear runs keep those above)."""
@@ -208,6 +209,8 @@ def run_model(
                        newton_residual=result.newton_residual, **result.seconds)  # fmt: skip
             if result.load_balance is not None:
                 row["load_imbalance"] = result.load_balance.imbalance
+            if result.ellipticity is not None:
+                row["nonelliptic_area_fraction"] = result.ellipticity.nonelliptic_area_fraction
             row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
                    for k, v in row.items()}  # fmt: skip
             # fields (and cell rows), row, state: a kill between them leaves the state one step
@@ -226,6 +229,13 @@ def run_model(
                 "(%.1f s left)", prefix, step, n_steps, t, row["growth_rate_area"],
                 row["n_cell_solves"], newton, left,
             )  # fmt: skip
+            lost = result.ellipticity
+            stop = scene.numerics.on_instability == "stop"
+            if stop and lost is not None and lost.nonelliptic_area_fraction > 0.0:
+                raise RunError(
+                    f"step {step}, t = {t:g}: {lost.describe(t)} (the run stops; "
+                    'numerics.on_instability = "warn" goes on)'
+                )
             for text in warnings.check(step, t, result):
                 log.warning("warning: %s%s", prefix, text)
             balance = result.load_balance

@@ -78,6 +78,10 @@ inclined wall length l2 = 1)::
     macro = "auto"             # "direct" (LU), "iterative" (CG + GAMG, true relative residual
                                # <= 1e-10) or "auto": iterative from macro_threshold fine dofs on
     macro_threshold = 200000   # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
+    [numerics]
+    on_instability = "stop"    # where the material law loses strong ellipticity (the tissue is
+                               # compressed beyond where its walls would buckle): "stop" (a named
+                               # error, every completed step kept) or "warn" (once, and go on)
 
 The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
 holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is

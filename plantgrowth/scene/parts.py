@@ -339,6 +339,21 @@ class Solver:
         return "iterative" if ndofs >= self.macro_threshold else "direct"
 
 
+INSTABILITY_ACTIONS = ("stop", "warn")
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """What the run does where the material law loses strong ellipticity (the tissue is
+    compressed beyond where its walls would buckle: plantgrowth.models.stability): "stop" (a
+    named error after the step is written) or "warn" (once, and go on)."""
+
+    on_instability: str = "stop"
+
+    def __post_init__(self) -> None:
+        choice("numerics.on_instability", self.on_instability, INSTABILITY_ACTIONS)
+
+
 def load_component(key: str, x: object, length: float, along: bool) -> edge_loads.Component:
     """A number, or (on an edge of the rectangle, ``along``) {expr = "..."} of s
     (plantgrowth/scene/loads.py), checked along the edge."""

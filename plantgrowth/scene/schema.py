@@ -35,6 +35,7 @@ from plantgrowth.scene.parts import (
     CellGeometry,
     Growth,
     Material,
+    Numerics,
     Output,
     Solver,
     Time,
@@ -74,6 +75,7 @@ class Scene:
     micro_nx: int = 16
     micro_resolution: int = 2
     solver: Solver = Solver()
+    numerics: Numerics = Numerics()
     kinematics: str = "linear"
 
     def __post_init__(self) -> None:
@@ -205,6 +207,7 @@ class Scene:
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
         out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
         out["solver"] = {f.name: getattr(self.solver, f.name) for f in fields(self.solver)}
+        out["numerics"] = {"on_instability": self.numerics.on_instability}
         return out
 
     def dotted(self) -> dict[str, Any]:
@@ -389,6 +392,7 @@ def _parse(data: dict, directory: Path) -> Scene:
         micro_nx=t["micro"].get("nx", 16),
         micro_resolution=t["micro"].get("resolution", 2),
         solver=Solver(**t["solver"]),
+        numerics=Numerics(**t["numerics"]),
         kinematics=data.get("kinematics", "linear"),
     )
 

@@ -20,6 +20,7 @@ TABLES = {
     "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
     "solver": ("macro", "macro_threshold"),
+    "numerics": ("on_instability",),
 }
 
 # --- checks shared by the dataclasses and the loader ----------------------------------------------

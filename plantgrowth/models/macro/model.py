@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import MeshGather, dof_state, restore_dofs
 from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS
-from plantgrowth.models import diagnostics, growth
+from plantgrowth.models import diagnostics, growth, stability
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.macro.boundary import Boundary
 from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
@@ -47,9 +47,11 @@ class _Outputs:
         self.G = fem.Function(T0, name="G")
         self.sigma = fem.Function(T0, name="sigma_hom")
         self.eps = fem.Function(T0, name="eps_hom")
+        self.stability = fem.Function(problem.Q0, name="stability")
         self.growth = GrowthFields(problem.mesh, fields)
         chosen = {"u": problem.u, "Fg": problem.Fg, "G": self.G, "sigma_hom": self.sigma,
-                  "eps_hom": self.eps, **self.growth.functions}  # fmt: skip
+                  "eps_hom": self.eps, "stability": self.stability,
+                  **self.growth.functions}  # fmt: skip
         self.functions = [chosen[name] for name in fields if name in chosen]
 
 
@@ -210,7 +212,14 @@ class MacroModel:
             + diagnostics.inversion_problems(np.linalg.det(np.eye(2) + grad_u), midpoints),
             self.comm,
         )
+        stable = problem.stability_values()
+        owned = stable[:n_owned]
+        ellipticity = stability.check(
+            owned, owned < 0.0, problem.areas, midpoints[:n_owned], self.comm
+        )
         problem.set_cell_values(self.out.G, G)
+        if "stability" in self.out.fields:
+            problem.set_cell_values(self.out.stability, stable)
         problem.set_cell_values(self.out.sigma, sigma)
         if eps_hom is not None:
             problem.set_cell_values(self.out.eps, eps_hom)
@@ -227,7 +236,7 @@ class MacroModel:
             largest_strain(eps_el[:n], self.comm),
             clamped_fraction(G[:n], M, problem.areas, self.comm),
             *((newton.iterations, newton.residual) if newton else (0, 0.0)),
-            problem.loads.balance() if self.scene.loads else None,
+            problem.loads.balance() if self.scene.loads else None, ellipticity,
         )  # fmt: skip
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:

@@ -23,12 +23,20 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth.base.errors import RunError
+from plantgrowth.base.tensors import from_voigt_stress, voigt_vector
 from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction, grown_length
+from plantgrowth.models import growth, stability
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
 from plantgrowth.models.macro.boundary import Boundary, pinned_vertices, rectangle_boundary
 from plantgrowth.models.macro.edge_loads import FORCE_LENGTH_RTOL, EdgeLoads
-from plantgrowth.models.newton import NewtonReport, NewtonSolver, log_report
+from plantgrowth.models.newton import (
+    NEWTON_ATOL,
+    NewtonReport,
+    NewtonSolver,
+    global_extreme,
+    log_report,
+)
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -104,12 +112,14 @@ class MacroProblem:
         self.P2vec = None
         at_cells = self.midpoints[:, 0], self.midpoints[:, 1]
         P1 = grad_P1 = None
+        self.P1_cells = None  # (n_cells,) when a pressure term is assembled
         if not (scene.P1.is_constant and float(scene.P1(0.0, 0.0)) == 0.0):
             self.K = fem.Function(self.T0, name="K")
             # P1 at the cell midpoints: the one-point rule integrates a linear P1 exactly (every
             # other factor of both kinematics' forms is constant on a cell)
             P1 = fem.Function(self.Q0)
-            self.set_cell_values(P1, scene.P1(*at_cells))
+            self.P1_cells = scene.P1(*at_cells)
+            self.set_cell_values(P1, self.P1_cells)
             self.active_terms.append("pressure")
             if not scene.P1.is_constant:
                 grad_P1 = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)))
@@ -160,11 +170,17 @@ class MacroProblem:
         solver; tractions follow the deformed edges."""
         u, dx = self.u, ufl.dx
         residual = finite.macro_residual(u, psi, self.Fg, self.C, self.K, self.phi_w, P1, dx)
-        residual -= self.loads.terms(lambda f, n, ds: finite.follower_traction(u, f, psi, n, ds))
+        tractions = self.loads.terms(lambda f, n, ds: finite.follower_traction(u, f, psi, n, ds))
+        load = None
+        if self.K is not None:
+            load = finite.macro_prestress_work(u, psi, self.Fg, self.K, self.phi_w, P1, dx)
+        if tractions:
+            residual -= tractions
+            load = -tractions if load is None else load - tractions
         self.active_terms.append("finite kinematics (Newton, linear predictor)")
         self.newton = NewtonSolver(
-            residual, self.u, self.Fg, self.bcs, self._jacobian_solver,
-            predictor=self._linear_solve,
+            residual, self.u, self.bcs, self._jacobian_solver, load, self._newton_floor,
+            lambda: self.smallest_stability(), predictor=self._linear_solve,
             fallback=self._direct_jacobian_solver if self.solver == "iterative" else None,
         )  # fmt: skip
         self.newton_report: NewtonReport | None = None
@@ -249,6 +265,40 @@ class MacroProblem:
     def _linear_solve(self) -> SolveReport:
         """The linear-kinematics solve (MODEL.md 4) into u."""
         return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+
+    def stability_values(self) -> np.ndarray:
+        """(n_cells,) the normalised smallest acoustic eigenvalue of each cell at the current u
+        (plantgrowth.models.stability): the finite law ``S = E_hom Ee + (K_hom + (phi_w - 1) I)
+        P1`` at ``Fe = (I + grad u) Fg^-1``, or for linear kinematics at ``Ee = eps_el``."""
+        grad_u = self.grad_u()
+        Fg = self.cell_values(self.Fg).reshape(-1, 2, 2)
+        C = self.cell_values(self.C).reshape(-1, 3, 3)
+        if self.finite:
+            Fe = (np.eye(2) + grad_u) @ np.linalg.inv(Fg)
+            Ee = 0.5 * (np.swapaxes(Fe, 1, 2) @ Fe - np.eye(2))
+        else:
+            Ee = growth.elastic_strain(grad_u, Fg)
+            Fe = stability.stretch_of_strain(Ee)
+        S = from_voigt_stress(np.einsum("nij,nj->ni", C, voigt_vector(Ee)))
+        if self.K is not None:
+            phi_w = self.cell_values(self.phi_w)[:, 0]
+            prestress = self.cell_values(self.K).reshape(-1, 2, 2)
+            prestress = prestress + (phi_w - 1.0)[:, None, None] * np.eye(2)
+            S = S + prestress * self.P1_cells[:, None, None]
+        return stability.normalised(Fe, S, C)
+
+    def smallest_stability(self) -> tuple[float, np.ndarray]:
+        """Collective: the smallest :meth:`stability_values` of the owned cells and where."""
+        values = self.stability_values()[: self.n_owned]
+        return global_extreme(values, self.midpoints[: self.n_owned, :2], self.mesh.comm, np.argmin)
+
+    def _newton_floor(self) -> float:
+        """Collective: Newton's absolute floor, NEWTON_ATOL times the stiffest homogenized
+        modulus times the square root of the tissue's area."""
+        C = self.cell_values(self.C)[: self.n_owned].reshape(-1, 3, 3)
+        stiffest = float(np.max(C[:, [0, 1], [0, 1]], initial=0.0))
+        stiffest = self.mesh.comm.allreduce(stiffest, op=MPI.MAX)
+        return NEWTON_ATOL * stiffest * np.sqrt(self.total_area)
 
     def grad_u(self) -> np.ndarray:
         """(n_cells, 2, 2) displacement gradient per cell."""

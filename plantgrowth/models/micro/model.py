@@ -31,7 +31,8 @@ from plantgrowth.models import diagnostics, growth
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
 from plantgrowth.models.micro.outlines import CellOutlines
-from plantgrowth.models.newton import NewtonSolver, log_report
+from plantgrowth.models.micro.wall_stability import WallStability
+from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
 from plantgrowth.models.step import StepResult, clamped_fraction, largest_strain, max_abs_components
 from plantgrowth.scene import Scene
 
@@ -90,6 +91,7 @@ class MicroModel:
         membrane = ds(FACET_TAGS["membrane"])
         self.bcs = self._boundary_conditions(facet_tags)
         self.finite = scene.kinematics == "finite"
+        self.stability = WallStability(self.u, self.Fg, E, nu, self.finite)
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
         rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx)
         if np.any(self.pressure != 0.0):
@@ -101,12 +103,13 @@ class MicroModel:
         self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
         if self.finite:  # the linear solve above is Newton's predictor
             residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx)
+            load = None
             if np.any(self.pressure != 0.0):
-                residual += finite_forms.follower_pressure(self.u, psi, P, n, membrane)
+                load = finite_forms.follower_pressure(self.u, psi, P, n, membrane)
+                residual += load
             self.newton = NewtonSolver(
-                residual, self.u, self.Fg, self.bcs,
-                lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
-                predictor=self._linear_solve,
+                residual, self.u, self.bcs, lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
+                load, self._newton_floor, self.stability.smallest, predictor=self._linear_solve,
             )  # fmt: skip
         driving = (
             self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx)
@@ -131,6 +134,10 @@ class MicroModel:
         self.growth_fields = GrowthFields(msh, scene.output.fields)
         growth_outputs = list(self.growth_fields.functions.values())
         self.outputs = [self.u_out, self.Fg, self.G_out, ids, *growth_outputs]
+        self.stability_out = None
+        if "stability" in scene.output.fields:
+            self.stability_out = fem.Function(Q0, name="stability")
+            self.outputs.append(self.stability_out)
         self.outlines = CellOutlines(layout, self.u)
         membrane = ds(FACET_TAGS["membrane"])
         self._measure_forms = [
@@ -150,6 +157,12 @@ class MicroModel:
             "micro: Nx = %d, %d cells, %d dofs (P2), pressure %s",
             layout.nx, layout.n_cells, self.ndofs, "on" if np.any(self.pressure) else "off",
         )  # fmt: skip
+
+    def _newton_floor(self) -> float:
+        """Newton's absolute floor: NEWTON_ATOL times the stiffest wall's E times the square
+        root of the walls' area."""
+        stiffest = float(np.max(self.scene.material.E(*self.layout.centres.T)))
+        return NEWTON_ATOL * stiffest * np.sqrt(self.wall_area.sum())
 
     def _set(self, function: fem.Function, per_cell: np.ndarray) -> None:
         """DG0 function from values per biological cell (any trailing shape)."""
@@ -231,6 +244,13 @@ class MicroModel:
                 law = self.scene.growth.law
                 stress = (means if law == "stress" else self._stress_means()).reshape(-1, 2, 2)
             self.growth_fields.fill(G, stress, self._set)
+        ellipticity = self.stability.check()
+        if self.stability_out is not None:
+            out = self.stability_out
+            out.x.array[out.function_space.dofmap.list.array[: self.n_owned]] = (
+                self.stability.cell_minima()
+            )
+            out.x.scatter_forward()
         self.u_out.interpolate(self.u)
         t2 = time.perf_counter()
         return StepResult(
@@ -240,7 +260,8 @@ class MicroModel:
             clamped_fraction(
                 G, self.scene.growth.clamp, self.hexagon_area, MPI.COMM_SELF
             ),  # per-cell values are the same on every rank
-            *((newton.iterations, newton.residual) if newton else ()),
+            *((newton.iterations, newton.residual) if newton else (0, 0.0)),
+            ellipticity=ellipticity,
         )  # fmt: skip
 
     def _cell_geometry(self) -> tuple[np.ndarray, np.ndarray]:
