@@ -35,15 +35,6 @@ def green_lagrange_strain(u, Fg):
     return 0.5 * (Fe.T * Fe - ufl.Identity(2))
 
 
-def smallest_elastic_stretch(u, Fg):
-    """The smaller principal stretch of Fe, ``sqrt(lambda_min(Fe^T Fe))`` with
-    ``lambda_min = (tr C - sqrt((C11 - C22)^2 + 4 C12^2)) / 2`` (clipped at 0 against round-off)."""
-    Fe = elastic_deformation(u, Fg)
-    C = Fe.T * Fe
-    gap = ufl.sqrt((C[0, 0] - C[1, 1]) ** 2 + 4.0 * C[0, 1] ** 2)
-    return ufl.sqrt(ufl.max_value(0.5 * (ufl.tr(C) - gap), 0.0))
-
-
 def cofactor(F):
     """``cof(F) = det(F) F^{-T}``: maps reference normals times length to current ones."""
     return ufl.det(F) * ufl.inv(F).T

@@ -8,7 +8,12 @@ import pytest
 from scipy.optimize import brentq
 
 import plantgrowth as pg
-from plantgrowth.models.stability import isotropic_voigt, smallest_acoustic_eigenvalue, svk_stress
+from plantgrowth.models.stability import (
+    isotropic_voigt,
+    normalised,
+    smallest_acoustic_eigenvalue,
+    svk_stress,
+)
 
 E, NU = 1.0, 0.3
 LAM, MU = E * NU / (1 - NU**2), E / (2 * (1 + NU))  # plane stress
@@ -80,3 +85,41 @@ def test_the_homogenized_honeycomb_loses_ellipticity_under_a_percent_of_compress
     biaxial = brentq(lambda s: smallest_hom(s * np.eye(2)), 0.9, 0.9999, xtol=1e-12)
     uniaxial = brentq(lambda s: smallest_hom(np.diag([s, 1.0])), 0.9, 0.9999, xtol=1e-12)
     assert round(biaxial, 3) == 0.990 and round(uniaxial, 2) == 0.98
+
+
+def test_the_normalisation_is_the_shear_modulus_of_isotropic_walls():
+    """At rest the normalised value of isotropic walls is 1 (Q(N) = M(N), smallest eigenvalue
+    mu); 1e-12: round-off of the parabolic refinement's arithmetic."""
+    C = isotropic_voigt(np.array([0.5, 2.0]), np.array([0.2, 0.45]))
+    rest = np.tile(np.eye(2), (2, 1, 1))
+    assert np.allclose(normalised(rest, np.zeros((2, 2, 2)), C), 1.0, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("finite", [True, False])
+def test_the_walls_are_judged_at_their_p2_samples(finite):
+    """WallStability on a P2 field u = (A - I) x (exact in P2), Fg = I: every sample has the
+    closed form's value for ``Fe = A`` (finite) or ``Fe = sqrt(I + 2 sym(A - I))`` (linear);
+    a uniaxial strain of stretch 0.7 is elliptic and 0.6 is not (the loss is at 0.6545), so the
+    whole area is elliptic, then non-elliptic."""
+    from dolfinx import fem
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
+    from plantgrowth.models.micro.wall_stability import WallStability
+
+    msh = dmesh.create_unit_square(MPI.COMM_WORLD, 3, 3)
+    V = fem.VectorFunctionSpace(msh, ("Lagrange", 2))
+    Q0 = fem.FunctionSpace(msh, ("DG", 0))
+    T0 = fem.TensorFunctionSpace(msh, ("DG", 0))
+    u, Fg = fem.Function(V), fem.Function(T0)
+    Fg.interpolate(lambda x: np.tile(np.eye(2).reshape(4, 1), x.shape[1]))
+    E, nu = fem.Function(Q0), fem.Function(Q0)
+    E.x.array[:], nu.x.array[:] = 1.0, NU
+    walls = WallStability(u, Fg, E, nu, finite)
+    for s, fraction in ((0.7, 0.0), (0.6, 1.0)):
+        A = np.diag([s, 1.0]) if finite else np.diag([1.0 + 0.5 * (s * s - 1.0), 1.0])
+        u.interpolate(lambda x, A=A: (A - np.eye(2)) @ x[:2])
+        check = walls.check()
+        expected = smallest(np.diag([s, 1.0])) / MU
+        assert check.smallest == pytest.approx(expected, rel=1e-9)
+        assert check.nonelliptic_area_fraction == fraction

@@ -1,5 +1,5 @@
 """A UFL expression sampled at the nodes of a discontinuous space on the owned mesh cells: the
-pointwise checks (det F > 0, the elastic stretch floor) at enough points per cell to see a
+pointwise checks (det F > 0, the walls' ellipticity) at enough points per cell to see a
 corner.
 
 ``det F`` of a P_k displacement is a polynomial of degree ``2 (k - 1)`` on each triangle:
