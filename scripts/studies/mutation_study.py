@@ -281,6 +281,32 @@ MUTANTS = (
         (("self._length = {n: fem.form(factor * self.ds(self.tags[n])) for n in self.names}",
           "self._length = {n: fem.form(1.0 * self.ds(self.tags[n])) for n in self.names}"),),
     ),
+    Mutant(
+        "acoustic_tensor_transposed", "plantgrowth/models/stability.py", "wrong index",
+        "the acoustic tensor's geometric part Fe^T M(N) Fe instead of Fe M(N) Fe^T (the tangent's "
+        "indices contracted in the wrong order: the same for a pure stretch)",
+        (("Qx = Fe[:, None] @ M @ np.swapaxes(Fe, 1, 2)[:, None]",
+          "Qx = np.swapaxes(Fe, 1, 2)[:, None] @ M @ Fe[:, None]"),),
+    ),
+    Mutant(
+        "newton_tolerance_on_the_residual", "plantgrowth/models/newton.py", "wrong scale",
+        "Newton's relative tolerance taken against the whole residual at the initial guess, "
+        "growth mismatch included, instead of the external load",
+        (("load = 0.0 if self.load is None else self.residual_norm(self.load)",
+          "load = self.residual_norm()"),),
+    ),
+    Mutant(
+        "newton_guess_by_residual_only", "plantgrowth/models/newton.py", "missing check",
+        "the initial guesses ranked by their residual alone (no ellipticity): the collapsed "
+        "state's small residual wins",
+        (("return (True, stable >= 0.0, min(stable, 0.0), -r)", "return (True, -r)"),),
+    ),
+    Mutant(
+        "newton_linear_solves_unchecked", "plantgrowth/models/newton.py", "missing check",
+        "a failed linear solve of Newton's without a fallback goes on (the natural-monotonicity "
+        "solve's convergence was never checked)",
+        (("                diagnostics.stop_if(problems, self.comm)\n", ""),),
+    ),
 )  # fmt: skip
 
 
