@@ -212,7 +212,7 @@ class MacroModel:
             + diagnostics.inversion_problems(np.linalg.det(np.eye(2) + grad_u), midpoints),
             self.comm,
         )
-        stable = problem.stability_values()
+        stable = problem.stability_values(grad_u)
         owned = stable[:n_owned]
         ellipticity = stability.check(
             owned, owned < 0.0, problem.areas, midpoints[:n_owned], self.comm
