@@ -219,7 +219,8 @@ class MacroModel:
         )
         problem.set_cell_values(self.out.G, G)
         if "stability" in self.out.fields:
-            problem.set_cell_values(self.out.stability, stable)
+            exact = problem.stability_values(grad_u, screened=False)
+            problem.set_cell_values(self.out.stability, exact)
         problem.set_cell_values(self.out.sigma, sigma)
         if eps_hom is not None:
             problem.set_cell_values(self.out.eps, eps_hom)

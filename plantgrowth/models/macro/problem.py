@@ -266,11 +266,14 @@ class MacroProblem:
         """The linear-kinematics solve (MODEL.md 4) into u."""
         return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
 
-    def stability_values(self, grad_u: np.ndarray | None = None) -> np.ndarray:
+    def stability_values(
+        self, grad_u: np.ndarray | None = None, screened: bool = True
+    ) -> np.ndarray:
         """(n_cells,) the normalised smallest acoustic eigenvalue of each cell at the current u
-        (plantgrowth.models.stability): the finite law ``S = E_hom Ee + (K_hom + (phi_w - 1) I)
-        P1`` at ``Fe = (I + grad u) Fg^-1``, or for linear kinematics at ``Ee = eps_el``
-        (``grad_u``: the current one if the caller has it)."""
+        (plantgrowth.models.stability.normalised; ``screened``: exact in sign only): the finite
+        law ``S = E_hom Ee + (K_hom + (phi_w - 1) I) P1`` at ``Fe = (I + grad u) Fg^-1``, or for
+        linear kinematics at ``Ee = eps_el`` (``grad_u``: the current one if the caller has
+        it)."""
         grad_u = self.grad_u() if grad_u is None else grad_u
         Fg = self.cell_values(self.Fg).reshape(-1, 2, 2)
         C = self.cell_values(self.C).reshape(-1, 3, 3)
@@ -286,7 +289,7 @@ class MacroProblem:
             prestress = self.cell_values(self.K).reshape(-1, 2, 2)
             prestress = prestress + (phi_w - 1.0)[:, None, None] * np.eye(2)
             S = S + prestress * self.P1_cells[:, None, None]
-        return stability.normalised(Fe, S, C)
+        return stability.normalised(Fe, S, C, screened)
 
     def smallest_stability(self) -> tuple[float, np.ndarray]:
         """Collective: the smallest :meth:`stability_values` of the owned cells and where."""

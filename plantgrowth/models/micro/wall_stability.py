@@ -37,11 +37,12 @@ class WallStability:
         E_at, nu_at = (MeshSamples(f, msh, 2).values() for f in (E, nu))
         self._C = stability.isotropic_voigt(E_at, nu_at)
 
-    def values(self) -> np.ndarray:
-        """(n,) normalised smallest acoustic eigenvalue at each sample point, now."""
+    def values(self, screened: bool = True) -> np.ndarray:
+        """(n,) normalised smallest acoustic eigenvalue at each sample point, now (``screened``:
+        exact in sign only, plantgrowth.models.stability.normalised)."""
         T = np.stack([p.values() for p in self._parts], axis=1).reshape(-1, 2, 2)
         Fe = T if self.finite else stability.stretch_of_strain(0.5 * (T + np.swapaxes(T, 1, 2)))
-        return stability.normalised(Fe, stability.svk_stress(Fe, self._C), self._C)
+        return stability.normalised(Fe, stability.svk_stress(Fe, self._C), self._C, screened)
 
     def check(self) -> stability.Ellipticity:
         """Collective: the step's :class:`plantgrowth.models.stability.Ellipticity`."""
@@ -55,5 +56,5 @@ class WallStability:
 
     def cell_minima(self) -> np.ndarray:
         """(n_cells,) the smallest value of each owned triangle (the ``stability`` field)."""
-        return self.values().reshape(-1, SAMPLES_PER_CELL).min(axis=1)
+        return self.values(screened=False).reshape(-1, SAMPLES_PER_CELL).min(axis=1)
 
