@@ -47,12 +47,20 @@ _OFFSET = 2**20  # finest-lattice integers are keyed in [-OFFSET, OFFSET): |s| <
 
 def split_growth(Fg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotations R (n, 2, 2) and stretch coordinates s (n, 2) with
-    ``Fg / sqrt(det Fg) = R expm([[s1, s2], [s2, -s1]])``."""
+    ``Fg / sqrt(det Fg) = R expm([[s1, s2], [s2, -s1]])``, in closed form: R turns by
+    ``atan2(F21 - F12, F11 + F22)``, ``U = R^T F`` (symmetric, det 1), and
+    ``U = cosh(r) I + sinh(r)/r S`` gives ``r = arccosh(tr U / 2)``, ``S = (U - cosh(r) I) r /
+    sinh(r)``."""
     F = Fg / np.sqrt(np.linalg.det(Fg))[:, None, None]
-    w, V = np.linalg.eigh(np.einsum("nki,nkj->nij", F, F))  # F^T F = U^2
-    U_inv = np.einsum("nik,nk,njk->nij", V, 1.0 / np.sqrt(w), V)
-    S = np.einsum("nik,nk,njk->nij", V, 0.5 * np.log(w), V)  # log U
-    return F @ U_inv, np.column_stack([0.5 * (S[:, 0, 0] - S[:, 1, 1]), S[:, 0, 1]])
+    angle = np.arctan2(F[:, 1, 0] - F[:, 0, 1], F[:, 0, 0] + F[:, 1, 1])
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+    U = np.swapaxes(R, 1, 2) @ F
+    r = np.arccosh(np.maximum(0.5 * (U[:, 0, 0] + U[:, 1, 1]), 1.0))
+    scale = np.divide(r, np.sinh(r), out=np.ones_like(r), where=r > 0.0)
+    s1 = 0.5 * (U[:, 0, 0] - U[:, 1, 1]) * scale
+    s2 = 0.5 * (U[:, 0, 1] + U[:, 1, 0]) * scale
+    return R, np.column_stack([s1, s2])
 
 
 def stretch(s: Sequence[float]) -> np.ndarray:

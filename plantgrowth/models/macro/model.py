@@ -27,11 +27,12 @@ from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS
 from plantgrowth.models import diagnostics, growth
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.macro.boundary import Boundary
-from plantgrowth.models.macro.coarse import coarse_grid_for, project_to_nodes
+from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.models.macro.resolution import field_sampling
 from plantgrowth.models.step import (
+    SideMesh,
     StepResult,
     clamped_fraction,
     largest_strain,
@@ -44,8 +45,8 @@ log = logging.getLogger("plantgrowth")
 
 
 class _Outputs:
-    """The DG0/P1 functions written to fields.xdmf, only those the scene asks for (E_hom as its
-    six Voigt components per fine cell, E1111, ...; the growth outputs: :class:`GrowthFields`)."""
+    """The DG0/P1 functions written to fields.xdmf, only those the scene asks for (E_hom goes to
+    the coarse nodes: see :func:`coarse_output`; the growth outputs: :class:`GrowthFields`)."""
 
     def __init__(self, problem: MacroProblem, fields: tuple[str, ...]) -> None:
         self.fields = fields
@@ -53,18 +54,19 @@ class _Outputs:
         self.G = fem.Function(T0, name="G")
         self.sigma = fem.Function(T0, name="sigma_hom")
         self.eps = fem.Function(T0, name="eps_hom")
-        self.E_hom = [fem.Function(problem.Q0, name=name) for name in VOIGT_NAMES]
         self.growth = GrowthFields(problem.mesh, fields)
-        chosen = {"u": [problem.u], "Fg": [problem.Fg], "G": [self.G], "sigma_hom": [self.sigma],
-                  "eps_hom": [self.eps], "E_hom": self.E_hom,
-                  **{k: [f] for k, f in self.growth.functions.items()}}  # fmt: skip
-        self.functions = [f for name in fields for f in chosen.get(name, [])]
+        chosen = {"u": problem.u, "Fg": problem.Fg, "G": self.G, "sigma_hom": self.sigma,
+                  "eps_hom": self.eps, **self.growth.functions}  # fmt: skip
+        self.functions = [chosen[name] for name in fields if name in chosen]
 
-    def fill_E_hom(self, C: np.ndarray, set_cell_values) -> None:
-        """E_hom's components from the cells' Voigt matrices C (n_cells, 3, 3)."""
-        if "E_hom" in self.fields:
-            for function, (i, j) in zip(self.E_hom, VOIGT_POSITIONS, strict=True):
-                set_cell_values(function, C[:, i, j])
+
+def coarse_output(grid: CoarseGrid, fields: tuple[str, ...]) -> SideMesh:
+    """The coarse-node fields the scene asks for (E_hom's six components) on the coarse grid:
+    a compact view for plots, the lumped L2 average of the fine cells' E_hom (the run itself
+    uses each fine cell's own tensors on the surrogate path)."""
+    names = VOIGT_NAMES if "E_hom" in fields else ()
+    return SideMesh("coarse.xdmf", "CoarseMesh", "coarse", grid.nodes, grid.triangles,
+                    {name: ("Node", 1) for name in names})  # fmt: skip
 
 
 def _pruning_report(problem: MacroProblem, scene: Scene, strain_averages: bool) -> list[str]:
@@ -122,7 +124,7 @@ class MacroModel:
         )  # fmt: skip
         self.out = _Outputs(problem, scene.output.fields)
         self.outputs = self.out.functions
-        self.side_output = None
+        self.side_output = coarse_output(self.grid, scene.output.fields)
         self.cell_table = None  # per-cell rows (cells.csv): micro only
         self.output_space = problem.V
         self._gather = MeshGather(problem.V)
@@ -202,6 +204,15 @@ class MacroModel:
             ).reshape(-1, *v.shape[1:])  # fmt: skip
         return NodeTensors(**parts)
 
+    def _fill_coarse_E_hom(self, C: np.ndarray) -> None:
+        """E_hom's components at the coarse nodes: the lumped L2 average of the owned fine
+        cells' values (:func:`project_to_nodes`; a node outside the tissue gets the mean)."""
+        n = self.problem.n_owned
+        values = C[:n][:, [i for i, _ in VOIGT_POSITIONS], [j for _, j in VOIGT_POSITIONS]]
+        nodes = project_to_nodes(self.W[:n], self.problem.areas, values, self.comm)
+        for k, name in enumerate(VOIGT_NAMES):
+            self.side_output.values[name] = nodes[:, k]
+
     def step(self, Fg: np.ndarray) -> StepResult:
         problem, law = self.problem, self.scene.growth.law
         t0 = time.perf_counter()
@@ -242,7 +253,8 @@ class MacroModel:
         if eps_hom is not None:
             problem.set_cell_values(self.out.eps, eps_hom)
         self.out.growth.fill(G, sigma, problem.set_cell_values)
-        self.out.fill_E_hom(C, problem.set_cell_values)
+        if self.side_output.fields:
+            self._fill_coarse_E_hom(C)
         t3 = time.perf_counter()
         n, M = problem.n_owned, self.scene.growth.clamp
         newton = problem.newton_report if problem.finite else None
