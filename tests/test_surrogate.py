@@ -70,7 +70,7 @@ def test_error_estimate_bounds_the_true_error_on_random_inputs(tolerance):
     h = homogenizer(tolerance)
     table = h._key(GEOMETRY[0], 0.3, np.eye(2))[:5]
     s = np.random.default_rng(3).uniform(-0.3, 0.3, size=(40, 2))
-    answer = h.surrogate.evaluate([surrogate.Query(table, x) for x in s])
+    answer = h.surrogate.evaluate([table], np.zeros(len(s), dtype=int), s)
     values, estimates, solves = answer.values, answer.estimates, answer.solves
     exact = np.array([h._solve_stretch(table, surrogate.stretch(x)) for x in s])
     errors = h.surrogate.relative_difference(values, exact)
@@ -143,9 +143,9 @@ def test_each_rank_refines_only_its_block_of_queries(monkeypatch):
     rows: list[int] = []
     original = surrogate.LatticeSurrogate._interpolate
 
-    def counting(self, tables, points, weights):
-        rows.append(len(tables))
-        return original(self, tables, points, weights)
+    def counting(self, ids, points, weights):
+        rows.append(len(ids))
+        return original(self, ids, points, weights)
 
     monkeypatch.setattr(surrogate.LatticeSurrogate, "_interpolate", counting)
     Fg = random_growth(np.random.default_rng(7), 12, spread=0.15)

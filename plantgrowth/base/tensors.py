@@ -83,9 +83,12 @@ def tensor_from_voigt(C: np.ndarray) -> np.ndarray:
 
 def rotate2(R: np.ndarray, T: np.ndarray) -> np.ndarray:
     """``R T R^T`` for stacks (n, 2, 2) of rotations and 2nd-order tensors."""
-    return np.einsum("nia,nab,njb->nij", R, T, R)
+    return R @ T @ np.swapaxes(R, 1, 2)
 
 
 def rotate4(R: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """``T'_ijkl = R_ia R_jb R_kc R_ld T_abcd`` for stacks (n, ...) of 4th-order tensors."""
-    return np.einsum("nia,njb,nkc,nld,nabcd->nijkl", R, R, R, R, T)
+    """``T'_ijkl = R_ia R_jb R_kc R_ld T_abcd`` for stacks (n, ...) of 4th-order tensors, as
+    ``Q T Q^T`` with ``Q = R (x) R`` on the index pairs (ij), (kl): two batched 4 x 4 products."""
+    n = len(R)
+    Q = (R[:, :, None, :, None] * R[:, None, :, None, :]).reshape(n, 4, 4)
+    return (Q @ T.reshape(n, 4, 4) @ np.swapaxes(Q, 1, 2)).reshape(n, 2, 2, 2, 2)

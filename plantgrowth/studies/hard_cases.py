@@ -2,10 +2,10 @@
 
 :func:`evaluate` runs one scene through :func:`plantgrowth.runner.timeloop.run_model` with a
 per-step callback and returns the criterion values, a pass/fail per criterion and the wall time. The
-callback reads only public attributes of :class:`~plantgrowth.models.macro.model.MacroModel`; the
-coarse-node E_hom, which the model does not keep, is recomputed from the cell-problem cache (same
-keys, no new cell solves). Scenes are plain TOML dictionaries here, so that the cheap (CI) and
-refined variants are derived from one file: :func:`cheap`, :func:`refined`, :func:`with_overrides`.
+callback reads only public attributes of :class:`~plantgrowth.models.macro.model.MacroModel`
+(E_hom: the fine cells' values the step's solve used). Scenes are plain TOML dictionaries here,
+so that the cheap (CI) and refined variants are derived from one file: :func:`cheap`,
+:func:`refined`, :func:`with_overrides`.
 
 Criteria (all collective over the mesh's communicator):
 
@@ -39,7 +39,6 @@ from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.models.diagnostics import RESIDUAL_BOUND
-from plantgrowth.models.macro.coarse import project_to_nodes
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import rectangle_mesh
 from plantgrowth.runner.output import prepare_directory
@@ -159,11 +158,7 @@ class _Observer:
         sigma = problem.cell_values(model.out.sigma).reshape(-1, 2, 2)[:n]
         grad_u = problem.grad_u()[:n]
         u = problem.u.x.array
-        # E_hom at the coarse nodes, as MacroModel.step computed it (cached cell results)
-        Fg_nodes = project_to_nodes(model.W[:n], problem.areas, Fg.reshape(-1, 4), model.comm)
-        C = model.homogenizer.homogenize(
-            model.geometry, model.E_nodes, model.nu_nodes, Fg_nodes.reshape(-1, 2, 2)
-        ).C
+        C = problem.cell_values(problem.C).reshape(-1, 3, 3)[:n]  # E_hom of the step's solve
         arrays = (Fg, G, sigma, grad_u, u, C)
         self.finite &= all(bool(np.all(np.isfinite(a))) for a in arrays)
         if not self.finite:
@@ -173,9 +168,10 @@ class _Observer:
         self.E_min_eig = min(self.E_min_eig, float(eig[:, 0].min()))
         asym = np.abs(C - np.swapaxes(C, 1, 2)).max() / np.abs(C).max()
         self.E_asym_max = max(self.E_asym_max, float(asym))
-        if step == 0:
+        if step == 0:  # area-weighted over the tissue
             E1 = C[:, 0, 0] - C[:, 0, 1] ** 2 / C[:, 1, 1]
-            self.E1_mean_step0 = float(E1.mean())
+            total = model.comm.allreduce(float(np.sum(problem.areas * E1)), op=MPI.SUM)
+            self.E1_mean_step0 = total / problem.total_area
         self.reason_min = min(self.reason_min, int(problem.ksp.getConvergedReason()))
         if n == 0:
             return
@@ -205,7 +201,7 @@ class _Observer:
             "det_Fg_min_ratio": comm.allreduce(self.det_ratio_min, op=MIN),
             "E_hom_min_eig": comm.allreduce(self.E_min_eig, op=MIN),
             "E_hom_asym_max": comm.allreduce(self.E_asym_max, op=MAX),
-            "E1_mean_step0": self.E1_mean_step0,  # coarse nodes are replicated
+            "E1_mean_step0": self.E1_mean_step0,  # the same on every rank
             "solve_reason_min": comm.allreduce(self.reason_min, op=MIN),
             "det_deformation_min": comm.allreduce(self.det_def_min, op=MIN),
             "G_abs_max": comm.allreduce(self.G_abs_max, op=MAX),

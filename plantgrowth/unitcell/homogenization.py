@@ -1,4 +1,5 @@
-"""Cell problems at the coarse nodes, solved once per distinct input (paper Algorithm 3).
+"""Cell problems at the coarse nodes or fine cells, solved once per distinct input (paper
+Algorithm 3).
 
 Inputs are reduced before solving, by exact invariances of the cell problems (MODEL.md 3):
 - ``Fg -> Fg / sqrt(det Fg)``: scaling Fg by g scales the cell solutions by g and leaves every
@@ -12,7 +13,9 @@ exchanged with one ``allgather``.
 With ``cell_tolerance > 0`` the growth state goes through :mod:`plantgrowth.unitcell.surrogate`
 instead (rotation split off exactly, the stretch interpolated on lattices refined to the tolerance),
 backed by the on-disk cache of :mod:`plantgrowth.unitcell.cache`; every ``CHECK_EVERY``-th call
-also solves one of its queries exactly and logs the surrogate's error there.
+also solves one of its queries exactly and logs the surrogate's error there. A lookup costs
+microseconds, so each fine cell can ask with its own Fg and E; only the cell geometry and nu,
+which pick the lattice (the table), stay sampled at the coarse nodes (P1 weights).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import time
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.sparse as sp
 from mpi4py import MPI
 
 from plantgrowth.base.tensors import rotate2, rotate4, tensor_from_voigt, voigt_matrix
@@ -39,7 +43,7 @@ CHECK_EVERY = 10
 
 @dataclass(frozen=True)
 class NodeTensors:
-    """Homogenized fields at the coarse nodes (n nodes). Absent pieces are None."""
+    """Homogenized fields at n points (coarse nodes or fine cells). Absent pieces are None."""
 
     C: np.ndarray  # (n, 3, 3) Voigt matrix of E_hom
     phi_w: np.ndarray  # (n,)
@@ -102,7 +106,7 @@ class Homogenizer:
             )
             fingerprint = (resolution, pressure, strain_averages)
             self.cache = CellCache(cache_root(), fingerprint, comm)
-            self._tables: set[tuple] = set()
+            self._loaded: set[tuple] = set()  # tables whose cached lattice is loaded
             self._calls = 0
             self._rng = np.random.default_rng(0)  # the same draws on every rank
             self.checks = 0
@@ -129,17 +133,30 @@ class Homogenizer:
         return self._solve_exact(tuple(values[:4]), values[4], U)
 
     def homogenize(
-        self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray
+        self,
+        geometry: np.ndarray,
+        E: np.ndarray,
+        nu: np.ndarray,
+        Fg: np.ndarray,
+        weights: sp.spmatrix | None = None,
     ) -> NodeTensors:
-        """Homogenized tensors at n nodes.
+        """Homogenized tensors at n points from m sample nodes.
 
         Args:
-            geometry: (n, 4) cell parameters (l1, l2, theta in degrees, w) per node.
-            E, nu: (n,) wall moduli per node.
-            Fg: (n, 2, 2) growth tensors per node.
+            geometry: (m, 4) cell parameters (l1, l2, theta in degrees, w) per node.
+            E: (n,) wall moduli per point (the E factor is exact: E_hom ~ E, dbar[v] ~ 1/E).
+            nu: (m,) Poisson ratios per node.
+            Fg: (n, 2, 2) growth tensors per point.
+            weights: None: the points are the nodes (n = m, the same arrays on every rank,
+                each rank computing a block of them). Else (surrogate only) this rank's own
+                points and the nodes' P1 weights there, (n, m): point p gets
+                ``sum_k W_pk T(geometry_k, nu_k; Fg_p) E_p``, each node's table asked at the
+                point's own Fg.
         """
         start = time.perf_counter()
-        if self.surrogate is None:
+        if weights is not None:
+            tensors = self._interpolate(geometry, E, nu, Fg, weights)
+        elif self.surrogate is None:
             keys = [self._key(g, v, F) for g, v, F in zip(geometry, nu, Fg, strict=True)]
             new = sorted(set(keys) - self._results.keys())
             self._results.update(self.scheduler.solve_all(new, lambda k: k[:4], self._solve))
@@ -147,28 +164,44 @@ class Homogenizer:
             packed = np.array([self._results[k] for k in keys])
             tensors = self._unpack(packed, E)
         else:
-            tensors = self._interpolate(geometry, E, nu, Fg)
+            n, size, rank = len(Fg), self.comm.size, self.comm.rank
+            block = slice(n * rank // size, n * (rank + 1) // size)
+            mine = sp.identity(n, format="csr")[block]
+            tensors = self._all_blocks(self._interpolate(geometry, E[block], nu, Fg[block], mine))
         self.seconds_last_call = time.perf_counter() - start
         return tensors
 
-    def _interpolate(
-        self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray
-    ) -> NodeTensors:
-        """The surrogate's answer: stretch interpolated, rotation applied exactly, each rank
-        for its own block of the nodes, the blocks then exchanged."""
-        n, size, rank = len(Fg), self.comm.size, self.comm.rank
-        block = slice(n * rank // size, n * (rank + 1) // size)
+    def _tables(self, geometry: np.ndarray, nu: np.ndarray) -> tuple[list[tuple], np.ndarray]:
+        """The distinct rounded (geometry, nu) of the nodes (as in :meth:`_key`) and each node's
+        index among them; their lattices loaded from the cache (collective: the nodes are the
+        same on every rank)."""
         rounded = np.round(np.column_stack([geometry, nu]) / self.tol).astype(np.int64)
-        for table in sorted(set(map(tuple, np.unique(rounded, axis=0).tolist())) - self._tables):
-            self.surrogate.add(self.cache.load(table))  # collective: all ranks' tables
-            self._tables.add(table)
-        R, s = surrogate.split_growth(Fg[block])
-        tables = [tuple(row) for row in rounded[block].tolist()]  # as in _key
-        queries = [surrogate.Query(t, q) for t, q in zip(tables, s, strict=True)]
-        answer = self.surrogate.evaluate(queries)
+        unique, node_table = np.unique(rounded, axis=0, return_inverse=True)
+        tables = [tuple(row) for row in unique.tolist()]
+        for table in sorted(set(tables) - self._loaded):
+            self.surrogate.add(self.cache.load(table))
+            self._loaded.add(table)
+        return tables, node_table.ravel()
+
+    def _interpolate(
+        self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray, weights
+    ) -> NodeTensors:
+        """The surrogate's answer at this rank's points: for each point and each table its
+        nodes weigh (merged: a table met at several nodes is asked once), the stretch
+        interpolated, then combined with the weights, scaled by E and rotated exactly."""
+        n = len(Fg)
+        tables, node_table = self._tables(geometry, nu)
+        W = weights.tocoo()
+        pairs = sp.csr_matrix((W.data, (W.row, node_table[W.col])), shape=(n, len(tables)))
+        pairs.sum_duplicates()
+        pairs.eliminate_zeros()
+        point = np.repeat(np.arange(n), np.diff(pairs.indptr))
+        R, s = surrogate.split_growth(Fg)
+        answer = self.surrogate.evaluate(tables, pairs.indices, s[point])
         self.cache.save(self.surrogate.take_new_points())
-        self.solves_last_call = answer.solves + self._check(queries, answer)
-        tensors = self._unpack(answer.values, E[block])
+        self.solves_last_call = answer.solves + self._check(tables, pairs.indices, s[point], answer)
+        combine = sp.csr_matrix((pairs.data, (point, np.arange(len(point)))), (n, len(point)))
+        tensors = self._unpack(combine @ answer.values, E)
         C = voigt_matrix(rotate4(R, tensor_from_voigt(tensors.C)))
         rotated = {"C": C}
         for name in ("K", "dbar_v"):
@@ -176,7 +209,7 @@ class Homogenizer:
                 rotated[name] = rotate2(R, getattr(tensors, name))
         if tensors.dbar_w is not None:
             rotated["dbar_w"] = rotate4(R, tensors.dbar_w)
-        return self._all_blocks(replace(tensors, **rotated))
+        return replace(tensors, **rotated)
 
     def _all_blocks(self, mine: NodeTensors) -> NodeTensors:
         """The tensors of all nodes from every rank's block (in rank order)."""
@@ -185,10 +218,12 @@ class Homogenizer:
         joined = [[getattr(b, name) for b in blocks] for name in names]
         return NodeTensors(*(None if p[0] is None else np.concatenate(p) for p in joined))
 
-    def _check(self, queries: list[surrogate.Query], answer: surrogate.Answer) -> int:
-        """Every CHECK_EVERY-th call: one random interpolated query (over all ranks' blocks)
-        solved exactly by the rank that holds it, the error logged. Returns the number of
-        exact solves made (the same on every rank)."""
+    def _check(
+        self, tables: list[tuple], which: np.ndarray, s: np.ndarray, answer: surrogate.Answer
+    ) -> int:
+        """Every CHECK_EVERY-th call: one random interpolated query (over all ranks' queries,
+        ``tables[which[k]]`` at ``s[k]``) solved exactly by the rank that holds it, the error
+        logged. Returns the number of exact solves made (the same on every rank)."""
         self._calls += 1
         flags = self.comm.allgather(answer.interpolated)
         candidates = np.flatnonzero(np.concatenate(flags))
@@ -199,15 +234,14 @@ class Homogenizer:
         found = None
         if self.comm.rank == owner:
             local = k - sum(len(f) for f in flags[:owner])
-            q = queries[local]
-            exact = self._solve_stretch(q.table, surrogate.stretch(q.s))
-            found = (self.surrogate.relative_difference(answer.values[local], exact), q.s)
-        error, s = self.comm.bcast(found, root=owner)
+            exact = self._solve_stretch(tables[which[local]], surrogate.stretch(s[local]))
+            found = (self.surrogate.relative_difference(answer.values[local], exact), s[local])
+        error, where = self.comm.bcast(found, root=owner)
         self.checks += 1
         self.largest_checked_error = max(self.largest_checked_error, error)
         log.info(
             "cell surrogate check %d: relative error %.2e at s = (%.4f, %.4f); largest "
-            "seen %.2e (tolerance %.1e)", self.checks, error, *s,
+            "seen %.2e (tolerance %.1e)", self.checks, error, *where,
             self.largest_checked_error, self.surrogate.tolerance,
         )  # fmt: skip
         return 1

@@ -17,8 +17,11 @@ non-negative, so the interpolant of symmetric positive definite tensors is one: 
 SPD by construction. Lattice points are exact cell solves, shared by every query and time
 step, solved in rounds collectively (each rank its cost-balanced share, on COMM_SELF, then one
 allgather: :mod:`plantgrowth.unitcell.scheduler`), so every rank holds the same tables. Each rank
-asks about its own queries (its block of the coarse nodes); a query's answer depends only on the
-lattice and its own point, so serial and parallel runs agree exactly.
+asks about its own queries (its fine cells, or its block of the coarse nodes); a query's answer
+depends only on the lattice and its own point, so serial and parallel runs agree exactly.
+Lookups are vectorised: each lattice point has an integer key (table number and finest-lattice
+coordinates), found among the sorted keys of the known points by binary search, so a query
+costs microseconds and the cells of a fine mesh can each ask their own.
 """
 
 from __future__ import annotations
@@ -39,16 +42,25 @@ H0 = 0.1
 MAX_LEVEL = 12
 """Finest level (spacing H0 / 4096); a query not resolved there takes that level's value."""
 STEP = 2**MAX_LEVEL  # finest-lattice integers per coarsest spacing
+_OFFSET = 2**20  # finest-lattice integers are keyed in [-OFFSET, OFFSET): |s| < 25
 
 
 def split_growth(Fg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotations R (n, 2, 2) and stretch coordinates s (n, 2) with
-    ``Fg / sqrt(det Fg) = R expm([[s1, s2], [s2, -s1]])``."""
+    ``Fg / sqrt(det Fg) = R expm([[s1, s2], [s2, -s1]])``, in closed form: R turns by
+    ``atan2(F21 - F12, F11 + F22)``, ``U = R^T F`` (symmetric, det 1), and
+    ``U = cosh(r) I + sinh(r)/r S`` gives ``r = arccosh(tr U / 2)``, ``S = (U - cosh(r) I) r /
+    sinh(r)``."""
     F = Fg / np.sqrt(np.linalg.det(Fg))[:, None, None]
-    w, V = np.linalg.eigh(np.einsum("nki,nkj->nij", F, F))  # F^T F = U^2
-    U_inv = np.einsum("nik,nk,njk->nij", V, 1.0 / np.sqrt(w), V)
-    S = np.einsum("nik,nk,njk->nij", V, 0.5 * np.log(w), V)  # log U
-    return F @ U_inv, np.column_stack([0.5 * (S[:, 0, 0] - S[:, 1, 1]), S[:, 0, 1]])
+    angle = np.arctan2(F[:, 1, 0] - F[:, 0, 1], F[:, 0, 0] + F[:, 1, 1])
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+    U = np.swapaxes(R, 1, 2) @ F
+    r = np.arccosh(np.maximum(0.5 * (U[:, 0, 0] + U[:, 1, 1]), 1.0))
+    scale = np.divide(r, np.sinh(r), out=np.ones_like(r), where=r > 0.0)
+    s1 = 0.5 * (U[:, 0, 0] - U[:, 1, 1]) * scale
+    s2 = 0.5 * (U[:, 0, 1] + U[:, 1, 0]) * scale
+    return R, np.column_stack([s1, s2])
 
 
 def stretch(s: Sequence[float]) -> np.ndarray:
@@ -56,14 +68,6 @@ def stretch(s: Sequence[float]) -> np.ndarray:
     S = np.array([[s[0], s[1]], [s[1], -s[0]]])
     r = float(np.hypot(s[0], s[1]))
     return np.cosh(r) * np.eye(2) + (np.sinh(r) / r if r > 0.0 else 1.0) * S
-
-
-@dataclass(frozen=True)
-class Query:
-    """One coarse node's question: which table (cell geometry and nu) and where in it."""
-
-    table: tuple
-    s: np.ndarray  # (2,)
 
 
 @dataclass(frozen=True)
@@ -122,6 +126,9 @@ class LatticeSurrogate:
         self.comm = comm
         self.values: dict[Point, np.ndarray] = {}
         self.new_points: list[Point] = []  # solved since the last take_new_points()
+        self._table_ids: dict[tuple, int] = {}  # table -> its number in the keys
+        self._keys: np.ndarray | None = None  # sorted keys of self.values (:meth:`_index`)
+        self._rows = np.zeros((0, 0))
 
     def add(self, values: dict[Point, np.ndarray]) -> None:
         """Lattice values known from elsewhere (the on-disk cache); the same on every rank."""
@@ -152,48 +159,81 @@ class LatticeSurrogate:
         self.new_points += missing
         return len(missing)
 
-    def _interpolate(
-        self, tables: list[tuple], points: np.ndarray, weights: np.ndarray
-    ) -> np.ndarray:
-        """Bilinear values (n, m) from the corner points (n, 4, 2) and weights (n, 4)."""
-        zero = np.zeros(len(next(iter(self.values.values()))))
-        if not len(tables):
-            return np.zeros((0, len(zero)))
-        corner_values = np.array(
-            [
-                [  # a corner of zero weight (a query on a lattice line) is never needed
-                    self.values[(table, (int(i), int(j)))] if w > 0.0 else zero
-                    for (i, j), w in zip(corners, ws, strict=True)
-                ]
-                for table, corners, ws in zip(tables, points, weights, strict=True)
-            ]
-        )
-        return np.einsum("nc,ncm->nm", weights, corner_values)
+    def _index(self) -> tuple[np.ndarray, np.ndarray]:
+        """Sorted keys of the known lattice points and their values (rebuilt when points were
+        added)."""
+        if self._keys is None or len(self._keys) != len(self.values):
+            points = list(self.values)
+            for table, _ in points:
+                self._table_ids.setdefault(table, len(self._table_ids))
+            ids = np.array([self._table_ids[t] for t, _ in points], dtype=np.int64)
+            ij = np.array([p for _, p in points], dtype=np.int64).reshape(-1, 2)
+            keys = self._encode(ids, ij[:, 0], ij[:, 1])
+            order = np.argsort(keys)
+            self._keys = keys[order]
+            self._rows = np.array([self.values[points[k]] for k in order])
+        return self._keys, self._rows
 
-    def evaluate(self, queries: Sequence[Query]) -> Answer:
-        """The surrogate's answer to this rank's queries (any number, 0 too). Collective."""
-        n = len(queries)
-        s = np.array([q.s for q in queries]).reshape(n, 2)
-        tables = [q.table for q in queries]
+    def _encode(self, ids: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """One int64 key per lattice point: table number, then the two finest integers."""
+        if np.size(i) and max(np.abs(i).max(), np.abs(j).max()) >= _OFFSET:
+            raise ValueError(f"a growth stretch |s| >= {_OFFSET * H0 / STEP:g}: off the lattice")
+        return (ids << 42) | ((i + _OFFSET) << 21) | (j + _OFFSET)
+
+    def _numbers(self, tables: Sequence[tuple]) -> np.ndarray:
+        """The tables' numbers in the keys (new tables get the next ones)."""
+        ids = [self._table_ids.setdefault(t, len(self._table_ids)) for t in tables]
+        return np.array(ids, dtype=np.int64)
+
+    def _missing(self, ids: np.ndarray, points: np.ndarray, weights: np.ndarray) -> list[Point]:
+        """The lattice points of non-zero weight (corners (n, 4, 2) in the tables ``ids`` (n,))
+        that are not known yet."""
+        used = weights > 0.0
+        table_ids = np.broadcast_to(ids[:, None], used.shape)[used]
+        keys = np.unique(self._encode(table_ids, points[used][:, 0], points[used][:, 1]))
+        known, _ = self._index()
+        found = np.minimum(np.searchsorted(known, keys), max(len(known) - 1, 0))
+        new = keys if not len(known) else keys[known[found] != keys]
+        names = {v: k for k, v in self._table_ids.items()}
+        low = (1 << 21) - 1
+        i, j = ((new >> 21) & low) - _OFFSET, (new & low) - _OFFSET
+        columns = ((new >> 42).tolist(), i.tolist(), j.tolist())
+        return [(names[k], (a, b)) for k, a, b in zip(*columns, strict=True)]
+
+    def _interpolate(self, ids: np.ndarray, points: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """Bilinear values (n, m) from the corner points (n, 4, 2) and weights (n, 4) in the
+        tables ``ids`` (n,); every corner of non-zero weight is known."""
+        keys, rows = self._index()
+        if not len(ids):
+            return np.zeros((0, rows.shape[1]))
+        wanted = self._encode(ids[:, None], points[..., 0], points[..., 1])
+        found = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+        # a corner of zero weight (a query on a lattice line) may be unknown: it adds 0
+        return np.einsum("nc,ncm->nm", weights, rows[found])
+
+    def evaluate(self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray) -> Answer:
+        """The surrogate's answer to this rank's n queries (0 too): query k asks table
+        ``tables[which[k]]`` at ``s[k]`` (n, 2). Collective."""
+        n = len(which)
+        ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
+        s = np.asarray(s, dtype=float).reshape(n, 2)
         level = np.zeros(n, dtype=np.int64)
         values: np.ndarray | None = None
         estimates = np.zeros(n)
         interpolated = np.zeros(n, dtype=bool)
         pending = np.arange(n)
         solves = 0
+        coarse = None  # the level's interpolant of the pending queries: the last round's fine
         while self.comm.allreduce(len(pending), op=MPI.MAX):
-            sub = [tables[k] for k in pending]
+            sub = ids[pending]
             coarse_pts, coarse_w = _corners(s[pending], level[pending])
             fine_pts, fine_w = _corners(s[pending], level[pending] + 1)
-            needed = {
-                (table, (int(i), int(j)))
-                for pts, w in ((coarse_pts, coarse_w), (fine_pts, fine_w))
-                for table, corners, weights in zip(sub, pts, w, strict=True)
-                for (i, j), weight in zip(corners, weights, strict=True)
-                if weight > 0.0
-            }
-            solves += self._solve_points(list(needed))
-            coarse = self._interpolate(sub, coarse_pts, coarse_w)
+            needed = self._missing(sub, fine_pts, fine_w)
+            if coarse is None:
+                needed += self._missing(sub, coarse_pts, coarse_w)
+            solves += self._solve_points(needed)
+            if coarse is None:
+                coarse = self._interpolate(sub, coarse_pts, coarse_w)
             fine = self._interpolate(sub, fine_pts, fine_w)
             if values is None:
                 values = np.zeros((n, fine.shape[1]))
@@ -202,7 +242,7 @@ class LatticeSurrogate:
             values[pending[done]] = fine[done]
             interpolated[pending[done]] = fine_w[done].max(axis=1) < 1.0
             level[pending[~done]] += 1
-            pending = pending[~done]
+            pending, coarse = pending[~done], fine[~done]
         return Answer(values, estimates, interpolated, solves)
 
     def take_new_points(self) -> dict[Point, np.ndarray]:

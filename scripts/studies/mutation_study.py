@@ -193,6 +193,25 @@ MUTANTS = (
           "scene.tissue.H, problem.midpoints[:, 1::-1], comm"),),
     ),
     Mutant(
+        "E_factor_wrong_cell", "plantgrowth/models/macro/model.py", "index",
+        "each fine cell's E_hom scaled by the E of its neighbour in the cell order (issue 20, "
+        "item 4: the per-cell E factor)",
+        (("self.E = scene.material.E(*(at_cells if self.per_cell else at_nodes))",
+          "self.E = np.roll(scene.material.E(*(at_cells if self.per_cell else at_nodes)), 1)"),),
+    ),
+    Mutant(
+        "cell_growth_wrong_cell", "plantgrowth/unitcell/homogenization.py", "index",
+        "the surrogate asked at another cell's stretch (the queries' s reversed)",
+        (("answer = self.surrogate.evaluate(tables, pairs.indices, s[point])",
+          "answer = self.surrogate.evaluate(tables, pairs.indices, s[point][::-1])"),),
+    ),
+    Mutant(
+        "table_weights_dropped", "plantgrowth/unitcell/homogenization.py", "factor",
+        "the coarse nodes' tables summed with weight 1 instead of their P1 weights at the cell",
+        (("combine = sp.csr_matrix((pairs.data, (point",
+          "combine = sp.csr_matrix((np.ones_like(pairs.data), (point"),),
+    ),
+    Mutant(
         "Fg_projection_transposed", "plantgrowth/models/macro/model.py", "transposition",
         "Fg projected to the coarse nodes as Fg^T (cell problems solved for the transpose)",
         (("Fg[:n_owned].reshape(-1, 4)", "np.swapaxes(Fg[:n_owned], 1, 2).reshape(-1, 4)"),),

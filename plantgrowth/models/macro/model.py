@@ -1,8 +1,14 @@
 """The coupled macroscopic growth loop (paper Algorithm 1, MODEL.md section 5).
 
-Per step: project Fg to the coarse nodes -> cell problems there (distinct inputs only) ->
-interpolate E_hom, K_hom, phi_w, dbar, P2vec to the fine cells -> macro solve -> sigma_hom or
-eps_hom -> growth rate G -> write the step -> Fg <- integrator(Fg, G, dt).
+Per step: the homogenized E_hom, K_hom, phi_w, dbar, P2vec at every fine cell -> macro solve ->
+sigma_hom or eps_hom -> growth rate G -> write the step -> Fg <- integrator(Fg, G, dt).
+
+The tensors of a fine cell: with the surrogate (``accuracy.cell_tolerance > 0``, the default)
+from the cell's own Fg and E, in the lattice tables of the cell geometry and nu of the coarse
+nodes (spacing H) around it, combined with their P1 weights at its midpoint (one table when
+those are constant). On the exact path (``cell_tolerance = 0``, the validation mode) as in the
+paper: Fg projected to the coarse nodes, cell problems there (distinct inputs only), the
+tensors P1-interpolated to the fine cells.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from plantgrowth.models.macro.boundary import Boundary
 from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.problem import MacroProblem
+from plantgrowth.models.macro.resolution import field_sampling
 from plantgrowth.models.step import (
     SideMesh,
     StepResult,
@@ -32,14 +39,14 @@ from plantgrowth.models.step import (
     max_abs_components,
 )
 from plantgrowth.scene import Scene
-from plantgrowth.unitcell.homogenization import Homogenizer
+from plantgrowth.unitcell.homogenization import Homogenizer, NodeTensors
 
 log = logging.getLogger("plantgrowth")
 
 
 class _Outputs:
-    """The DG0/P1 functions written to fields.xdmf, only those the scene asks for (E_hom lives
-    on the coarse nodes: see :func:`coarse_output`; the growth outputs: :class:`GrowthFields`)."""
+    """The DG0/P1 functions written to fields.xdmf, only those the scene asks for (E_hom goes to
+    the coarse nodes: see :func:`coarse_output`; the growth outputs: :class:`GrowthFields`)."""
 
     def __init__(self, problem: MacroProblem, fields: tuple[str, ...]) -> None:
         self.fields = fields
@@ -56,7 +63,9 @@ class _Outputs:
 
 
 def coarse_output(grid: CoarseGrid, fields: tuple[str, ...]) -> SideMesh:
-    """The coarse-node fields the scene asks for (E_hom's six components) on the coarse grid."""
+    """The coarse-node fields the scene asks for (E_hom's six components) on the coarse grid:
+    a compact view for plots, the lumped L2 average of the fine cells' E_hom (the run itself
+    uses each fine cell's own tensors on the surrogate path)."""
     names = VOIGT_NAMES if "E_hom" in fields else ()
     return SideMesh("coarse.xdmf", "CoarseMesh", "coarse", grid.nodes, grid.triangles,
                     {name: ("Node", 1) for name in names})  # fmt: skip
@@ -96,18 +105,17 @@ class MacroModel:
         self.problem = problem = MacroProblem(scene, mesh, boundary)
         self.mesh = problem.mesh
         width, height = problem.bounding_box
-        # cell problems only at the nodes the fine cells see; the others show (coarse.xdmf) the
-        # values of their nearest active node
+        # the coarse nodes the fine cells see (the others weigh no fine cell)
         self.grid, self.W, self.active = coarse_grid_for(
             width, height, scene.tissue.H, problem.midpoints[:, :2], comm
         )
-        nodes = self.grid.nodes
+        self.per_cell = scene.accuracy.cell_tolerance > 0.0
+        nodes = self.grid.nodes[self.active]
         self._W_active = self.W[:, self.active]
-        self._nearest = cKDTree(nodes[self.active]).query(nodes)[1]  # into the active nodes
         at_nodes, at_cells = (nodes[:, 0], nodes[:, 1]), problem.midpoints[:, :2].T
         self.geometry = np.column_stack([f(*at_nodes) for f in scene.cell.fields()])
-        self.E_nodes = scene.material.E(*at_nodes)
         self.nu_nodes = scene.material.nu(*at_nodes)
+        self.E = scene.material.E(*(at_cells if self.per_cell else at_nodes))
         self.P1 = scene.P1(*at_cells)
         self.eta, self.tau = scene.growth.eta(*at_cells), scene.growth.tau(*at_cells)
         self.grad_P1 = scene.P1.gradient(*at_cells)  # (n_cells, 2): MODEL.md 6, P2 = -grad P1 . y
@@ -124,10 +132,18 @@ class MacroModel:
         self._gather = MeshGather(problem.V)
         log.info(
             "macro: %d fine dofs, %d coarse nodes (%d in the tissue), terms: %s",
-            problem.ndofs, len(nodes), self.active.sum(), ", ".join(problem.active_terms),
+            problem.ndofs, len(self.grid.nodes), len(nodes), ", ".join(problem.active_terms),
         )  # fmt: skip
         for line in _pruning_report(problem, scene, self.strain_averages):
             log.info("skipped: %s", line)
+        msh, n = problem.mesh, problem.n_owned
+        vertices = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 3)[:n], :2]
+        self.sampling = field_sampling(
+            scene, vertices, problem.areas, self._W_active[:n], nodes, self.per_cell, comm
+        )
+        for sampling in self.sampling:
+            if sampling.warning:
+                log.warning("warning: %s", sampling.warning)
 
     def initial_growth(self) -> np.ndarray:
         return self.scene.growth.initial(*self.problem.midpoints[:, :2].T)
@@ -160,34 +176,58 @@ class MacroModel:
             raise RunError("the saved state does not match this mesh: was the scene changed?")
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
-    def _to_cells(self, node_values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-        """P1 interpolation of active-node values to the fine cells' midpoints."""
-        n = node_values.shape[0]
-        return (self._W_active @ node_values.reshape(n, -1)).reshape(-1, *shape)
+    def cell_tensors(self, Fg: np.ndarray) -> NodeTensors:
+        """The homogenized tensors of every fine cell of this rank (ghosts too) at the cells'
+        growth tensors Fg (n_cells, 2, 2)."""
+        if self.per_cell:
+            points = self.problem.midpoints[:, :2]
+            tensors = self.homogenizer.homogenize(
+                self.geometry, self.E, self.nu_nodes, Fg, self._W_active
+            )
+        else:
+            n_owned, problem = self.problem.n_owned, self.problem
+            Fg_nodes = project_to_nodes(
+                self.W[:n_owned], problem.areas, Fg[:n_owned].reshape(-1, 4), self.comm
+            )[self.active]
+            points = self.grid.nodes[self.active]
+            tensors = self.homogenizer.homogenize(
+                self.geometry, self.E, self.nu_nodes, Fg_nodes.reshape(-1, 2, 2)
+            )
+        diagnostics.stop_if(diagnostics.stiffness_problems(tensors.C, points), self.comm)
+        return tensors if self.per_cell else self._to_cells(tensors)
+
+    def _to_cells(self, tensors: NodeTensors) -> NodeTensors:
+        """P1 interpolation of active-node tensors to the fine cells' midpoints."""
+        parts = {}
+        for name in ("C", "phi_w", "K", "dbar_w", "dbar_v", "P2_matrix"):
+            v = getattr(tensors, name)
+            parts[name] = None if v is None else (
+                self._W_active @ v.reshape(len(v), -1)
+            ).reshape(-1, *v.shape[1:])  # fmt: skip
+        return NodeTensors(**parts)
+
+    def _fill_coarse_E_hom(self, C: np.ndarray) -> None:
+        """E_hom's components at the coarse nodes: the lumped L2 average of the owned fine
+        cells' values (:func:`project_to_nodes`; a node outside the tissue gets the mean)."""
+        n = self.problem.n_owned
+        values = C[:n][:, [i for i, _ in VOIGT_POSITIONS], [j for _, j in VOIGT_POSITIONS]]
+        nodes = project_to_nodes(self.W[:n], self.problem.areas, values, self.comm)
+        for k, name in enumerate(VOIGT_NAMES):
+            self.side_output.values[name] = nodes[:, k]
 
     def step(self, Fg: np.ndarray) -> StepResult:
         problem, law = self.problem, self.scene.growth.law
         t0 = time.perf_counter()
-        n_owned = problem.n_owned
-        Fg_nodes = project_to_nodes(
-            self.W[:n_owned], problem.areas, Fg[:n_owned].reshape(-1, 4), self.comm
-        )
-        a = self.active
-        nt = self.homogenizer.homogenize(
-            self.geometry[a], self.E_nodes[a], self.nu_nodes[a], Fg_nodes[a].reshape(-1, 2, 2)
-        )
-        diagnostics.stop_if(diagnostics.stiffness_problems(nt.C, self.grid.nodes[a]), self.comm)
-        C = self._to_cells(nt.C, (3, 3))
-        phi_w = self._to_cells(nt.phi_w, ())
-        K = None if nt.K is None else self._to_cells(nt.K, (2, 2))
+        nt = self.cell_tensors(Fg)
+        C, phi_w, K = nt.C, nt.phi_w, nt.K
         problem.set_cell_values(problem.Fg, Fg)
         problem.set_cell_values(problem.C, C)
         problem.set_cell_values(problem.phi_w, phi_w)
         if K is not None:
             problem.set_cell_values(problem.K, K)
         if problem.P2vec is not None:
-            P2_matrix = self._to_cells(nt.P2_matrix, (2, 2))
-            problem.set_cell_values(problem.P2vec, np.einsum("nij,nj->ni", P2_matrix, self.grad_P1))
+            P2vec = np.einsum("nij,nj->ni", nt.P2_matrix, self.grad_P1)
+            problem.set_cell_values(problem.P2vec, P2vec)
         t1 = time.perf_counter()
         report = problem.solve()
         t2 = time.perf_counter()
@@ -198,9 +238,7 @@ class MacroModel:
         sigma = growth.homogenized_stress(C, eps_el, K, self.P1)
         eps_hom = None
         if self.strain_averages:
-            dbar_v = None if nt.dbar_v is None else self._to_cells(nt.dbar_v, (2, 2))
-            dbar_w = self._to_cells(nt.dbar_w, (2, 2, 2, 2))
-            eps_hom = growth.homogenized_strain(eps_el, phi_w, dbar_w, dbar_v, self.P1)
+            eps_hom = growth.homogenized_strain(eps_el, phi_w, nt.dbar_w, nt.dbar_v, self.P1)
         if law == "none":
             G = np.zeros_like(Fg)
         else:
@@ -226,8 +264,7 @@ class MacroModel:
             problem.set_cell_values(self.out.eps, eps_hom)
         self.out.growth.fill(G, sigma, problem.set_cell_values)
         if self.side_output.fields:
-            for name, (i, j) in zip(VOIGT_NAMES, VOIGT_POSITIONS, strict=True):
-                self.side_output.values[name] = nt.C[self._nearest, i, j]
+            self._fill_coarse_E_hom(C)
         t3 = time.perf_counter()
         n, M = problem.n_owned, self.scene.growth.clamp
         newton = problem.newton_report if problem.finite else None
