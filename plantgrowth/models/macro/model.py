@@ -251,6 +251,7 @@ class MacroModel:
             self.comm,
         )
         stable = problem.stability_values(grad_u)
+        n_owned = problem.n_owned
         owned = stable[:n_owned]
         ellipticity = stability.check(
             owned, owned < 0.0, problem.areas, midpoints[:n_owned], self.comm
