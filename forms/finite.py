@@ -1,4 +1,4 @@
-"""Finite kinematics: the multiplicative split F = Fe Fg (MODEL.md section 10).
+"""Finite kinematics: the multiplicative split F = Fe Fg (docs/model.md section 10).
 
 ``Fe = (I + grad u) Fg^{-1}``, ``Ee = (Fe^T Fe - I) / 2`` (Green-Lagrange, intermediate frame).
 Residuals ``R(u; psi)`` are returned as linear forms in the test function psi; their Jacobians

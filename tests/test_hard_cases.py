@@ -13,8 +13,8 @@ with the model's "element inverted" RunError, every other criterion holding up t
 the other two stop only on finer meshes (at t ~ 11 and ~ 15 with h = 0.1) and are checked here up
 to shortly before.
 
-With ``kinematics = "finite"`` (MODEL.md 10) every scene runs again to its own t_max: the
-FINITE_PASSING ones keep every criterion (and the homogeneous ones the exact rate); the
+With ``kinematics = "finite"`` (docs/model.md section 10) every scene runs again to its own t_max:
+the FINITE_PASSING ones keep every criterion (and the homogeneous ones the exact rate); the
 FINITE_LIMITS stop with Newton's named error where the elastic strain leaves the range of the
 St Venant-Kirchhoff law (a principal elastic stretch at 1/sqrt(3), plantgrowth.models.newton.
 STRETCH_FLOOR): docs/finite_kinematics.md, "Limits table".
@@ -163,7 +163,7 @@ def test_homogeneous_strain_rate_is_exact(run, name, kinematics):
     """Homogeneous tissue, constant P1, strain law: the wall-averaged stress is (1 - phi_w) P1 I,
     so eps_hom = (1 - nu)/E (1 - phi_w) P1 I and G = min(M, eta (1 - nu)/E (1 - phi_w)/phi_w P1) I
     for any cell geometry, nu and Fg, in both kinematics (finite: S = 0, so Ee is the linear
-    eps_el; MODEL.md 10 (2)). Tolerance: the homogenizer rounds the cell inputs to
+    eps_el; docs/model.md section 10 (2)). Tolerance: the homogenizer rounds the cell inputs to
     accuracy.key_tolerance = 1e-6 (l1 = 1/3 -> 0.333333: phi_w off by 3e-7 relative);
     otherwise round-off (~1e-13); Newton's 1e-10 is below both."""
     if kinematics == "finite" and name not in FINITE_PASSING:

@@ -1,7 +1,7 @@
-"""Edge loads of a scene (``[loads]``, MODEL.md 4): each component of an edge's traction is a
-number or ``{expr = "..."}``, an expression of ``s``, the coordinate along the edge: ``s = x2``
-on the left and right edges, ``s = x1`` on the top edge (the arc length from the edge's end on
-x2 = 0, resp. x1 = 0, of the macro rectangle; loads exist for model = "macro" only).
+"""Edge loads of a scene (``[loads]``, docs/model.md section 4): each component of an edge's
+traction is a number or ``{expr = "..."}``, an expression of ``s``, the coordinate along the edge:
+``s = x2`` on the left and right edges, ``s = x1`` on the top edge (the arc length from the edge's
+end on x2 = 0, resp. x1 = 0, of the macro rectangle; loads exist for model = "macro" only).
 
 An expression's values are checked, and its resultant force computed, with composite
 Gauss-Legendre quadrature on the edge (:data:`INTERVALS` intervals of :data:`GAUSS_POINTS`
