@@ -72,6 +72,8 @@ def test_no_file_names_the_old_spec():
     """No tracked file names the old spec: every reference reads docs/model.md."""
     found = {}
     for path in repository_files():
+        if path == Path(__file__).resolve():
+            continue  # this file plants the names it looks for
         try:
             text = path.read_text(encoding="utf-8")
         except (UnicodeDecodeError, FileNotFoundError, IsADirectoryError):
