@@ -11,5 +11,5 @@ ENV OMPI_ALLOW_RUN_AS_ROOT=1 \
     OMPI_MCA_rmaps_base_oversubscribe=1 \
     OMPI_MCA_btl_vader_single_copy_mechanism=none
 
-# The main job: the reference scene (MODEL.md section 9), outputs under /opt/plantgrowth/results.
+# The main job: the reference scene (docs/model.md section 9), outputs under /opt/plantgrowth/results.
 CMD ["plantgrowth", "run", "scenes/reference_stress.toml", "-o", "results/reference_stress"]

@@ -1,4 +1,4 @@
-"""Growth-weighted unit-cell problems and their averages (MODEL.md section 3).
+"""Growth-weighted unit-cell problems and their averages (docs/model.md section 3).
 
 [UC_weak]:  int_{Y_w} Jg E[ d[w] + b ] : grad_g(phi) dy = 0,   d[w] = sym(grad(w) Fg^{-1})
 [UCw_weak]: int_{Y_w} Jg ( E[ d[v] ] + I ) : grad_g(phi) dy = 0

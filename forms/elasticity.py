@@ -1,4 +1,5 @@
-"""Wall material law and growth kinematics shared by every weak form (MODEL.md sections 1, 3, 4).
+"""Wall material law and growth kinematics shared by every weak form (docs/model.md sections
+1, 3, 4).
 
 Pure UFL: UFL expressions (or ``fem.Constant``/``fem.Function``) in, UFL expressions out.
 """
@@ -17,13 +18,13 @@ def lame_parameters(E, nu) -> tuple:
 
 
 def wall_stress(e, E, nu):
-    """Isotropic wall stress ``E[e] = lam tr(e) I + 2 mu e`` (MODEL.md section 1)."""
+    """Isotropic wall stress ``E[e] = lam tr(e) I + 2 mu e`` (docs/model.md section 1)."""
     mu, lam = lame_parameters(E, nu)
     return lam * ufl.tr(e) * ufl.Identity(e.ufl_shape[0]) + 2.0 * mu * e
 
 
 def grad_g(z, Fg):
-    """Growth-weighted gradient ``grad(z) Fg^{-1}`` (MODEL.md section 3)."""
+    """Growth-weighted gradient ``grad(z) Fg^{-1}`` (docs/model.md section 3)."""
     return ufl.grad(z) * ufl.inv(Fg)
 
 
@@ -46,7 +47,8 @@ def grown_length(Fg, n):
 
 
 def boundary_traction(f, psi, Fg, n, ds) -> ufl.Form:
-    """``int Jg |Fg^{-T} N| f . psi ds``, a traction f given per grown length (MODEL.md 4)."""
+    """``int Jg |Fg^{-T} N| f . psi ds``, a traction f given per grown length (docs/model.md
+    section 4)."""
     return grown_length(Fg, n) * ufl.inner(f, psi) * ds
 
 
@@ -56,7 +58,7 @@ def growth_strain(Fg):
 
 
 def elastic_strain(u, Fg):
-    """``eps_el(u, Fg) = sym(grad(u) Fg^{-1}) + sym(Fg^{-1}) - I`` (MODEL.md section 4)."""
+    """``eps_el(u, Fg) = sym(grad(u) Fg^{-1}) + sym(Fg^{-1}) - I`` (docs/model.md section 4)."""
     return sym_grad_g(u, Fg) + growth_strain(Fg)
 
 

@@ -1,4 +1,4 @@
-"""Finite kinematics: the multiplicative split F = Fe Fg (MODEL.md section 10).
+"""Finite kinematics: the multiplicative split F = Fe Fg (docs/model.md section 10).
 
 ``Fe = (I + grad u) Fg^{-1}``, ``Ee = (Fe^T Fe - I) / 2`` (Green-Lagrange, intermediate frame).
 Residuals ``R(u; psi)`` are returned as linear forms in the test function psi; their Jacobians
@@ -48,7 +48,8 @@ def macro_stress(u, Fg, C, K, phi_w, P1):
 
 
 def turgor_prestress(K, phi_w, P1):
-    """``S_P = (K_hom + (phi_w - 1) I) P1``, the turgor part of the macro stress (MODEL.md 10)."""
+    """``S_P = (K_hom + (phi_w - 1) I) P1``, the turgor part of the macro stress (docs/model.md
+    section 10)."""
     return (K + (phi_w - 1.0) * ufl.Identity(2)) * P1
 
 

@@ -1,4 +1,4 @@
-"""Macroscopic two-scale elasticity with growth (MODEL.md section 4, [macro_weak_222]).
+"""Macroscopic two-scale elasticity with growth (docs/model.md section 4, [macro_weak_222]).
 
 ``int Jg [E_hom eps_el + (K_hom + (phi_w - 1) I) P1] : grad(psi) Fg^{-1} dx
   = int Jg (1 - phi_w) Fg^{-T} grad(P1) . psi dx + int_{Gamma_N} Jg |Fg^{-T} N| f . psi ds
@@ -44,7 +44,7 @@ def macro_pressure_rhs(psi, Fg, K, phi_w, P1, dx) -> ufl.Form:
 
 
 def macro_pressure_gradient_rhs(psi, Fg, phi_w, grad_P1, P2vec, dx) -> ufl.Form:
-    """Body forces of a pressure gradient (MODEL.md section 6):
+    """Body forces of a pressure gradient (docs/model.md section 6):
     ``int Jg Fg^{-T} ((1 - phi_w) grad(P1) - P2vec) . psi dx``."""
     force = ufl.dot(ufl.inv(Fg).T, (1.0 - phi_w) * grad_P1 - P2vec)
     return ufl.det(Fg) * ufl.inner(force, psi) * dx

@@ -1,4 +1,4 @@
-"""The cell-resolved microscopic model on the walls Omega^delta (MODEL.md section 7).
+"""The cell-resolved microscopic model on the walls Omega^delta (docs/model.md section 7).
 
 [var_inequal] with a pressure that is constant in each cell, written as the membrane traction:
 ``int Jg E[eps_el(u, Fg)] : grad(psi) Fg^{-1} dx = -int_Gamma Jg P (Fg^{-T} N) . psi ds``

@@ -1,4 +1,4 @@
-"""Honeycomb unit-cell geometry of MODEL.md section 2 (pure numpy, no meshing).
+"""Honeycomb unit-cell geometry of docs/model.md section 2 (pure numpy, no meshing).
 
 The cell is the mid-line hexagon A..F ("pointy-top") of the wall network; the void is that
 hexagon offset inwards by the wall thickness ``w``. The lattice is spanned by

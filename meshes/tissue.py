@@ -1,4 +1,5 @@
-"""The cellular tissue of the microscopic model and its outline (MODEL.md section 7), with gmsh.
+"""The cellular tissue of the microscopic model and its outline (docs/model.md section 7),
+built with gmsh.
 
 ``Nx/2`` rows of ``Nx`` cells, each the honeycomb unit cell scaled by ``delta_s = 4 / Nx``; row r
 has its centres at ``x2 = r delta_s (l1 + s)``, ``x1 = (k + 1/2 + (r mod 2)/2) delta_s 2c``. The
@@ -72,7 +73,7 @@ class TissueLayout:
 
     @property
     def delta_s(self) -> float:
-        """Scale of one cell: ``4 / Nx`` (MODEL.md section 7)."""
+        """Scale of one cell: ``4 / Nx`` (docs/model.md section 7)."""
         return 4.0 / self.nx
 
     @property

@@ -1,4 +1,4 @@
-"""Periodic mesh of the honeycomb unit cell (MODEL.md section 2), built with gmsh.
+"""Periodic mesh of the honeycomb unit cell (docs/model.md section 2), built with gmsh.
 
 Two fundamental domains of the same wall lattice can be meshed:
 - ``"hexagon"``: the mid-line hexagon A..F, three pairs of opposite sides;

@@ -99,8 +99,8 @@ def test_the_turgor_gradient_grows_the_top_faster(runs):
 
 def test_pregrown_cells_grow_isotropically_at_the_ungrown_rate(runs):
     """Uniform pre-growth keeps the tissue homogeneous: the strain-law rate is
-    2 eta (1 - nu) / E (1 - phi_w) / phi_w P1 (MODEL.md 4; phi_w is unchanged by Fg0, which
-    scales walls and voids alike) and isotropic. Tolerance 1e-5: float32 output (6e-8) of a
+    2 eta (1 - nu) / E (1 - phi_w) / phi_w P1 (docs/model.md section 4; phi_w is unchanged by Fg0,
+    which scales walls and voids alike) and isotropic. Tolerance 1e-5: float32 output (6e-8) of a
     rate that the cell solve gives to ~1e-12 (docs/paper_studies.md)."""
     series, _ = runs["anisotropic_pregrowth"]
     phi_w = HoneycombCell(1.0, 1.0, 30.0, 0.05).phi_w

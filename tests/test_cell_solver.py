@@ -1,4 +1,4 @@
-"""Homogenized tensors of the unit-cell problems (MODEL.md section 3): the listed properties.
+"""Homogenized tensors of the unit-cell problems (docs/model.md section 3): the listed properties.
 
 Solvers live on ``MPI.COMM_WORLD`` so that ``mpirun -n 2 ... pytest`` exercises the distributed
 cell mesh; each geometry is meshed once per module (``solver`` fixture) and ``solve`` is reused.
@@ -94,7 +94,7 @@ CASE_IDS = ["reference", "l1=2", "theta=45", "grown", "sheared", "theta=45-l1=1.
 
 def test_wall_tensor_is_plane_stress_isotropic():
     C = isotropic_tensor(2.0, 0.25)
-    mu, lam = 2.0 / 2.5, 2.0 * 0.25 / (1 - 0.0625)  # MODEL.md section 1
+    mu, lam = 2.0 / 2.5, 2.0 * 0.25 / (1 - 0.0625)  # docs/model.md section 1
     e = np.array([[0.3, -0.7], [-0.7, 1.1]])
     np.testing.assert_allclose(
         np.einsum("ijkl,kl->ij", C, e), lam * np.trace(e) * np.eye(2) + 2 * mu * e, rtol=1e-14
@@ -154,7 +154,7 @@ def test_regular_hexagon_is_isotropic(solver):
     K = r.K_hom
     assert K[1, 1] == pytest.approx(K[0, 0], rel=tol)
     assert abs(K[0, 1]) < tol * abs(K[0, 0])
-    # sanity values of MODEL.md section 2 (resolution-3 values, 0.2% discretization error)
+    # sanity values of docs/model.md section 2 (resolution-3 values, 0.2% discretization error)
     assert r.phi_w == pytest.approx(0.11214, abs=1e-5)
     assert m["E1"] == pytest.approx(2.32e-3, rel=5e-3)
     assert m["nu12"] == pytest.approx(0.961, abs=1e-3)
@@ -379,7 +379,7 @@ def test_gibson_ashby_thin_walls(solver):
     assert nu_gaps[1] < nu_gaps[0]
 
 
-# --- 10. qualitative facts of MODEL.md section 3 -----------------------------------------------
+# --- 10. qualitative facts of docs/model.md section 3 ---------------------------------------------
 
 
 def test_elongation_along_x2_lowers_E1_nu12_G12(solver):

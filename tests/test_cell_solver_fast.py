@@ -1,11 +1,12 @@
 """The basis path of ``CellSolver.solve`` equals a direct assembly of the UFL forms.
 
-``CellSolver`` builds the cell problems of MODEL.md section 3 from integrals assembled once per
+``CellSolver`` builds the cell problems of docs/model.md section 3 from integrals assembled once per
 geometry (``GradientBasis``: the matrix as a weighted sum of ten products, the right-hand sides
 and averages from four moments). The reference here is the direct route, written with the forms
-of ``forms.cell_problems`` as MODEL.md states them: dolfinx_mpc assembles [UC_weak]/[UCw_weak]
-for the given Fg, E, nu, PETSc factorizes (LU on one rank, MUMPS on several), and the averages
-are ``fem.assemble_scalar`` of the stress and strain average forms, component by component.
+of ``forms.cell_problems`` as docs/model.md section 3 states them: dolfinx_mpc assembles
+[UC_weak]/[UCw_weak] for the given Fg, E, nu, PETSc factorizes (LU on one rank, MUMPS on several),
+and the averages are ``fem.assemble_scalar`` of the stress and strain average forms, component by
+component.
 
 Tolerances: the two routes assemble the same matrix up to the summation order (measured
 <= 1.1e-15 relative to the largest entry) and then factorize it differently (Cholesky in nested

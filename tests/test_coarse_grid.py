@@ -1,4 +1,5 @@
-"""The coarse grid M of the coupled loop (plantgrowth/models/macro/coarse.py, MODEL.md section 5).
+"""The coarse grid M of the coupled loop (plantgrowth/models/macro/coarse.py,
+docs/model.md section 5).
 
 Pure numpy/scipy on replicated data; the only collective is the split-over-ranks check of
 ``project_to_nodes``, which every rank reaches. Tolerances are round-off: the interpolation and
@@ -11,7 +12,7 @@ from mpi4py import MPI
 
 from plantgrowth.models.macro.coarse import CoarseGrid, project_to_nodes
 
-WIDTH, HEIGHT = 6.928203230275509, 3.0  # the reference tissue (MODEL.md section 9)
+WIDTH, HEIGHT = 6.928203230275509, 3.0  # the reference tissue (docs/model.md section 9)
 RNG_SEED = 12345
 
 

@@ -1,4 +1,4 @@
-"""The CI convergence checks in delta = 1/Nx: micro versus macro (MODEL.md sections 7-8).
+"""The CI convergence checks in delta = 1/Nx: micro versus macro (docs/model.md sections 7-8).
 
 ``plantgrowth compare --nx 4 8 12 --resolution 1 --first-step-only`` (one P2 element across a
 micro wall; a few seconds per scene). Theory: the micro field is the macro field plus the
@@ -12,9 +12,9 @@ Two checks:
   err_u1 ~ delta^1.46 (zero-mean gauge; 0.91 with the pinned origin, which sits on a bulging
   outer wall), err_u2 ~ delta^1.68, err_ubar ~ delta^1.54, err_G 0.031, 0.023, 0.019 ~
   delta^0.45 (strain) / 0.46 (stress): the boundary layer's rate, since the cut bottom cells
-  grow as mirrored full cells (MODEL.md 7; before that fix their spurious shear doubled err_G).
-  Blind spot: traction-free equilibrium fixes sigma_hom = (1 - phi_w) P1 I whatever E_hom and
-  K_hom are, and the pointwise errors of thin walls (w = 0.05) are dominated by the
+  grow as mirrored full cells (docs/model.md section 7; before that fix their spurious shear doubled
+  err_G). Blind spot: traction-free equilibrium fixes sigma_hom = (1 - phi_w) P1 I whatever E_hom
+  and K_hom are, and the pointwise errors of thin walls (w = 0.05) are dominated by the
   corrector at these Nx, so a wrong E_hom or K_hom still gives falling errors here.
 - **Heterogeneous**: E rising along x1 (0.5 -> 2, stress law) with thick walls w = 0.2, so that
   the macro displacement is not drowned in the corrector and E_hom, K_hom shape it. Measured:

@@ -385,8 +385,8 @@ def test_an_expression_equal_to_linear_fields_gives_the_same_run(runs, capsys):
 
 def test_a_pressure_gradient_along_x2_grows_the_top_faster(runs, capsys):
     """P1 from 0.0005 at x2 = 0 to 0.002 at the top, stress law: the growth rate follows the
-    local turgor (MODEL.md 4: ~ (1 - phi_w)/phi_w P1), so the top cells grow ~4x faster than
-    the bottom ones; the x1 direction sees no gradient (left and right halves alike)."""
+    local turgor (docs/model.md section 4: ~ (1 - phi_w)/phi_w P1), so the top cells grow ~4x faster
+    than the bottom ones; the x1 direction sees no gradient (left and right halves alike)."""
     directory, _ = runs
     tables = {"pressure": {"P1": {"from": 0.0005, "to": 0.002, "along": "x2"}},
               "growth": {"law": "stress"}, "output": {"fields": ["u", "G"]}}  # fmt: skip

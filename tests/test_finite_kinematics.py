@@ -1,9 +1,10 @@
-"""Finite kinematics (MODEL.md section 10, issue 12): ``kinematics = "finite"``.
+"""Finite kinematics (docs/model.md section 10, issue 12): ``kinematics = "finite"``.
 
-Checks: the scene key; homogeneous scenes grow at the linear model's exact rate (MODEL.md 10
-(2)); a rotation as growth leaves u = 0 and no stress (10 (3)), which the linear kinematics does
-not; both kinematics agree to first order for small strains (10 (1)); Newton converges
-quadratically; a distributed run equals a single-rank one; a resumed run equals a straight one.
+Checks: the scene key; homogeneous scenes grow at the linear model's exact rate (docs/model.md
+section 10 (2)); a rotation as growth leaves u = 0 and no stress (10 (3)), which the linear
+kinematics does not; both kinematics agree to first order for small strains (10 (1)); Newton
+converges quadratically; a distributed run equals a single-rank one; a resumed run equals a
+straight one.
 
 Scenes: coarse macro meshes (h = 0.35, cell_resolution 1, no surrogate) and a micro tissue of
 Nx = 4; each model step is well under a second. Newton stops at a relative residual of 1e-10
@@ -81,13 +82,14 @@ def test_kinematics_key_defaults_to_linear_is_validated_recorded_and_resume_chec
             scene(kinematics=bad)
 
 
-# --- MODEL.md 10 (2): homogeneous scenes keep the exact linear rate -------------------------------
+# --- docs/model.md section 10 (2): homogeneous scenes keep the exact linear rate -----------------
 
 
 @pytest.mark.parametrize("Fg", [np.eye(2), np.array([[1.3, 0.1], [0.0, 0.9]])])
 def test_homogeneous_stress_scene_grows_at_the_exact_linear_rate(Fg):
     """Constant P1, no loads, uniform Fg: S_tot = 0, so sigma_hom = (1 - phi_w) P1 I and
-    G = eta [(1 - phi_w) / phi_w P1 - tau]_+ I (MODEL.md 4), as with linear kinematics."""
+    G = eta [(1 - phi_w) / phi_w P1 - tau]_+ I (docs/model.md section 4), as with linear
+    kinematics."""
     model = macro(scene(growth={"law": "stress", "Fg0": Fg.tolist()}))
     result = model.step(model.initial_growth())
     phi_w = model.problem.cell_values(model.problem.phi_w)[:, 0]
@@ -98,7 +100,7 @@ def test_homogeneous_stress_scene_grows_at_the_exact_linear_rate(Fg):
     assert result.newton_iterations >= 1 and result.newton_residual <= 1e-10
 
 
-# --- MODEL.md 10 (3): a rotation as growth -------------------------------------------------------
+# --- docs/model.md section 10 (3): a rotation as growth ------------------------------------------
 
 
 def rotation_scene(kinematics: str, model: str = "macro"):
@@ -177,7 +179,7 @@ def test_micro_walls_rotated_by_growth_stay_unloaded():
     assert global_max(model.u.x.array) <= 1e-14
 
 
-# --- MODEL.md 10 (1): first order agreement ------------------------------------------------------
+# --- docs/model.md section 10 (1): first order agreement -----------------------------------------
 
 
 def static_displacement(kinematics: str, P1: float, msh) -> np.ndarray:
@@ -352,8 +354,9 @@ def test_iterative_newton_hands_a_jacobian_gmres_cannot_solve_to_lu(
 
 def test_newton_avoids_the_collapsed_branch_and_the_check_sees_it(monkeypatch):
     """Pre-grown Fg0 = diag(1, 4) (scenes/hard/anisotropic_Fg0_x2, coarse), strain law: the
-    linear model's elastic strain reaches 6.1 there (MODEL.md 10 is for small elastic strain).
-    St Venant-Kirchhoff has the stress-free solution Fe = 0. The initial guess that is strongly
+    linear model's elastic strain reaches 6.1 there (docs/model.md section 10 is for small
+    elastic strain). St Venant-Kirchhoff has the stress-free solution Fe = 0. The initial guess
+    that is strongly
     elliptic wins, and Newton converges on the expanded branch (det F = 8.0 measured, 2x the
     pre-growth: the elongated cells' soft mode); ranked by the residual alone, the collapsed
     guess wins and Newton converges to a tissue of area ~1e-20, which the ellipticity check

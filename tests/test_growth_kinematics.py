@@ -1,4 +1,4 @@
-"""A uniform growth tensor is a change of variables (MODEL.md sections 3 and 7): exact checks.
+"""A uniform growth tensor is a change of variables (docs/model.md sections 3 and 7): exact checks.
 
 With Fg constant, ``x = Fg y`` maps the reference walls onto the grown walls, ``grad_x = grad_y
 Fg^{-1}``, ``dx = Jg dy`` and, on the membrane, ``n dgamma_x = Jg Fg^{-T} N dgamma_y`` (Nanson).
@@ -10,7 +10,7 @@ round-off of their LU solves: it tests the transpositions and Jacobians that iso
 
 - Cell problems: Fg = s R (R a rotation) on the cell Y is the growth-free problem on the rotated
   cell R Y, whose solutions are the rotated ones (isotropic walls), so E_hom, dbar[w] rotate as
-  4th-order tensors and K_hom, dbar[v] as 2nd-order ones (s drops out, MODEL.md 3).
+  4th-order tensors and K_hom, dbar[v] as 2nd-order ones (s drops out, docs/model.md section 3).
 - Micro model: a uniform Fg = A on the tissue is the growth-free tissue with its mesh mapped by
   A; with F = I + grad u, ``F A^{-1}`` is the same in both, so ``u_A(y) = (A - I) y +
   u_I(A y)`` (the linear part lies in P2), and the wall averages satisfy

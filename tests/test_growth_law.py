@@ -1,4 +1,5 @@
-"""Growth law and time integration (plantgrowth/models/growth.py, MODEL.md section 4): pure numpy.
+"""Growth law and time integration (plantgrowth/models/growth.py, docs/model.md
+section 4): pure numpy.
 
 No meshes and no MPI collectives: every rank runs the same checks. Tensors carry the cell index
 first, (n, 2, 2). Tolerances are round-off tolerances: every identity checked here is exact in
@@ -76,7 +77,8 @@ def test_positive_part_is_a_projection():
 
 
 def test_growth_rate_isotropic_driving_force():
-    """X = s I gives G = eta (s / phi_w - tau) I when positive, 0 when not (MODEL.md 4)."""
+    """X = s I gives G = eta (s / phi_w - tau) I when positive, 0 when not (docs/model.md section
+    4)."""
     s = np.array([0.01, 0.01, 0.001])
     phi_w = np.array([0.1, 0.2, 0.1])
     eta = np.array([1.5, 0.5, 2.0])
@@ -130,7 +132,8 @@ def test_exp_integrator_matches_expm_for_symmetric_G():
 
 @pytest.mark.parametrize("dt", [1e-3, 1.0, 50.0])
 def test_exp_integrator_det_identity(dt):
-    """det(expm(dt G) Fg) = exp(dt tr G) det Fg for any dt (MODEL.md 4: det Fg never drops)."""
+    """det(expm(dt G) Fg) = exp(dt tr G) det Fg for any dt (docs/model.md section 4: det Fg never
+    drops)."""
     rng = np.random.default_rng(RNG_SEED)
     # |dt G| up to ~2: larger exponents make det(new) itself ill-conditioned to evaluate
     G = random_symmetric(rng, 50, scale=0.02)
@@ -193,7 +196,8 @@ def test_elastic_strain_of_growth_without_displacement():
 def test_homogenized_stress_and_strain_of_a_solid_wall_is_hooke(nu):
     """A 'cell' that is all wall: E_hom = wall tensor, phi_w = 1, dbar = 0, K = 0.
 
-    Then eps_hom = eps_el and sigma_hom = lam tr(eps) I + 2 mu eps (plane stress, MODEL.md 1).
+    Then eps_hom = eps_el and sigma_hom = lam tr(eps) I + 2 mu eps (plane stress, docs/model.md
+    section 1).
     """
     E = 2.0
     rng = np.random.default_rng(RNG_SEED)

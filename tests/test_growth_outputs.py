@@ -2,9 +2,9 @@
 ``growth_direction``, ``stress_direction`` (plantgrowth/base/principal.py, growth_fields.py).
 
 The principal-value helpers are checked on hand-made tensors; the macro fields on a homogeneous
-scene, whose growth is exactly isotropic with tr G = 2 eta (1 - phi_w) P1 / phi_w (MODEL.md 4),
-and on an eta-gradient scene, whose differential growth makes it anisotropic. In-process runs
-through ``main`` (serial and under mpirun); the serial-vs-``mpirun -n 2`` comparison is a
+scene, whose growth is exactly isotropic with tr G = 2 eta (1 - phi_w) P1 / phi_w (docs/model.md
+section 4), and on an eta-gradient scene, whose differential growth makes it anisotropic. In-process
+runs through ``main`` (serial and under mpirun); the serial-vs-``mpirun -n 2`` comparison is a
 subprocess (``skip_in_parallel``). Runs: h = 0.5, H = 1, cell_resolution 1, two steps.
 """
 
@@ -130,7 +130,8 @@ def test_homogeneous_growth_is_isotropic_at_the_exact_rate(tmp_path_factory, cap
     _, outdir = run(tmp_path_factory, "homogeneous", "1.0", capsys)
     series = read_series(outdir)
     phi_w = HoneycombCell(1.0, 1.0, 30.0, 0.05).phi_w
-    exact = 2.0 * 1.0 * (1.0 - phi_w) * 0.001 / phi_w  # tr G, MODEL.md 4 (eta = 1, P1 = 1e-3)
+    # tr G, docs/model.md section 4 (eta = 1, P1 = 1e-3)
+    exact = 2.0 * 1.0 * (1.0 - phi_w) * 0.001 / phi_w
     for t in series.times:
         trG = series.cell_field("trG", t)
         G = series.cell_field("G", t)

@@ -1,4 +1,5 @@
-"""Honeycomb cell geometry (MODEL.md section 2): vertices, lattice, void, wall fraction, validation.
+"""Honeycomb cell geometry (docs/model.md section 2): vertices, lattice, void, wall
+fraction, validation.
 
 Pure numpy: no mesh, no MPI communication; every check is exact up to float round-off unless a
 comment says otherwise.
@@ -55,7 +56,7 @@ def test_reference_cell_values():
     assert cell.w_max == pytest.approx(c, abs=ROUND_OFF)
     # the void of a regular hexagon is a regular hexagon with apothem c - w
     assert cell.phi_w == pytest.approx(1 - (1 - 0.05 / c) ** 2, abs=ROUND_OFF)
-    assert round(cell.phi_w, 5) == 0.11214  # MODEL.md section 2 sanity value
+    assert round(cell.phi_w, 5) == 0.11214  # docs/model.md section 2 sanity value
 
 
 def test_hexagon_vertices_follow_model_convention():

@@ -1,4 +1,5 @@
-"""Exact solutions of the coupled macro model (MODEL.md sections 4-5) and exact coefficient fields.
+"""Exact solutions of the coupled macro model (docs/model.md sections 4-5) and exact
+coefficient fields.
 
 Homogeneous parameters, constant P1, a uniform Fg and no loads: the total stress
 ``S = E_hom eps_el + (K_hom + (phi_w - 1) I) P1`` vanishes for the linear u with
@@ -88,9 +89,10 @@ def displacement_error(model: MacroModel, H: np.ndarray) -> tuple[float, float]:
 
 
 def test_reference_scene_displacement_at_t0_is_linear():
-    """The reference scene (MODEL.md 9) at t = 0: u = H x with H = [[e11, 2 e12], [0, e22]],
-    eps_el = E_hom^{-1} ((1 - phi_w) I - K_hom) P1 (MODEL.md 4); regular hexagon: e12 = 0 and
-    e11 = e22 up to the cell mesh's anisotropy (~1e-9). Measured error 7e-12 relative."""
+    """The reference scene (docs/model.md section 9) at t = 0: u = H x with H = [[e11, 2 e12], [0,
+    e22]], eps_el = E_hom^{-1} ((1 - phi_w) I - K_hom) P1 (docs/model.md section 4); regular
+    hexagon: e12 = 0 and e11 = e22 up to the cell mesh's anisotropy (~1e-9). Measured error 7e-12
+    relative."""
     scene = load_scene(ROOT / "scenes" / "reference_stress.toml")
     model = macro_model(scene)
     Fg = model.initial_growth()

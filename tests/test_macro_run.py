@@ -1,4 +1,5 @@
-"""The coupled macroscopic run (``plantgrowth run``, MODEL.md sections 4-6 and 9) on small scenes.
+"""The coupled macroscopic run (``plantgrowth run``, docs/model.md sections 4-6 and 9) on
+small scenes.
 
 Every scene runs at most once per module (the ``runs`` fixture runs it on first use), in process
 through ``plantgrowth.cli.main`` on COMM_WORLD: under ``mpirun -n 2 python -m mpi4py -m pytest``
@@ -55,7 +56,7 @@ BASE = {
     "output": {"precision": "float64"},  # fields compared with summary rows to 1e-10
 }
 SCENES = {  # name -> tables merged into BASE
-    # homogeneous, stress law, E != 1, eta != 1, tau > 0 (MODEL.md section 4 consistency check)
+    # homogeneous, stress law, E != 1, eta != 1, tau > 0 (docs/model.md section 4 consistency check)
     "stress": {
         "material": {"E": 2.0},
         "growth": {"law": "stress", "eta": 1.5, "tau": 0.002},
@@ -199,7 +200,7 @@ def runs(tmp_path_factory) -> _Runs:
 
 
 def analytic_stress_rate(scene: Scene) -> float:
-    """eta [(1 - phi_w)/phi_w P1 - tau]_+ (MODEL.md section 4, consistency check)."""
+    """eta [(1 - phi_w)/phi_w P1 - tau]_+ (docs/model.md section 4, consistency check)."""
     g = scene.growth
     phi_w = scene.cell.at(0.0, 0.0).phi_w  # the HoneycombCell of a homogeneous scene
     return g.eta.start * max((1.0 - phi_w) / phi_w * scene.P1.start - g.tau.start, 0.0)
@@ -211,7 +212,7 @@ def analytic_stress_rate(scene: Scene) -> float:
 @pytest.mark.parametrize("name", HOMOGENEOUS)
 def test_homogeneous_growth_is_uniform_and_constant(runs, name):
     """Homogeneous parameters, constant P1, no loads: G is the same in every cell and at every
-    step (MODEL.md section 4). The discrete u is then linear, i.e. inside the P1 space, so the
+    step (docs/model.md section 4). The discrete u is then linear, i.e. inside the P1 space, so the
     only deviation is the round-off of the LU solve (residual ~1e-14, see the summary): 1e-10."""
     run = runs[name]
     n_steps = run.scene.time.n_steps
@@ -239,7 +240,7 @@ def test_homogeneous_growth_is_uniform_and_constant(runs, name):
 
 @pytest.mark.parametrize("name", ["stress", "stress_nu0"])
 def test_stress_law_rate_is_analytic(runs, name):
-    """G = eta [(1 - phi_w)/phi_w P1 - tau]_+ I (MODEL.md section 4), for E = 2 and E = 1.
+    """G = eta [(1 - phi_w)/phi_w P1 - tau]_+ I (docs/model.md section 4), for E = 2 and E = 1.
 
     The requirement is 0.5 %, but the rate is exact up to the LU round-off: the linear u with
     E_hom eps_el = -(K_hom + (phi_w - 1) I) P1 lies in the P1 space and makes the integrand of
@@ -287,12 +288,12 @@ GROWTH_TENSORS = [np.eye(2), np.diag([1.3, 0.9]), np.array([[1.1, 0.2], [0.0, 1.
 def test_P2_matrix_is_void_fraction_times_identity():
     """P2vec = (1 - phi_w) grad(P1) for every geometry and growth tensor.
 
-    With P2 = -grad(P1) . y (MODEL.md section 6) and N the wall's outward normal on the membrane
-    Gamma (pointing into the void Y_c, i.e. N = -n for the void's outward normal n),
+    With P2 = -grad(P1) . y (docs/model.md section 6) and N the wall's outward normal on the
+    membrane Gamma (pointing into the void Y_c, i.e. N = -n for the void's outward normal n),
         P2vec_i = (1/|Y|) int_Gamma P2 N_i = (1/|Y|) d_j P1 int_{dY_c} y_j n_i
                 = (1/|Y|) d_j P1 int_{Y_c} d_i y_j = (|Y_c|/|Y|) d_i P1 = (1 - phi_w) d_i P1,
     by the divergence theorem (int_{dY_c} y_j n_i = |Y_c| delta_ij, whatever the origin). So the
-    two body forces of MODEL.md section 4, Jg (1 - phi_w) Fg^{-T} grad(P1) and
+    two body forces of docs/model.md section 4, Jg (1 - phi_w) Fg^{-T} grad(P1) and
     -Jg Fg^{-T} P2vec, cancel pointwise. The matrix does not depend on Fg (it is geometric).
     Tolerance 1e-12: the void is a polygon, meshed exactly, and y_j n_i is integrated exactly on
     straight facets; what remains is the round-off of sums over the facets and triangles.

@@ -1,4 +1,5 @@
-"""The cell-resolved micro model (MODEL.md sections 6-7, paper [var_inequal], [growth_micro_1]).
+"""The cell-resolved micro model (docs/model.md sections 6-7, paper [var_inequal],
+[growth_micro_1]).
 
 Models are built in process on COMM_WORLD (under mpirun the walls mesh is distributed); the
 serial-vs-mpirun comparison starts ``mpirun -n 2 plantgrowth run`` as a subprocess and is
@@ -12,7 +13,7 @@ counts as traction-free), testing the equilibrium with psi = x gives, at Fg = I,
 walls equals P times the void area. With one wall material, the wall-averaged strain is the
 compliance times the wall-averaged stress. Each cell's walls are phi_w times its (mid-line
 hexagon) area, so the hexagon-area-weighted mean of the per-cell wall means is
-``(1 - phi_w)/phi_w P I``, the macro stress sigma_hom / phi_w of MODEL.md section 4 whatever
+``(1 - phi_w)/phi_w P I``, the macro stress sigma_hom / phi_w of docs/model.md section 4 whatever
 Nx, E and the cells' individual deviations. Hence the *mean* growth rate at t = 0 is exact,
 not a convergence measure (test_compare.py measures the cell-by-cell difference).
 """
@@ -49,7 +50,7 @@ ROUND_OFF = 1e-8  # identities of the discrete problem: LU solve and sums, measu
 
 
 def micro_scene(**tables):
-    """A micro scene: the reference scene (MODEL.md section 9) with ``tables`` merged in."""
+    """A micro scene: the reference scene (docs/model.md section 9) with ``tables`` merged in."""
     data = {"model": "micro", "growth": {"law": "stress"}, "time": {"t_max": 2}}
     data["micro"] = {"nx": 4, "resolution": 1}
     for name, entries in tables.items():
@@ -90,7 +91,7 @@ def read_summary(path: Path) -> tuple[list[str], list[dict[str, float]]]:
 )
 def test_mean_growth_rate_at_t0_is_the_virial_rate(nx, law, E, eta, tau):
     """Mean rate tr G at t = 0 = 2 eta (X - tau) with X = (1 - phi_w)/phi_w P1 (stress law,
-    the macro analytic rate of MODEL.md section 4, independent of E) or X = (1 - nu)/E times
+    the macro analytic rate of docs/model.md section 4, independent of E) or X = (1 - nu)/E times
     that (strain law: the plane-stress compliance of an isotropic stress s I is (1 - nu)/E).
     See the module docstring; holds to round-off for any Nx."""
     nu = 0.3
@@ -123,7 +124,7 @@ def test_stress_and_strain_laws_agree_when_the_wall_law_is_the_identity():
 
 
 def cell_problem_prediction(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """From the cell problems (MODEL.md sections 3-4), for a homogeneous tissue under P1 at
+    """From the cell problems (docs/model.md sections 3-4), for a homogeneous tissue under P1 at
     Fg = I: the macro elastic strain ``eps_el = E_hom^{-1} ((1 - phi_w) I - K_hom) P1`` (from
     sigma_hom = (1 - phi_w) P1 I), and the wall-averaged strain and stress of a cell deep
     inside, eps_hom / phi_w with ``eps_hom = phi_w eps_el + sum_ij eps_el_ij dbar[w^ij] +
@@ -167,8 +168,8 @@ def test_interior_cells_deform_by_the_macro_strain_of_E_hom_and_K_hom(interior):
     """What it detects: a wrong E_hom or K_hom (cell problems, their averages, their sign or
     scale), because the tissue's own stiffness and turgor response are compared with them.
 
-    The micro displacement is the macro one plus a periodic corrector (MODEL.md 3-4): at a
-    given vertex of every cell (same phase of the corrector) u is affine in x with gradient
+    The micro displacement is the macro one plus a periodic corrector (docs/model.md sections 3-4):
+    at a given vertex of every cell (same phase of the corrector) u is affine in x with gradient
     the macro strain ``eps_el = E_hom^{-1} ((1 - phi_w) I - K_hom) P1``. Fitted over the cells
     at least one cell away from the left, right and top edges; measured relative difference
     0.030 (Nx = 8) and 0.018 (Nx = 12), falling as O(delta) (the boundary layer's reach).
@@ -219,8 +220,8 @@ def test_interior_cell_wall_strain_is_the_virial_value_beyond_a_boundary_layer(i
 
 
 def test_cut_bottom_cells_grow_as_the_mirrored_full_cell(interior):
-    """MODEL.md 7: a cut bottom cell is half of a cell mirrored about x2 = 0, so it has no
-    shear growth (G12 changes sign under the mirror) and its normal rates are those of a full
+    """docs/model.md section 7: a cut bottom cell is half of a cell mirrored about x2 = 0, so it has
+    no shear growth (G12 changes sign under the mirror) and its normal rates are those of a full
     cell at the same x1. Before the fix the two bottom corner cells had G12/G11 = +-0.08 at
     Nx = 8. Rows 0 and 2 have their centres at the same x1; measured: their G11 and G22 differ
     by at most 0.6% (Nx = 8) of the mean rate, an O(delta) boundary-layer effect: tolerance 2%."""
@@ -372,7 +373,7 @@ def test_pressure_gradient_makes_growth_rise_along_x1():
 
 
 def test_fields_run_between_the_ends_of_the_simulated_micro_tissue():
-    """MODEL.md 7: a {from, to} field spans the tissue actually simulated, here x1 in
+    """docs/model.md section 7: a {from, to} field spans the tissue actually simulated, here x1 in
     [0, 7.79] at Nx = 4, not the scene's 6.93 rectangle; no value leaves [from, to]. Before
     the fix E = 1 -> 0.1 reached -0.0125 in the last cells and nu = 0 -> 0.45 reached 0.506."""
     scene = micro_scene(
@@ -401,8 +402,9 @@ def test_macro_side_of_a_comparison_spans_the_same_tissue():
 
 
 def test_model_both_runs_macro_on_the_micro_tissue(mpi_tmp_path):
-    """model = "both": the macro side's domain is the region the micro cells cover (MODEL.md 7),
-    so its mesh area is the sum of the cells' (cut) hexagon areas, not the scene's rectangle."""
+    """model = "both": the macro side's domain is the region the micro cells cover (docs/model.md
+    section 7), so its mesh area is the sum of the cells' (cut) hexagon areas, not the scene's
+    rectangle."""
     data = {
         "model": "both", "tissue": {"h": 0.35}, "growth": {"law": "strain"},
         "time": {"t_max": 1.0}, "micro": {"nx": 4, "resolution": 1},

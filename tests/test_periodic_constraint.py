@@ -1,4 +1,4 @@
-"""Periodic identifications, periodic mesh and the dolfinx_mpc constraint (MODEL.md section 2).
+"""Periodic identifications, periodic mesh and the dolfinx_mpc constraint (docs/model.md section 2).
 
 The constrained operator must be the explicit reduction K^T A K of the unconstrained one, every
 side/corner dof must be slaved exactly once, and the computed correctors must be periodic.

@@ -19,7 +19,8 @@ from plantgrowth.scene.presets import PRESETS
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 LAW = '[growth]\nlaw = "stress"\n'
-GRADIENTS = {  # MODEL.md section 9 intervals: param -> (keys, strain interval, stress interval)
+# docs/model.md section 9 intervals: param -> (keys, strain interval, stress interval)
+GRADIENTS = {
     "E": (["material.E"], (0.5, 2.0), (0.5, 2.0)),
     "nu": (["material.nu"], (0.0, 0.45), (0.0, 0.45)),
     "P1": (["pressure.P1"], (0.0005, 0.002), (0.0005, 0.002)),
@@ -396,7 +397,7 @@ def test_errors_in_a_file_name_the_key_and_the_file(tmp_path):
     ],
 )
 def test_micro_rejects_geometric_fields_and_loads(model, extra, key):
-    """MODEL.md 7: geometric fields are not defined for the cellular tissue; it has no edges
-    to load."""
+    """docs/model.md section 7: geometric fields are not defined for the cellular tissue; it has no
+    edges to load."""
     with pytest.raises(SceneError, match=key):
         parse(f'model = "{model}"\n[growth]\nlaw = "stress"\n{extra}')

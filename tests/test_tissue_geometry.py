@@ -1,4 +1,5 @@
-"""The cellular tissue of the micro model (MODEL.md section 7): layout, walls mesh, outline mesh.
+"""The cellular tissue of the micro model (docs/model.md section 7): layout, walls mesh,
+outline mesh.
 
 The layout is pure geometry (no mesh) and is checked against the formulas of section 7. The
 walls are straight-sided polygons (each cell's mid-line hexagon minus its void, cut at x2 = 0),
@@ -109,7 +110,7 @@ def test_walls_mesh_has_one_tag_per_cell(walls):
 
 def test_wall_areas_are_hexagon_minus_void(walls):
     """Per cell and in total: |walls of cell i| = |hexagon_i| - |void_i above x2 = 0|; for a
-    full cell that is phi_w |hexagon_i| (MODEL.md section 2)."""
+    full cell that is phi_w |hexagon_i| (docs/model.md section 2)."""
     layout, msh, cell_tags, _ = walls
     dx = ufl.Measure("dx", domain=msh, subdomain_data=cell_tags)
     one = fem.Constant(msh, 1.0)

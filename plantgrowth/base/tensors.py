@@ -1,6 +1,6 @@
 """Small 2D tensor helpers: the paper's six-component storage and orthotropic moduli.
 
-Storage order (paper appendix, MODEL.md section 1): {E1111, E2222, E1122, E1212, E1112, E2212}.
+Storage order (paper appendix, docs/model.md section 1): {E1111, E2222, E1122, E1212, E1112, E2212}.
 """
 
 from __future__ import annotations

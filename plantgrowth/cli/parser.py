@@ -36,8 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
     cell = sub.add_parser(
         "cell",
         help="solve the unit-cell problems and print the homogenized tensors",
-        description="Homogenized properties of one honeycomb cell (MODEL.md sections 2-3). "
-        "Defaults: the reference cell of MODEL.md section 9 with Fg = I.",
+        description="Homogenized properties of one honeycomb cell (docs/model.md sections 2-3). "
+        "Defaults: the reference cell of docs/model.md section 9 with Fg = I.",
     )
     cell.add_argument("--l1", type=float, default=1.0, help="vertical wall length (default 1)")
     cell.add_argument("--l2", type=float, default=1.0, help="inclined wall length (default 1)")

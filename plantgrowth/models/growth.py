@@ -1,4 +1,4 @@
-"""Growth law and time integration, vectorised over fine-mesh cells (MODEL.md section 4).
+"""Growth law and time integration, vectorised over fine-mesh cells (docs/model.md section 4).
 
 [G_stress]  G~ = eta [ sigma_hom / phi_w - tau I ]_+
 [G_strain]  G~ = eta [ eps_hom   / phi_w - tau I ]_+
@@ -35,7 +35,7 @@ def elastic_strain(grad_u: np.ndarray, Fg: np.ndarray) -> np.ndarray:
 
 
 def green_lagrange_strain(grad_u: np.ndarray, Fg: np.ndarray) -> np.ndarray:
-    """``Ee = (Fe^T Fe - I) / 2`` with ``Fe = (I + grad u) Fg^{-1}`` (MODEL.md section 10)."""
+    """``Ee = (Fe^T Fe - I) / 2`` with ``Fe = (I + grad u) Fg^{-1}`` (docs/model.md section 10)."""
     Fe = (np.eye(2) + grad_u) @ np.linalg.inv(Fg)
     return 0.5 * (np.swapaxes(Fe, 1, 2) @ Fe - np.eye(2))
 

@@ -1,5 +1,5 @@
 """Newton's method with a backtracking line search for the finite-kinematics problems
-(MODEL.md section 10), with the exact UFL-derived Jacobian.
+(docs/model.md section 10), with the exact UFL-derived Jacobian.
 
 Iteration k: assemble ``R(u_k)`` and ``J(u_k) = dR/du``, solve ``J du = R`` with the problem's
 linear solver (LU, or GMRES + GAMG with LU as fallback: :mod:`plantgrowth.models.linear`), then

@@ -141,8 +141,8 @@ def _newton_minimum(
 
 
 def isotropic_voigt(E, nu) -> np.ndarray:
-    """(..., 3, 3) plane-stress St Venant-Kirchhoff tangents (walls, MODEL.md 1) in Voigt storage,
-    for scalars or arrays of E and nu."""
+    """(..., 3, 3) plane-stress St Venant-Kirchhoff tangents (walls, docs/model.md section 1) in
+    Voigt storage, for scalars or arrays of E and nu."""
     E, nu = np.broadcast_arrays(np.asarray(E, dtype=float), np.asarray(nu, dtype=float))
     lam, mu = E * nu / (1.0 - nu**2), E / (2.0 * (1.0 + nu))
     C = np.zeros((*E.shape, 3, 3))

@@ -89,7 +89,7 @@ def run_macro(
 ) -> list[dict[str, float]]:
     """Run the coupled macroscopic model on its domain, writing into ``outdir``: the scene's
     rectangle, or, for ``model = "both"``, the region the micro tissue's cells cover, so that
-    the two models see the same tissue (MODEL.md section 7). Returns the summary rows of the
+    the two models see the same tissue (docs/model.md section 7). Returns the summary rows of the
     steps run (all rows are in ``outdir/summary.csv``)."""
     start = time.perf_counter()
     model = model_on(domain, comm)

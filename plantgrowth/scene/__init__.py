@@ -1,6 +1,6 @@
-"""Scenes: one TOML file describes one simulation (MODEL.md sections 4-6 and 9).
+"""Scenes: one TOML file describes one simulation (docs/model.md sections 4-6 and 9).
 
-Every table and key is optional and defaults to the reference scene of MODEL.md section 9,
+Every table and key is optional and defaults to the reference scene of docs/model.md section 9,
 except ``growth.law``. Unknown keys, wrong types, NaN/inf and out-of-range values are errors
 (:class:`SceneError`) whose message starts with the dotted key, e.g. ``material.nu = 0.5 is out
 of range: ...``. Integers are accepted for floats. Everything is non-dimensional (wall E = 1,
@@ -8,7 +8,8 @@ inclined wall length l2 = 1)::
 
     model = "macro"            # "macro" | "micro" | "both"
     kinematics = "linear"      # "linear": the paper's eps_el; "finite": F = Fe Fg, Green-Lagrange
-                               # Ee, Newton's method (MODEL.md 10, docs/finite_kinematics.md)
+                               # Ee, Newton's method (docs/model.md section 10,
+                               # docs/finite_kinematics.md)
     [tissue]                   # the rectangle [0, width] x [0, height]; x2 = 0 is a symmetry plane
     width = 6.928203230275509  # 8 cos(30 deg), at most 1e6
     height = 3.0               # at most 1e6
@@ -23,17 +24,17 @@ inclined wall length l2 = 1)::
                                # at most 4e6 cells
     H = 0.5                    # (preset) coarse-mesh edge (cell-problem nodes):
                                # h <= H <= max(width, height)
-    [cell]                     # honeycomb unit cell, MODEL.md section 2
+    [cell]                     # honeycomb unit cell, docs/model.md section 2
     l1 = 1.0                   # vertical wall length, > 0
     l2 = 1.0                   # inclined wall length, > 0
     theta = 30.0               # inclined wall angle in degrees, in (0, 90)
     w = 0.05                   # one cell's own wall thickness, > 0 and leaving a void
-    [material]                 # wall material, MODEL.md section 1
+    [material]                 # wall material, docs/model.md section 1
     E = 1.0                    # Young modulus, > 0
     nu = 0.3                   # Poisson ratio, in (-1, 0.5)
     [pressure]
-    P1 = 0.001                 # turgor pressure, >= 0 (MODEL.md section 6)
-    [growth]                   # growth law, MODEL.md section 4
+    P1 = 0.001                 # turgor pressure, >= 0 (docs/model.md section 6)
+    [growth]                   # growth law, docs/model.md section 4
     law = "stress"             # REQUIRED: "stress" | "strain" | "none"
     eta = 1.0                  # extensibility, >= 0
     tau = 0.0                  # yield threshold, >= 0
@@ -98,9 +99,9 @@ entry of ``growth.Fg0`` are *fields* (docs/fields.md):
 
 - a number;
 - ``{from = a, to = b}`` (``along = "x1"``, the default) or ``{from = a, to = b, along = "x2"}``:
-  linear from a at 0 to b at the end of the tissue simulated along that axis (MODEL.md sections
-  7, 9): the macro rectangle's width or height, the cellular tissue's own extent for micro runs
-  and the macro side of ``both`` and ``compare``, so a field never leaves [a, b];
+  linear from a at 0 to b at the end of the tissue simulated along that axis (docs/model.md
+  sections 7, 9): the macro rectangle's width or height, the cellular tissue's own extent for micro
+  runs and the macro side of ``both`` and ``compare``, so a field never leaves [a, b];
 - ``{expr = "..."}``: an expression of x1 and x2 (plantgrowth/scene/expression.py: numbers, pi,
   ``+ - * / **``, parentheses, comparisons, exp log sqrt sin cos tanh abs min max and
   ``where(cond, a, b)``; never Python's eval), in absolute coordinates.

@@ -1,11 +1,12 @@
 """Scene parameter fields: constant, linear along x1 or x2, or an expression of (x1, x2).
 
 Every field evaluates at points, ``f(x1, x2)``, and gives its gradient there,
-``f.gradient(x1, x2)`` of shape ``(..., 2)`` (MODEL.md 6 uses grad P1). A linear field runs from
-``start`` at 0 to ``end`` at the tissue's extent along its axis (``width`` for x1, ``height`` for
-x2: the tissue actually simulated, MODEL.md 7); its gradient is exact. An expression's gradient
-is its symbolic derivative (:meth:`plantgrowth.scene.expression.Expression.derivative`), also exact,
-so an expression equal to a linear field gives the same values and gradient to round-off.
+``f.gradient(x1, x2)`` of shape ``(..., 2)`` (docs/model.md section 6 uses grad P1). A linear field
+runs from ``start`` at 0 to ``end`` at the tissue's extent along its axis (``width`` for x1,
+``height`` for x2: the tissue actually simulated, docs/model.md section 7); its gradient is exact.
+An expression's gradient is its symbolic derivative
+(:meth:`plantgrowth.scene.expression.Expression.derivative`), also exact, so an expression equal to
+a linear field gives the same values and gradient to round-off.
 
 Range checks name the key: :meth:`Field.check` checks a linear field's ends (its extremes);
 expressions are checked where they are used (:mod:`plantgrowth.scene.places`).
@@ -80,7 +81,7 @@ class Field:
         return np.broadcast_to(np.eye(2)[axis] * self.slope, (*shape, 2)).copy()
 
     def over(self, width: float, height: float) -> Field:
-        """The same ends across a tissue of another extent (MODEL.md 7)."""
+        """The same ends across a tissue of another extent (docs/model.md section 7)."""
         return replace(self, width=width, height=height)
 
     def to_toml(self) -> float | dict[str, float | str]:

@@ -42,4 +42,4 @@ FG0_RANGE = (-MAX_LENGTH, MAX_LENGTH, False, False)
 """The interval of each entry of growth.Fg0 (and det Fg0 > 0)."""
 IDENTITY = ((1.0, 0.0), (0.0, 1.0))
 REFERENCE_WIDTH = 4.0 * math.sqrt(3.0)  # = 8 cos(30 deg), exactly rounded
-"""Reference tissue width 8c = 6.928203230275509 (MODEL.md section 9)."""
+"""Reference tissue width 8c = 6.928203230275509 (docs/model.md section 9)."""

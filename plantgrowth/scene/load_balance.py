@@ -1,5 +1,5 @@
-"""The balance of a scene's edge loads along x1 (MODEL.md 4): only the pinned point holds the
-tissue along x1, so the tractions' x1 resultant must vanish."""
+"""The balance of a scene's edge loads along x1 (docs/model.md section 4): only the pinned point
+holds the tissue along x1, so the tractions' x1 resultant must vanish."""
 
 from __future__ import annotations
 
@@ -15,11 +15,12 @@ def unbalanced_load(
     pin: tuple[float, float] = (0.0, 0.0),
     fix_edge: str = "left",
 ) -> str:
-    """Why the tractions (MODEL.md 4) leave a net x1 force on the reference tissue ('' if they
-    do not). The symmetry plane x2 = 0 carries x2 forces; along x1 only the pinned point holds
-    the tissue, so the x1 forces must balance: ``sum over the loaded edges of f[0] * length = 0``
-    (rectangle: ``f_left[0] height + f_right[0] height + f_top[0] width``; for a load that
-    varies along its edge, the integral of f[0] over the edge: plantgrowth.scene.loads.resultant).
+    """Why the tractions (docs/model.md section 4) leave a net x1 force on the reference tissue (''
+    if they do not). The symmetry plane x2 = 0 carries x2 forces; along x1 only the pinned point
+    holds the tissue, so the x1 forces must balance:
+    ``sum over the loaded edges of f[0] * length = 0`` (rectangle: ``f_left[0] height +
+    f_right[0] height + f_top[0] width``; for a load that varies along its edge, the
+    integral of f[0] over the edge: plantgrowth.scene.loads.resultant).
 
     Args:
         loads: edge -> traction f or total force.

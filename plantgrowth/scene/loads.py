@@ -1,4 +1,4 @@
-"""Edge loads of a scene (``[loads]``, MODEL.md 4), model = "macro" only, of two kinds:
+"""Edge loads of a scene (``[loads]``, docs/model.md section 4), model = "macro" only, of two kinds:
 
 - a traction ``[f1, f2]`` per unit length of the edge as the forms see it: the grown length
   (``Jg |Fg^-T N|`` times the reference length) with linear kinematics, the current length

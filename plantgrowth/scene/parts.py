@@ -115,7 +115,7 @@ class Tissue:
 
 @dataclass(frozen=True)
 class CellGeometry:
-    """Honeycomb cell parameters (MODEL.md section 2); theta in degrees."""
+    """Honeycomb cell parameters (docs/model.md section 2); theta in degrees."""
 
     l1: AnyField
     l2: AnyField
@@ -161,7 +161,7 @@ class CellGeometry:
 
 @dataclass(frozen=True)
 class Material:
-    """Wall Young modulus E > 0 and Poisson ratio -1 < nu < 0.5 (MODEL.md section 1)."""
+    """Wall Young modulus E > 0 and Poisson ratio -1 < nu < 0.5 (docs/model.md section 1)."""
 
     E: AnyField
     nu: AnyField
@@ -173,7 +173,7 @@ class Material:
 
 @dataclass(frozen=True)
 class Growth:
-    """Growth law (MODEL.md section 4): G = clip(eta [X / phi_w - tau]_+, -clamp, clamp).
+    """Growth law (docs/model.md section 4): G = clip(eta [X / phi_w - tau]_+, -clamp, clamp).
 
     ``law`` is "stress" (X = sigma_hom), "strain" (X = eps_hom) or "none" (G = 0).
     """
@@ -223,7 +223,7 @@ class Growth:
         return out
 
     def over(self, width: float, height: float) -> Growth:
-        """The growth fields across a tissue of another extent (MODEL.md 7)."""
+        """The growth fields across a tissue of another extent (docs/model.md section 7)."""
         Fg0 = tuple(tuple(x if isinstance(x, float) else x.over(width, height) for x in row)
                     for row in self.Fg0)  # fmt: skip
         return replace(

@@ -1,8 +1,8 @@
 """Validation of field values where they are used (issue 11): expressions can leave their range
 anywhere, so they are checked at every place the run evaluates them.
 
-Places (MODEL.md 5, 7): the coarse-grid nodes (cell problems: geometry, E, nu) and the fine-mesh
-cells' midpoints (P1, eta, tau, Fg0) of the macro domain actually simulated (the scene's
+Places (docs/model.md sections 5, 7): the coarse-grid nodes (cell problems: geometry, E, nu) and the
+fine-mesh cells' midpoints (P1, eta, tau, Fg0) of the macro domain actually simulated (the scene's
 rectangle, or the region a micro tissue covers), and the cell centres of a micro tissue. Every
 field is checked at all of its model's places against :data:`plantgrowth.scene.RANGES`, Fg0
 (entries and det Fg0 > 0) where it is used (fine cells, cell centres), and the cell geometry at

@@ -2,7 +2,7 @@
 (:mod:`plantgrowth.scene.load_balance`). The states of a run's steps are watched by
 :mod:`plantgrowth.runner.step_warnings`.
 
-The model is non-dimensional (MODEL.md sections 1, 4, 9: wall E = 1, turgor P1 = 0.001).
+The model is non-dimensional (docs/model.md sections 1, 4, 9: wall E = 1, turgor P1 = 0.001).
 Warnings, before anything runs:
 
 - a non-zero ``P1 / E`` outside ``P1_OVER_E`` ([1e-5, 1e-1]): usually P1 and E in different units;

@@ -119,12 +119,12 @@ class Scene:
 
     def check_micro(self) -> None:
         """The micro model needs a constant cell geometry (a gradient of w, l1, l2 or theta has no
-        well-defined cellular tissue: MODEL.md section 7, paper section 5.3), builds its own
+        well-defined cellular tissue: docs/model.md section 7, paper section 5.3), builds its own
         tissue (no outline or mesh) and has no loads."""
         if self.tissue.shape is not None:
             raise SceneError(
                 f"{self.tissue.shape.key}: the micro model builds its own honeycomb tissue "
-                f'(MODEL.md section 7); use model = "macro"'
+                f'(docs/model.md section 7); use model = "macro"'
             )
         for key in ("l1", "l2", "theta", "w"):
             if not getattr(self.cell, key).is_constant:
@@ -147,8 +147,8 @@ class Scene:
     def over_extent(self, width: float, height: float) -> Scene:
         """This scene on a tissue of extent [0, width] x [0, height] (a micro tissue, or the
         macro side of a micro-macro comparison): every linear field runs from its ``from`` value
-        at 0 to its ``to`` value at the extent along its axis, never extrapolated (MODEL.md
-        section 7); expressions are unchanged. Revalidated."""
+        at 0 to its ``to`` value at the extent along its axis, never extrapolated
+        (docs/model.md section 7); expressions are unchanged. Revalidated."""
         if (width, height) == (self.tissue.width, self.tissue.height):
             return self
 

@@ -1,5 +1,5 @@
 """Tissue shapes other than the rectangle: ``tissue.outline`` (a polygon) and ``tissue.mesh`` (a
-gmsh .msh file), checked into a :class:`Shape` (docs/shapes.md, MODEL.md section 4).
+gmsh .msh file), checked into a :class:`Shape` (docs/shapes.md, docs/model.md section 4).
 
 Both lie in x1 >= 0, x2 >= 0 with at least one edge on the symmetry plane x2 = 0, so that the
 bounding box is ``[0, width] x [0, height]``: the coarse grid covers it, and the fields run from

@@ -1,4 +1,4 @@
-"""Micro-macro comparison in delta = 1/Nx (MODEL.md sections 7-8, paper Fig. 2 d-j).
+"""Micro-macro comparison in delta = 1/Nx (docs/model.md sections 7-8, paper Fig. 2 d-j).
 
 For each Nx the macro model runs on the region the micro tissue covers (the union of its cells'
 mid-line hexagons, cut at x2 = 0) and the micro model on the walls. At the first time step the
@@ -105,11 +105,11 @@ def relative_errors(u_micro: fem.Function, A: fem.Function) -> dict[str, float]:
     """[error] for u1 and u2 on the micro walls (the macro field interpolated on their P2 nodes).
 
     u2 has no gauge freedom (u2 = 0 on the symmetry plane). u1 is defined up to a rigid shift
-    along x1, which both models fix by u1 = 0 at the origin (MODEL.md 4). In the micro tissue the
-    origin lies in the middle of an outer wall, which turgor bows outwards by O(delta): that
-    bulge shifts the whole micro u1 field. ``err_u1`` therefore compares both fields in the
-    other gauge MODEL.md allows, zero mean of u1 over the walls (the rigid shift removed from
-    each); ``err_u1_pinned`` is the same measure in the pinned gauge.
+    along x1, which both models fix by u1 = 0 at the origin (docs/model.md section 4). In the micro
+    tissue the origin lies in the middle of an outer wall, which turgor bows outwards by
+    O(delta): that bulge shifts the whole micro u1 field. ``err_u1`` therefore compares both
+    fields in the other gauge docs/model.md section 4 allows, zero mean of u1 over the walls (the
+    rigid shift removed from each); ``err_u1_pinned`` is the same measure in the pinned gauge.
     """
     V = u_micro.function_space
     comm = V.mesh.comm

@@ -1,4 +1,4 @@
-"""Hard-case stability criteria of the coupled macro model (MODEL.md sections 4-5).
+"""Hard-case stability criteria of the coupled macro model (docs/model.md sections 4-5).
 
 :func:`evaluate` runs one scene through :func:`plantgrowth.runner.timeloop.run_model` with a
 per-step callback and returns the criterion values, a pass/fail per criterion and the wall time. The

@@ -1,4 +1,4 @@
-"""The unit cell (MODEL.md sections 2-3): the periodic cell problems and their solver, the
+"""The unit cell (docs/model.md sections 2-3): the periodic cell problems and their solver, the
 homogenized tensors, the surrogate that interpolates them, their cache and the sharing of cell
 problems among ranks.
 

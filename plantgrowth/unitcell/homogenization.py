@@ -1,7 +1,8 @@
 """Cell problems at the coarse nodes or fine cells, solved once per distinct input (paper
 Algorithm 3).
 
-Inputs are reduced before solving, by exact invariances of the cell problems (MODEL.md 3):
+Inputs are reduced before solving, by exact invariances of the cell problems
+(docs/model.md section 3):
 - ``Fg -> Fg / sqrt(det Fg)``: scaling Fg by g scales the cell solutions by g and leaves every
   homogenized quantity unchanged;
 - ``E -> 1``: E_hom scales with E, dbar[v] with 1/E; K_hom, dbar[w^ij] do not depend on E.

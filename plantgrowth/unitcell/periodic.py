@@ -2,7 +2,7 @@
 
 Side dofs are constrained to the opposite side without the corners; corners, where several
 periodic pairs meet, are constrained on their own to one master corner per lattice class, which
-is no slave anywhere (dolfinx_mpc issue #21; MODEL.md section 2).
+is no slave anywhere (dolfinx_mpc issue #21; docs/model.md section 2).
 """
 
 from __future__ import annotations

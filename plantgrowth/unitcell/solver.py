@@ -1,4 +1,4 @@
-"""Solver for the growth-weighted unit-cell problems (MODEL.md section 3, paper Algorithm 3).
+"""Solver for the growth-weighted unit-cell problems (docs/model.md section 3, paper Algorithm 3).
 
 One :class:`CellSolver` owns a periodic unit-cell mesh, its constraints and the basis integrals
 of :class:`GradientBasis`. ``solve(Fg, E, nu)`` builds the shared bilinear form from them,
@@ -14,8 +14,8 @@ tensor as a 4x4 matrix and the row-major flattening p = (i, a) of ``grad(z)[i, a
     int grad(z) G     = L (r_p . z)_p                       (z back-substituted),
 with the moments ``r_q = int grad(phi)_q``. A solve is then a weighted sum of same-pattern
 matrices, one factorization, four solves and dot products. The forms of ``forms.cell_problems``
-that state [UC_weak], [UCw_weak] and the averages as MODEL.md writes them are the reference the
-tests compare with.
+that state [UC_weak], [UCw_weak] and the averages as docs/model.md section 3 writes them are the
+reference the tests compare with.
 """
 
 from __future__ import annotations
@@ -81,7 +81,8 @@ class CellResult:
         return np.array([self.E_hom[i, j, k, l] for (i, j), (k, l) in VOIGT_PAIRS])
 
     def P2vec(self, grad_P1: np.ndarray) -> np.ndarray:
-        """``P2vec = (1/|Y|) int_Gamma P2 N`` for ``P2 = -grad(P1) . y`` ([P2], MODEL.md 6)."""
+        """``P2vec = (1/|Y|) int_Gamma P2 N`` for ``P2 = -grad(P1) . y`` ([P2], docs/model.md
+        section 6)."""
         if self.P2_matrix is None:
             raise ValueError("P2vec is defined on the hexagonal cell only")
         return self.P2_matrix @ np.asarray(grad_P1, dtype=float)
@@ -414,7 +415,7 @@ def cell_properties(
     resolution: int | None, comm: MPI.Comm, resolution_name: str = "resolution",
 ) -> dict:  # fmt: skip
     """E_hom (six components), K_hom, the orthotropic moduli, phi_w, ndofs and seconds of one
-    honeycomb cell (MODEL.md sections 2-3) at the growth tensor ``Fg`` (2x2), checked first
+    honeycomb cell (docs/model.md sections 2-3) at the growth tensor ``Fg`` (2x2), checked first
     (errors name the argument; the resolution as ``resolution_name``)."""
     E, nu = check_wall_material(E, nu)
     Fg = np.array(check_growth_tensor("Fg", Fg))

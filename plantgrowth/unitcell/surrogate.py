@@ -1,9 +1,9 @@
 """Error-controlled surrogate of the homogenized quantities over the growth state (issue 9).
 
-Reduction (exact invariances of the cell problems, MODEL.md 3): scaling Fg changes nothing,
-so only ``F = Fg / sqrt(det Fg)`` matters; and with the polar split ``F = R U`` (R a rotation,
-U symmetric positive definite, det U = 1) the problem for F is the problem for U rotated by R
-(isotropic walls, rotated periodic solutions are periodic), so E_hom, dbar[w] rotate as
+Reduction (exact invariances of the cell problems, docs/model.md section 3): scaling Fg changes
+nothing, so only ``F = Fg / sqrt(det Fg)`` matters; and with the polar split ``F = R U`` (R a
+rotation, U symmetric positive definite, det U = 1) the problem for F is the problem for U rotated
+by R (isotropic walls, rotated periodic solutions are periodic), so E_hom, dbar[w] rotate as
 4th-order and K_hom, dbar[v] as 2nd-order tensors. What is left is the stretch
 ``U = expm(S)``, ``S = [[s1, s2], [s2, -s1]]``: two numbers per cell geometry and nu.
 

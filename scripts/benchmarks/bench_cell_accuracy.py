@@ -1,4 +1,4 @@
-"""Accuracy versus cost of the unit-cell solver (MODEL.md sections 3 and 9).
+"""Accuracy versus cost of the unit-cell solver (docs/model.md sections 3 and 9).
 
 The reference cell (E = 1, nu = 0.3, l1 = l2 = 1, theta = 30 deg, w = 0.05) is solved at several
 resolutions (P2 elements across the wall thickness w) for Fg = I and for the grown cell
@@ -192,7 +192,8 @@ def main(argv: list[str] | None = None) -> int:
         }
 
     result = {
-        "description": "Unit-cell solver accuracy vs cost, reference cell of MODEL.md section 9",
+        "description": "Unit-cell solver accuracy vs cost, reference cell of docs/model.md "
+        "section 9",
         "cell": {"l1": cell.l1, "l2": cell.l2, "theta_deg": cell.theta_deg, "w": cell.w},
         "phi_w": runs[R]["cases"]["Fg=I"]["summary"]["phi_w"],
         "E": args.E,

@@ -1,7 +1,7 @@
 """Cost of one cell solve in the coupled loop: ``CellSolver.solve`` on a solver that serves many Fg.
 
-For the reference cell (MODEL.md section 9) at resolutions 1, 2, 3 it times repeated solves with
-varying growth tensors (stretch, shear and rotation, drawn once from a fixed seed), in the two
+For the reference cell (docs/model.md section 9) at resolutions 1, 2, 3 it times repeated solves
+with varying growth tensors (stretch, shear and rotation, drawn once from a fixed seed), in the two
 modes of the coupled loop: the strain law (pressure problem and strain averages) and the stress
 law (pressure problem only). The solver of a baseline commit, read with ``git show`` from this
 repository and imported as it was, is timed on the same Fg, interleaved solve by solve with the

@@ -1,4 +1,4 @@
-"""Figures of the finite-kinematics studies (issue 12, MODEL.md section 10).
+"""Figures of the finite-kinematics studies (issue 12, docs/model.md section 10).
 
 - ``finite_vs_linear.png``: from ``benchmarks/results/finite_vs_linear.json``
   (``scripts/studies/finite_vs_linear.py``), |finite - linear| / |linear| of the tissue's mean

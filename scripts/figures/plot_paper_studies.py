@@ -4,8 +4,9 @@ solved here.
 
 - ``fig2c_sensitivity.png`` (Fig. 2c): phi = (x0 / X(x0)) dX/dx of the mean tr G per parameter,
   both laws, bars from the sweeps, crosses from the exact homogeneous rate;
-- ``fig3_scans.png`` (Fig. 3, first column): mean tr G versus each parameter over its MODEL.md 9
-  interval, both laws: sweep runs (markers), exact homogeneous rate (lines), reference (black);
+- ``fig3_scans.png`` (Fig. 3, first column): mean tr G versus each parameter over its
+  docs/model.md section 9 interval, both laws: sweep runs (markers), exact homogeneous rate
+  (lines), reference (black);
 - ``fig3_micro_macro_<law>.png`` (Fig. 3, columns 2-3): per gradient scene (E, nu, P1, tau, eta),
   the micro walls (Nx = 16) over the macro outline at t_max, the initial tissue shaded, and the
   mean tr G of both versus time. Scenes not run yet are left blank with a note.
@@ -114,12 +115,14 @@ def plot_scans(data: dict, out: Path) -> None:
             Line2D([], [], ls="none", marker=MARKERS[law], mfc="none", color=COLOURS[law],
                    label=f"{law} law: sweep run") for law in LAWS
         ] + [
-            Line2D([], [], color="0.4", label="exact homogeneous rate (MODEL.md 4)"),
+            Line2D([], [], color="0.4", label="exact homogeneous rate (docs/model.md section 4)"),
             Line2D([], [], ls="none", marker="o", color="k", label="reference value"),
         ],
         loc="center", fontsize=9,
     )  # fmt: skip
-    fig.suptitle("Homogeneous tissues: growth rate over each parameter's interval (MODEL.md 9)")
+    fig.suptitle(
+        "Homogeneous tissues: growth rate over each parameter's interval (docs/model.md section 9)"
+    )
     save(fig, out)
 
 

@@ -1,4 +1,4 @@
-"""Micro-macro comparison study (MODEL.md sections 7-8, the paper's Fig. 2 d-j).
+"""Micro-macro comparison study (docs/model.md sections 7-8, the paper's Fig. 2 d-j).
 
 Two kinds of runs of ``plantgrowth compare``, each on a scene derived from
 ``scenes/reference_<law>.toml`` with ``[cell] w`` and ``[micro] resolution`` set:
@@ -10,8 +10,8 @@ Two kinds of runs of ``plantgrowth compare``, each on a scene derived from
 - with ``--gradient SCENE`` (a file in ``--scenes``, e.g. gradient_P1_strain), one more full
   run of that scene at ``--gradient-nx`` (default 8) up to ``--gradient-t-max`` (default 200).
 
-``--kinematics finite`` (MODEL.md 10) sets the scenes' kinematics; its default roots are then
-``results/compare_study_finite`` and ``benchmarks/results/compare_finite``.
+``--kinematics finite`` (docs/model.md section 10) sets the scenes' kinematics; its default roots
+are then ``results/compare_study_finite`` and ``benchmarks/results/compare_finite``.
 
 Raw runs (fields.h5/.xdmf, large) go to ``--raw`` (default ``results/compare_study/<case>``,
 git-ignored); ``compare.csv`` and every ``summary.csv`` are copied to
@@ -72,7 +72,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add("--scenes", type=Path, default=Path("scenes"), help="directory of reference_<law>.toml")
     add("--raw", type=Path, default=None, help="raw run root (default: results/compare_study)")
     add("--bench", type=Path, default=None, help="CSV/JSON root (benchmarks/results/compare)")
-    add("--kinematics", choices=("linear", "finite"), default="linear", help="MODEL.md 10")
+    add("--kinematics", choices=("linear", "finite"), default="linear",
+        help="the scenes' kinematics (docs/model.md section 10)")  # fmt: skip
     add("--gradient", default=None, help="a gradient scene's name in --scenes (full run)")
     add("--gradient-nx", type=int, default=8, help="Nx of the gradient run")
     add("--gradient-t-max", type=float, default=200.0, help="t_max of the gradient run")

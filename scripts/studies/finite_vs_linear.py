@@ -1,4 +1,4 @@
-"""Linear versus finite kinematics (MODEL.md section 10, issue 12) on the shipped scenes.
+"""Linear versus finite kinematics (docs/model.md section 10, issue 12) on the shipped scenes.
 
 Runs every chosen scene twice, ``kinematics = "linear"`` and ``"finite"`` (everything else
 as the scene says, or with ``--preset``), in this process, one run at a time, and writes per

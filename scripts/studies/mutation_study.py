@@ -253,7 +253,7 @@ MUTANTS = (
         (("return growth.advance(Fg, G, t.dt, t.integrator), 1, 0",
           "return growth.advance(Fg, G, t.dt, \"exp\"), 1, 0"),),
     ),
-    # --- finite kinematics (MODEL.md section 10, issue 12) ---------------------------------------
+    # --- finite kinematics (docs/model.md section 10, issue 12) -----------------------------------
     Mutant(
         "finite_Fe_order", "forms/finite.py", "transposition",
         "elastic deformation Fe = Fg^{-1} F instead of F Fg^{-1} (macro and micro residuals, the "

@@ -5,8 +5,8 @@ The sweep files are ``scenes/sweeps/paper/*.toml``, run in this order (the longe
 - ``fig3_micro_<p>_<law>``: micro Nx = 16 against the macro model (model = "both") on the
   gradient scenes of p = E, nu, P1, tau, eta, to t = 60 (Fig. 3, columns 2-3);
 - ``fig2c_<law>``, ``fig2c_l_<law>``: +/- 5% around the reference (Fig. 2c);
-- ``fig3_scan_<law>``, ``fig3_scan_l_<law>``: homogeneous scans over the MODEL.md 9 intervals
-  (Fig. 3, first column).
+- ``fig3_scan_<law>``, ``fig3_scan_l_<law>``: homogeneous scans over the docs/model.md section 9
+  intervals (Fig. 3, first column).
 
 Each is ``nice -n 10 plantgrowth sweep FILE -o RESULTS/<name>`` in a subprocess, one at a time; a
 sweep whose sweep.csv says every run is done is skipped (an unfinished one resumes natively).
@@ -21,11 +21,11 @@ Then the numbers go to ``--json`` (default ``benchmarks/results/paper_studies.js
   The two areas differ at t = 0 already (the micro area encloses the outer walls' bulges under
   turgor), so the area growth is the fairer comparison.
 
-Exact homogeneous rate (MODEL.md 4; tests/test_macro_exact_solutions.py): homogeneous parameters,
-constant P1 and no loads give ``sigma_hom = (1 - phi_w) P1 I`` for any cell and any Fg, and the
-wall-averaged strain is the wall compliance times the wall-averaged stress, so G is isotropic and
-constant in time: tr G = 2 eta [c (1 - phi_w) / phi_w P1 - tau]_+ (clipped to M per component),
-c = 1 (stress law), (1 - nu) / E (strain law); phi_w is the cell's exact wall fraction.
+Exact homogeneous rate (docs/model.md section 4; tests/test_macro_exact_solutions.py): homogeneous
+parameters, constant P1 and no loads give ``sigma_hom = (1 - phi_w) P1 I`` for any cell and any Fg,
+and the wall-averaged strain is the wall compliance times the wall-averaged stress, so G is
+isotropic and constant in time: tr G = 2 eta [c (1 - phi_w) / phi_w P1 - tau]_+ (clipped to M per
+component), c = 1 (stress law), (1 - nu) / E (strain law); phi_w is the cell's exact wall fraction.
 
     python scripts/studies/paper_studies.py [--results results/paper_studies] [--only NAME ...]
         [--analyse-only]
@@ -128,7 +128,7 @@ def run_sweeps(args: argparse.Namespace) -> int:
 
 
 def exact_rate(scene: pg.Scene) -> float:
-    """Exact mean tr G of a homogeneous scene (module docstring; MODEL.md 4)."""
+    """Exact mean tr G of a homogeneous scene (module docstring; docs/model.md section 4)."""
     g, m = scene.growth, scene.material
     phi_w = scene.cell.at(0.0, 0.0).phi_w
     c = 1.0 if g.law == "stress" else (1.0 - m.nu.start) / m.E.start

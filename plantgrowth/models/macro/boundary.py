@@ -1,5 +1,5 @@
-"""Where the macro problem's boundary conditions act (MODEL.md section 4): the symmetry facets on
-x2 = 0 (u2 = 0), the pinned vertex (u1 = 0, removes the x1 translation) and the loadable edges by
+"""Where the macro problem's boundary conditions act (docs/model.md section 4): the symmetry facets
+on x2 = 0 (u2 = 0), the pinned vertex (u1 = 0, removes the x1 translation) and the loadable edges by
 name, as facet tags of the fine mesh; and the fine mesh of an outline or mesh-file tissue.
 """
 

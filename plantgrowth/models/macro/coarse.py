@@ -1,4 +1,5 @@
-"""The coarse mesh M of the coupled algorithm (MODEL.md section 5): cell problems live at its nodes.
+"""The coarse mesh M of the coupled algorithm (docs/model.md section 5): cell problems live
+at its nodes.
 
 A structured triangulation of the tissue's bounding box [0, width] x [0, height] (each rectangle
 split along the diagonal from its lower-right to its upper-left corner). It is small and

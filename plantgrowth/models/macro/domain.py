@@ -1,5 +1,6 @@
 """The macro model's domain: the fine mesh a run solves on, and the places where it evaluates the
-scene's fields (MODEL.md 5, 7), built once and shared by the scene checks and the model."""
+scene's fields (docs/model.md sections 5, 7), built once and shared by the scene checks and the
+model."""
 
 from __future__ import annotations
 
@@ -40,7 +41,8 @@ class MacroDomain:
 def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroDomain:
     """The macro model's domain: the scene's rectangle, outline or mesh file, or, next to a
     micro tissue of ``nx`` cells per row (``model = "both"``: the scene's micro.nx), the region
-    its cells cover, with the scene's fields spanning that region's extent (MODEL.md 7)."""
+    its cells cover, with the scene's fields spanning that region's extent
+    (docs/model.md section 7)."""
     if nx is None and scene.model != "both":
         if scene.tissue.shape is not None:
             return MacroDomain(scene, *shape_domain(scene, comm))

@@ -1,6 +1,6 @@
-"""The macro model's edge loads (MODEL.md 4) in the configuration the forms apply them: tractions
-per grown length ``Jg |Fg^-T N|`` (linear kinematics) or per current length ``|cof(F) N|``
-(finite), and total forces ``{force = [F1, F2]}`` spread uniformly over that length.
+"""The macro model's edge loads (docs/model.md section 4) in the configuration the forms apply
+them: tractions per grown length ``Jg |Fg^-T N|`` (linear kinematics) or per current length
+``|cof(F) N|`` (finite), and total forces ``{force = [F1, F2]}`` spread uniformly over that length.
 
 A traction's resultant follows its edge's length as the tissue grows, so tractions balanced on
 the reference edges drift apart under non-uniform growth, and the pinned vertex carries the

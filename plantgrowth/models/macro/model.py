@@ -1,4 +1,4 @@
-"""The coupled macroscopic growth loop (paper Algorithm 1, MODEL.md section 5).
+"""The coupled macroscopic growth loop (paper Algorithm 1, docs/model.md section 5).
 
 Per step: the homogenized E_hom, K_hom, phi_w, dbar, P2vec at every fine cell -> macro solve ->
 sigma_hom or eps_hom -> growth rate G -> write the step -> Fg <- integrator(Fg, G, dt).
@@ -76,7 +76,9 @@ def _pruning_report(problem: MacroProblem, scene: Scene, strain_averages: bool) 
     if problem.K is None:
         skipped.append("pressure: P1 = 0, no K_hom cell problem and no pressure term")
     if problem.finite and not scene.P1.is_constant:
-        skipped.append("finite kinematics: grad(P1) and P2vec cancel (MODEL.md 10), not assembled")
+        skipped.append(
+            "finite kinematics: grad(P1) and P2vec cancel (docs/model.md section 10), not assembled"
+        )
     elif problem.P2vec is None:
         skipped.append("P1 has no gradient: no grad(P1) or P2 terms")
     if not scene.loads:
@@ -118,7 +120,8 @@ class MacroModel:
         self.E = scene.material.E(*(at_cells if self.per_cell else at_nodes))
         self.P1 = scene.P1(*at_cells)
         self.eta, self.tau = scene.growth.eta(*at_cells), scene.growth.tau(*at_cells)
-        self.grad_P1 = scene.P1.gradient(*at_cells)  # (n_cells, 2): MODEL.md 6, P2 = -grad P1 . y
+        # (n_cells, 2): docs/model.md section 6, P2 = -grad P1 . y
+        self.grad_P1 = scene.P1.gradient(*at_cells)
         self.strain_averages = scene.growth.law == "strain" or "eps_hom" in scene.output.fields
         self.homogenizer = Homogenizer(
             scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
@@ -234,7 +237,7 @@ class MacroModel:
         diagnostics.check_solution(report, problem.u, self.comm)
         grad_u = problem.grad_u()
         strain = growth.green_lagrange_strain if problem.finite else growth.elastic_strain
-        eps_el = strain(grad_u, Fg)  # finite kinematics: Ee (MODEL.md 10)
+        eps_el = strain(grad_u, Fg)  # finite kinematics: Ee (docs/model.md section 10)
         sigma = growth.homogenized_stress(C, eps_el, K, self.P1)
         eps_hom = None
         if self.strain_averages:

@@ -1,4 +1,4 @@
-"""The macroscopic elasticity problem on the fine mesh m (MODEL.md section 4, Algorithm 2).
+"""The macroscopic elasticity problem on the fine mesh m (docs/model.md section 4, Algorithm 2).
 
 P1 displacement; every coefficient (Fg, E_hom, K_hom, phi_w, P2vec) is piecewise constant on
 the fine cells, so the forms are integrated exactly by one-point quadrature. Only the terms
@@ -147,7 +147,8 @@ class MacroProblem:
         )  # fmt: skip
 
     def _linear_forms(self, scene: Scene, psi, P1, grad_P1) -> None:
-        """MODEL.md 4: the bilinear form a, the load L of the active terms, matrix and solver."""
+        """docs/model.md section 4: the bilinear form a, the load L of the active terms, matrix
+        and solver."""
         u, dx = ufl.TrialFunction(self.V), ufl.dx
         rhs = macro.macro_growth_rhs(psi, self.Fg, self.C, dx)
         if self.K is not None:
@@ -166,8 +167,8 @@ class MacroProblem:
         self.ksp = self._linear_solver(self.A)
 
     def _finite_forms(self, scene: Scene, psi, P1) -> None:
-        """MODEL.md 10: the residual (grad P1 and P2vec cancel: not assembled) and its Newton
-        solver; tractions follow the deformed edges."""
+        """docs/model.md section 10: the residual (grad P1 and P2vec cancel: not assembled) and
+        its Newton solver; tractions follow the deformed edges."""
         u, dx = self.u, ufl.dx
         residual = finite.macro_residual(u, psi, self.Fg, self.C, self.K, self.phi_w, P1, dx)
         tractions = self.loads.terms(lambda f, n, ds: finite.follower_traction(u, f, psi, n, ds))
@@ -263,7 +264,7 @@ class MacroProblem:
         )
 
     def _linear_solve(self) -> SolveReport:
-        """The linear-kinematics solve (MODEL.md 4) into u."""
+        """The linear-kinematics solve (docs/model.md section 4) into u."""
         return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
 
     def stability_values(

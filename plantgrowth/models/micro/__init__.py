@@ -1,2 +1,2 @@
-"""The microscopic model: every cell wall resolved (MODEL.md section 7) and the biological cells'
-outlines written next to it."""
+"""The microscopic model: every cell wall resolved (docs/model.md section 7) and the biological
+cells' outlines written next to it."""

@@ -1,4 +1,5 @@
-"""The cell-resolved microscopic model (MODEL.md section 7, paper [var_inequal], [growth_micro_1]).
+"""The cell-resolved microscopic model (docs/model.md section 7, paper [var_inequal],
+[growth_micro_1]).
 
 P2 displacement on the walls of all cells; Fg, E, nu and the turgor pressure are constant per
 cell (pressure P1 at the cell's centre). Growth is driven by the stress or elastic strain
@@ -281,7 +282,7 @@ class MicroModel:
         """(n_cells, 4) means of a tensor over each cell's own walls, ``form`` giving the
         per-mesh-cell integrals; a cut bottom cell takes the full cell mirrored about x2 = 0:
         its half-cell mean for 11 and 22, and no shear, which changes sign under the mirror
-        (MODEL.md 7)."""
+        (docs/model.md section 7)."""
         integrals = fem.petsc.assemble_vector(form)
         T0 = self.Fg.function_space
         means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]

@@ -1,7 +1,7 @@
 """The micro tissue's biological cells as polygons: ``cells.xdmf`` and ``cells.csv``.
 
-A cell's polygon is its mid-line hexagon (MODEL.md 2, 7; the bottom row cut at x2 = 0), whose
-vertices are wall junctions (or, on the tissue's edge, points of its outer surface).
+A cell's polygon is its mid-line hexagon (docs/model.md sections 2, 7; the bottom row cut at
+x2 = 0), whose vertices are wall junctions (or, on the tissue's edge, points of its outer surface).
 ``cells.xdmf`` holds the polygons' edges as 2-node lines over the reference vertices, with the
 displacement u at the vertices and the cell id per line: ParaView's Warp By Vector draws the
 deformed polygons (straight edges between the moved vertices; the walls' bowing between
