@@ -22,6 +22,7 @@ from plantgrowth.models import newton
 from plantgrowth.models.macro import problem as macro_problem
 from plantgrowth.models.macro.model import macro_model
 from plantgrowth.scene import parse_scene
+from plantgrowth.scene.toml_text import dict_to_toml
 
 SHAPES = Path(__file__).resolve().parents[1] / "scenes" / "shapes"
 CORNER = np.array([2.0, 1.0])  # the L outline's re-entrant corner
@@ -150,3 +151,24 @@ def test_a_failed_natural_monotonicity_solve_stops_the_run():
     with pytest.raises(RunError, match=r"linear solve failed \(PETSc reason -3"):
         model.step(model.initial_growth())
     assert solver.ksp.failed >= 1
+
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+
+
+@pytest.mark.parametrize("path", sorted(SCENES.glob("gradient_*.toml")), ids=lambda p: p.stem)
+def test_the_shipped_gradient_scenes_run_to_t_max(mpi_tmp_path, capsys, path):
+    """Each shipped gradient scene (at the draft preset: the same physics, a coarser mesh) runs
+    to t = 60. Those that keep the default ``on_instability = "stop"`` stay elliptic at every
+    step; the wall-thickness gradients, whose thin-walled end loses ellipticity at t ~ 46, say
+    "warn" in the scene file and record it."""
+    data = tomllib.loads(path.read_text())
+    data["accuracy"] = {"preset": "draft"}
+    text = dict_to_toml(data)
+    code, _, rows = run(mpi_tmp_path, text, capsys)
+    assert code == 0 and float(rows[-1]["t"]) == 60.0
+    fractions = [float(r["nonelliptic_area_fraction"]) for r in rows]
+    if data.get("numerics", {}).get("on_instability") == "warn":
+        assert max(fractions) > 0.0
+    else:
+        assert max(fractions) == 0.0
