@@ -128,9 +128,12 @@ def _newton_minimum(
         dm, dh, db = m2 * c - m1 * s, h2 * c - h1 * s, b2 * c - b1 * s
         r = np.maximum(np.hypot(h, b), 1e-300)
         g = h * dh + b * db
-        d1 = dm - g / r  # lambda'; x'' = x0 - x for each of m, h, b
-        d2 = -(m1 * c + m2 * s) - (dh**2 + db**2 - h * (h - h0) - b * (b - b0)) / r + g**2 / r**3
-        with np.errstate(divide="ignore", invalid="ignore"):
+        # At a double root (r ~ 0) lambda is not smooth: d2 is then inf or NaN, which fails
+        # d2 > 0 and falls back to the downhill step of length span.
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            d1 = dm - g / r  # lambda'; x'' = x0 - x for each of m, h, b
+            curvature = dh**2 + db**2 - h * (h - h0) - b * (b - b0)
+            d2 = -(m1 * c + m2 * s) - curvature / r + g**2 / r**3
             step = np.where(d2 > 0.0, -d1 / d2, -np.sign(d1) * span)
         trial = theta + np.clip(step, -span, span)
         found = at(trial)
