@@ -26,7 +26,6 @@ import argparse
 import json
 import logging
 import math
-import re
 import subprocess
 import sys
 import time
@@ -172,7 +171,7 @@ def worker(spec: dict) -> None:
         dt=scene.time.dt, integrator=scene.time.integrator, t_max=scene.time.t_max,
         h=scene.tissue.h, cell_resolution=scene.accuracy.cell_resolution,
         kinematics=scene.kinematics, on_instability=scene.numerics.on_instability,
-        instability=parse_stop(warnings.first),
+        instability=hc.parse_stop(warnings.first),
     )  # fmt: skip
     result.update(_summary_totals(Path(spec["outdir"]) / "summary.csv"))
     Path(spec["result"]).write_text(json.dumps(result, indent=1))
@@ -261,7 +260,7 @@ RUN_KEYS = (
     "G_lambda_min", "growth_log_rate_max", "growth_excess_max", "criteria", "seconds",
     "substeps_total", "advances", "n_cell_solves_total", "clamp", "kinematics", "on_instability",
     "instability", "nonelliptic_area_fraction_max", "first_nonelliptic_step", "max_elastic_strain",
-    "newton_iterations_total",
+    "newton_iterations_total", "unstable_state",
 )  # fmt: skip
 """The values kept for the runs of the large-step study, the long runs, the limits and the
 finite-kinematics runs."""
@@ -269,49 +268,13 @@ finite-kinematics runs."""
 
 def _brief(r: dict) -> dict:
     out = {k: r.get(k) for k in RUN_KEYS}
-    out["stop"] = parse_stop(r.get("error"))
+    out["stop"] = hc.parse_stop(r.get("error"))
     return out
-
-
-def parse_stop(error: str | None) -> dict | None:
-    """Where and why a run stopped, from the RunError message (or a step warning): ``"step N,
-    t = T: what at x = (x1, x2) (n place(s) on this rank); likely cause: ..."`` or ``"step N,
-    t = T: the tissue is compressed ... (loss of ellipticity: ... on F% of the tissue) at x1 =
-    a, x2 = b, t = T; ..."`` (``after step N``: while advancing the growth from t = T, i.e. in
-    (T, T + dt], inside the sub-steps for 'adaptive'). ``kind``: the cause class."""
-    if not error:
-        return None
-    m = re.match(r"(after )?step (\d+), t = ([^:]+): (.*)", error, re.S)
-    if m is None:
-        return {"message": error, "cause": error[:80], "kind": "other"}
-    rest = m.group(4)
-    x = re.search(r" at x = \(([^)]*)\)", rest)
-    x = x or re.search(r" at x1 = ([^,]*), x2 = ([^,]*),", rest)
-    places = re.search(r"\((\d+) place\(s\)", rest)
-    fraction = re.search(r"on ([0-9.e+-]+)% of the tissue", rest)
-    likely = rest.split("likely cause: ", 1)[1] if "likely cause: " in rest else None
-    kind = "other"
-    if "loss of ellipticity" in rest:
-        kind = "loss of ellipticity"
-    elif "inverted" in rest:
-        kind = "element inverted"
-    coords = x.group(1).split(",") if x and x.lastindex == 1 else (x.groups() if x else None)
-    return {
-        "step": int(m.group(2)),
-        "t": float(m.group(3)),
-        "during_advance": bool(m.group(1)),
-        "kind": kind,
-        "cause": rest.split(" at x = ")[0].split(";")[0].split(" (loss of")[0],
-        "x": [float(v) for v in coords] if coords else None,
-        "places": int(places.group(1)) if places else None,
-        "nonelliptic_area_fraction": float(fraction.group(1)) / 100 if fraction else None,
-        "likely_cause": likely,
-    }
 
 
 def _at_corner(error: str | None, scene_path: str) -> bool | None:
     """Whether the first place named in the RunError is within 2 h of a tissue corner."""
-    stop = parse_stop(error)
+    stop = hc.parse_stop(error)
     if not stop or not stop.get("x"):
         return None
     tissue = hc.to_scene(hc.read_scene_data(scene_path)).tissue
@@ -356,14 +319,14 @@ def collect(results: list[dict], scene_dir: Path) -> dict:
                 "Fg0_ratio": _fg0_ratio(path),
             }  # fmt: skip
             if name not in LIMIT_SCENES:
-                unexpected.append(f"{name} (base): {run_status(r)}")
+                unexpected.append(f"{name} (base): {hc.run_status(r)}")
             continue
         comparable = fine and r["error"] is None and fine.get("error") is None
         changes = hc.refinement_changes(r, fine) if comparable else None  # same t_max only
         cases[name] = {"base": r, "refined": fine, "refinement": changes}
         for variant, run in (("base", r), ("refined", fine)):
             if run is None or not run.get("passed"):
-                unexpected.append(f"{name} ({variant}): {run_status(run)}")
+                unexpected.append(f"{name} ({variant}): {hc.run_status(run)}")
         if not (changes and changes["passed"]):
             unexpected.append(f"{name}: refinement change {changes}")
     study = {}
@@ -385,7 +348,7 @@ def collect(results: list[dict], scene_dir: Path) -> dict:
             )
             rows.append(row)
             if r["integrator"] == "adaptive" and not r["passed"]:
-                unexpected.append(f"{name} at dt = {r['dt']:g} adaptive: {run_status(r)}")
+                unexpected.append(f"{name} at dt = {r['dt']:g} adaptive: {hc.run_status(r)}")
         study[name] = {"reference": _brief(ref) if ref else None, "runs": rows}
     if "reference" in study and study["reference"]["reference"]:
         study["reference"]["euler_formula"] = _euler_formula(study["reference"])
@@ -457,33 +420,6 @@ def _finite_or_none(x):
     if isinstance(x, (list, tuple)):
         return [_finite_or_none(v) for v in x]
     return x
-
-
-def run_status(r: dict | None) -> str:
-    """A run's outcome in a few words: ``pass``, or ``FAIL (...)`` with where and why it stopped
-    or which criteria failed (docs/stability.md's tables, the ``unexpected`` list)."""
-    if r is None:
-        return "-"
-    if r["passed"]:
-        return "pass"
-    failed = [k for k, ok in (r.get("criteria") or {}).items() if not ok]
-    if r.get("error"):
-        stop = r.get("stop") or parse_stop(r["error"])
-        if stop and "step" in stop:
-            cause = stop["kind"] if stop["kind"] != "other" else stop["cause"][:40]
-            return f"FAIL ({stop_at(stop)}: {cause})"
-        return f"FAIL ({r['error'][:60]})"
-    return f"FAIL ({', '.join(failed)})"
-
-
-def stop_at(stop: dict | None) -> str:
-    """Where a run stopped: ``step 13, t = 13``, or ``after step 10, t = 10`` for a failure
-    inside the growth advance from t = 10."""
-    if not stop or "step" not in stop:
-        return "-"
-    if stop["during_advance"]:
-        return f"after step {stop['step']}, t = {stop['t']:g}"
-    return f"step {stop['step']}, t = {stop['t']:g}"
 
 
 def main(argv: list[str] | None = None) -> int:
