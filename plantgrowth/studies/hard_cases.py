@@ -155,7 +155,7 @@ class _Observer:
         self.excess_max = -math.inf  # max ln sigma_max(Fg Fg0^-1) - int lambda_max(G) dt
         self.anisotropy_max = -math.inf  # max sigma_max / sigma_min of Fg
         self.E1_mean_step0 = math.nan
-        self.strain_max = 0.0
+        self.strain_max = -math.inf  # stays so if no step completes
         self.integral = None  # per owned cell: sum_k dt lambda_max(G_k) up to the current step
 
     def __call__(self, step: int, model: MacroModel) -> None:

@@ -55,8 +55,9 @@ def render(summary: dict) -> str:
         "## Numerical stability",
         "",
         "`python scripts/studies/hard_cases.py --jobs 2` runs the hard cases of `scenes/hard/`",
-        "(h = 0.1, H = 1, cell_resolution 2, integrator `adaptive`, the scenes' own) and once",
-        "refined (h = 0.05, cell_resolution 3), and writes `benchmarks/results/hard_cases.json`;",
+        "as shipped (the `balanced` preset: h = 0.1, H = 0.5, cell_resolution 2, the surrogate",
+        "at 1e-3 per fine cell; integrator `adaptive`) and once refined (h = 0.05,",
+        "cell_resolution 3), and writes `benchmarks/results/hard_cases.json`;",
         "`tests/test_hard_cases.py` asserts the same criteria on cheap versions (h = 0.35,",
         "cell_resolution 1). Criteria, over all steps and cells (coarse nodes for E_hom): no",
         "NaN/Inf; `min det Fg / det Fg0 >= 1 - 1e-12`; E_hom symmetric positive definite",
@@ -292,13 +293,14 @@ def _range(values: list[float], digits: int = 2) -> str:
 
 MEANING = {
     "E_contrast_100": (
-        "(E from 0.02 at x1 = 0 to 2 at x1 = width, stress law): the softest end (E = 0.02, a "
-        "strip along x1 = 0 over nearly the whole height) cannot hold its turgor: held by the "
-        "stiffer tissue beside it, its walls are stretched by up to 80-100% and still pull less"
-        " than the turgor pushes, so the cells press on each other with a net compressive "
-        "stress of several times the tissue's shear stiffness. A real tissue would wrinkle or "
-        "bulge there at once; the scene is outside the model from t = 0 (the walls themselves "
-        "are stretched: what is compressive is turgor minus wall tension)."
+        "(E from 0.02 at x1 = 0 to 2 at x1 = width, stress law): the softest end (a strip along"
+        " x1 = 0 over nearly the whole height) cannot hold its turgor. Free along x1 but held "
+        "along x2 by the stiffer tissue beside it, its walls stretch a lot (most along x1) and "
+        "still pull less than the turgor pushes: the cells press on each other in both "
+        "directions with a net stress of several times the tissue's shear stiffness. The walls "
+        "themselves are stretched; what is compressive is turgor minus wall tension. A real "
+        "tissue would bulge or wrinkle there at once: the scene is outside the model from t = "
+        "0, in both kinematics."
     ),
     "E_contrast_100_strain": (
         "(the same stiffness contrast under the strain law): the same state as E_contrast_100 "
@@ -306,31 +308,32 @@ MEANING = {
         " turgor."
     ),
     "P1_steep": (
-        "(turgor P1 from 0 at x1 = 0 to 0.005 (5x the reference) at x1 = width): the cells at "
-        "the high-turgor edge (x1 = width) grow fastest; along that edge (x2) they are held "
-        "back by the slower tissue beside them, so they press on each other along the edge, "
-        "more than its stiffness carries: the edge would buckle into waves, first next to a "
-        "corner."
+        "(turgor P1 from 0 at x1 = 0 to 0.005, 5x the reference, at x1 = width): the cells at "
+        "the high-turgor edge grow fastest (strain law); along that edge (x2) they are held "
+        "back by the slower tissue beside them and press on each other along the edge, more "
+        "than its stiffness carries: the edge would buckle into waves, first in one column of "
+        "cells next to a corner, after the tissue has grown about fivefold in area."
     ),
     "clamp_shear": (
         "(P1_steep's turgor gradient with eta = 50, M = 0.01): at the high-turgor edge the "
-        "clamped growth tensor is a shear, which grows the cells along one diagonal; the tissue"
-        " around them resists, and the edge is pressed together along a diagonal beyond what "
-        "its stiffness carries: it would buckle."
+        "clamp saturates G to a shear (eigenvalues 2M and 0: growth along one diagonal only); "
+        "after six steps the two outermost columns of cells are pressed together along a "
+        "diagonal, beyond what their stiffness carries: they would buckle."
     ),
     "long_run_gradient_E": (
-        "(E from 0.5 to 2 along x1, grown to t = 600 at dt = 5): the soft edge (E = 0.5 at x1 ="
-        " 0) grows fastest under the strain law; along the edge (x2) it is held to the length "
-        "of the stiffer, slower tissue beside it, so after enough growth it is pressed together"
-        " along x2 beyond what its stiffness carries: the soft margin would buckle into waves, "
-        "first near the corner x2 = 0."
+        "(E from 0.5 to 2 along x1, grown to t = 600 at dt = 5): the soft edge (x1 = 0) grows "
+        "fastest under the strain law; along the edge (x2) it is held to the length of the "
+        "stiffer, slower tissue beside it, so after the tissue has grown about 2.5-fold in area"
+        " it is pressed together along x2 beyond what its stiffness carries: the soft margin "
+        "would buckle into waves, first near the corner x2 = 0."
     ),
     "anisotropic_Fg0_x1": (
         "(pre-grown 4:1 along x1, Fg0 = diag(4, 1)): cells pre-grown 4:1 along x1 have long, "
         "nearly flat inclined walls and are so compliant across x2 that the linear response to "
-        "turgor alone inverts elements at t = 0 (the geometrically linear model's limit: the "
-        "elastic strain is of order 10, not small); with finite kinematics the law is not "
-        "elliptic at t = 0."
+        "turgor alone inverts elements at t = 0, before any step completes (the geometrically "
+        "linear model's limit). With finite kinematics there is no expanded equilibrium: Newton"
+        " ends on the collapsed branch (Ee = -1/2, i.e. Fe = 0) and the law is not elliptic on "
+        "the whole tissue."
     ),
 }
 """Each limit scene (scenes/hard/<name>.toml) and which physical limit it reaches, in words
@@ -362,29 +365,27 @@ def limits_text(summary: dict) -> str:
     names = list(limits) + [n for n, f in finite.items()
                             if f["finite"].get("error") and n not in limits]  # fmt: skip
     lines = [
-        "### Which physical limit each stopping case reached",
-        "",
-        "A loss of ellipticity (plantgrowth.models.stability) means: somewhere the tissue's net",
-        "stress (wall stress plus turgor) is compressive in some direction by more than its",
-        "stiffness can carry, so that a short-wavelength buckling or wrinkling mode of the walls",
-        "would cost no energy; the continuum model has no unique smooth solution past that point.",
+        "### Which physical limit each stopping case reached\n",
+        "A loss of ellipticity (plantgrowth.models.stability) means: the law's stiffness against",
+        "a short wave in some direction, which includes the net stress (wall stress plus turgor),",
+        "is negative; a real tissue would buckle or wrinkle there, below the model's resolution,",
+        "and the model has no unique smooth solution past that point. Below, the net stress at",
+        "the least elliptic cell is compressive along one direction in every such stop.",
         "An inverted element is the geometrically linear model's own limit. The first stopping",
-        f"place is within 2 h of a tissue corner in {sum(located)}",
-        f"of the {len(located)} stopped runs (base, refined and finite).",
+        f"place is within 2 h of a corner in {sum(located)} of {len(located)} stopped runs.",
         "",
     ]
     for name in names:
         L, f = limits.get(name, {}), finite.get(name, {})
         checks = "; ".join(f"dt = {c['dt']:g} {c['integrator']} (warn): first not elliptic "
                            f"{_first_loss(c)}, {_end(c)}" for c in L.get("checks", []))  # fmt: skip
+        tail = f"; {checks}" if checks else ""
         lines.append(
-            f"- **{name}** {MEANING.get(name, '')} Measured: linear "
-            f"h = 0.1: {_end(L.get('base'))}, {_first_loss(L.get('base'))} "
-            f"({_state(L.get('base'))}); h = 0.05: {_end(L.get('refined'))}, "
-            f"{_first_loss(L.get('refined'))}; finite: {_end(f.get('finite'))}, "
-            f"{_first_loss(f.get('finite'))} ({_state(f.get('finite'))})"
-            + (f"; {checks}" if checks else "")
-            + "."
+            f"- **{name}** {MEANING.get(name, '')} Measured: h = 0.1: {_end(L.get('base'))}, "
+            f"{_first_loss(L.get('base'))} ({_state(L.get('base'))}); h = 0.05: "
+            f"{_end(L.get('refined'))}, {_first_loss(L.get('refined'))}; finite: "
+            f"{_end(f.get('finite'))}, {_first_loss(f.get('finite'))} "
+            f"({_state(f.get('finite'))}){tail}."
         )
     return "\n".join(lines) + "\n"
 
