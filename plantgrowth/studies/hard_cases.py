@@ -22,6 +22,10 @@ Criteria (all collective over the mesh's communicator):
   ``ln sigma_max(Fg Fg0^-1) <= sum_k dt lambda_max(G_k)`` holds for ``euler``/``exp``, whose G
   is constant over a step; it is reported (``growth_excess``), not judged, since ``adaptive``
   re-evaluates G inside the step.
+
+Reported, not judged: ``max_elastic_strain``, the largest principal magnitude of the elastic
+strain (eps_el, or Ee with finite kinematics) over the cells and completed steps; after a stop
+by loss of ellipticity, ``unstable_state`` (:func:`unstable_state`).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from __future__ import annotations
 import copy
 import csv
 import math
+import re
 import time
 import tomllib
 from pathlib import Path
@@ -38,6 +43,8 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
+from plantgrowth.base.tensors import from_voigt_stress, voigt_vector
+from plantgrowth.models import growth, stability
 from plantgrowth.models.diagnostics import RESIDUAL_BOUND
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import rectangle_mesh
@@ -148,6 +155,7 @@ class _Observer:
         self.excess_max = -math.inf  # max ln sigma_max(Fg Fg0^-1) - int lambda_max(G) dt
         self.anisotropy_max = -math.inf  # max sigma_max / sigma_min of Fg
         self.E1_mean_step0 = math.nan
+        self.strain_max = -math.inf  # stays so if no step completes
         self.integral = None  # per owned cell: sum_k dt lambda_max(G_k) up to the current step
 
     def __call__(self, step: int, model: MacroModel) -> None:
@@ -177,6 +185,9 @@ class _Observer:
             return
         self.det_ratio_min = min(self.det_ratio_min, float(np.linalg.det(Fg).min()) / self.det_Fg0)
         self.det_def_min = min(self.det_def_min, float(np.linalg.det(np.eye(2) + grad_u).min()))
+        kinematics = growth.green_lagrange_strain if problem.finite else growth.elastic_strain
+        eps = kinematics(grad_u, Fg)
+        self.strain_max = max(self.strain_max, float(np.abs(np.linalg.eigvalsh(eps)).max()))
         self.G_abs_max = max(self.G_abs_max, float(np.abs(G).max()))
         lam = np.linalg.eigvalsh(0.5 * (G + np.swapaxes(G, 1, 2)))
         lam_G = lam[:, -1]
@@ -210,6 +221,7 @@ class _Observer:
             "growth_log_rate_max": comm.allreduce(self.log_rate_max, op=MAX),
             "growth_excess_max": comm.allreduce(self.excess_max, op=MAX),
             "anisotropy_max": comm.allreduce(self.anisotropy_max, op=MAX),
+            "max_elastic_strain": comm.allreduce(self.strain_max, op=MAX),
         }
 
 
@@ -252,6 +264,9 @@ def evaluate(scene: Scene, outdir: Path, comm: MPI.Comm) -> dict[str, Any]:
         summary = run_model(model, scene, outdir, comm, on_step=observer)
     except RunError as err:  # raised on every rank (diagnostics.stop_if is collective)
         error, summary = str(err), None
+    unstable = None
+    if error is not None and "loss of ellipticity" in error:
+        unstable = unstable_state(model)
     seconds = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
     if summary is None:  # the rows of completed steps are in summary.csv; re-read them
         summary = _read_summary(outdir / "summary.csv", comm)
@@ -270,12 +285,53 @@ def evaluate(scene: Scene, outdir: Path, comm: MPI.Comm) -> dict[str, Any]:
         growth_rate_bound=2.0 * scene.growth.clamp,
         residual_bound=RESIDUAL_BOUND,
         error=error,
+        unstable_state=unstable,
         seconds=seconds,
     )
     criteria = _judge(values, scene.growth.clamp)
     values["criteria"] = criteria
     values["passed"] = error is None and all(criteria.values())
     return values
+
+
+def unstable_state(model: MacroModel) -> dict[str, Any]:
+    """Collective: the state where the law is least elliptic (the current step): its place, the
+    normalised acoustic eigenvalue, the principal elastic strains (eps_el or Ee) and the
+    principal values of the wall stress ``E_hom Ee`` and of the net stress (wall stress plus
+    the turgor term ``(K_hom + (phi_w - 1) I) P1``), both over the mean shear modulus, the
+    direction of the net stress's smaller principal value (degrees from x1, in [0, 180)), and
+    the bounding box of the non-elliptic cells (reference coordinates)."""
+    p, n = model.problem, model.problem.n_owned
+    values = p.stability_values(screened=False)[:n]
+    Fg = p.cell_values(p.Fg).reshape(-1, 2, 2)[:n]
+    kinematics = growth.green_lagrange_strain if p.finite else growth.elastic_strain
+    eps = kinematics(p.grad_u()[:n], Fg)
+    C = p.cell_values(p.C).reshape(-1, 3, 3)[:n]
+    wall = from_voigt_stress(np.einsum("nij,nj->ni", C, voigt_vector(eps)))
+    net = wall.copy()
+    if p.K is not None:
+        phi_w = p.cell_values(p.phi_w)[:n, 0]
+        turgor = p.cell_values(p.K).reshape(-1, 2, 2)[:n] + (phi_w - 1.0)[:, None, None] * np.eye(2)
+        net += turgor * p.P1_cells[:n, None, None]
+    mu = stability.mean_shear_modulus(C)
+    mine = None
+    if n:
+        i = int(np.argmin(values))
+        mine = (float(values[i]), {
+            "x": [float(v) for v in p.midpoints[i, :2]], "stability": float(values[i]),
+            "strain": np.linalg.eigvalsh(eps[i]).tolist(),
+            "wall_stress_over_mu": (np.linalg.eigvalsh(wall[i]) / mu[i]).tolist(),
+            "net_stress_over_mu": (np.linalg.eigvalsh(net[i]) / mu[i]).tolist(),
+            "compression_angle": _angle(np.linalg.eigh(net[i])[1][:, 0]),
+        })  # fmt: skip
+    worst = min((m for m in model.comm.allgather(mine) if m is not None), key=lambda m: m[0])[1]
+    bad = np.concatenate(model.comm.allgather(p.midpoints[:n, :2][values < 0.0]))
+    lo, hi = (bad.min(axis=0), bad.max(axis=0)) if len(bad) else ([math.nan] * 2, [math.nan] * 2)
+    return dict(worst, region=[float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])])
+
+
+def _angle(v: np.ndarray) -> float:
+    return float(np.degrees(np.arctan2(v[1], v[0])) % 180.0)
 
 
 def _read_summary(path: Path, comm: MPI.Comm) -> list[dict[str, float]]:
@@ -301,3 +357,69 @@ def refinement_changes(base: dict[str, Any], fine: dict[str, Any]) -> dict[str, 
     ok = math.isfinite(area) and math.isfinite(rate) and max(area, rate) < REFINEMENT_TOLERANCE
     return {"area": area, "growth_rate": rate, "E1_step0": E1, "tolerance": REFINEMENT_TOLERANCE,
             "passed": ok}  # fmt: skip
+
+
+# --- stops ---------------------------------------------------------------------------------------
+
+
+def parse_stop(error: str | None) -> dict | None:
+    """Where and why a run stopped, from the RunError message (or a step warning): ``"step N,
+    t = T: what at x = (x1, x2) (n place(s) on this rank); likely cause: ..."`` or ``"step N,
+    t = T: the tissue is compressed ... (loss of ellipticity: ... on F% of the tissue) at x1 =
+    a, x2 = b, t = T; ..."`` (``after step N``: while advancing the growth from t = T, i.e. in
+    (T, T + dt], inside the sub-steps for 'adaptive'). ``kind``: the cause class."""
+    if not error:
+        return None
+    m = re.match(r"(after )?step (\d+), t = ([^:]+): (.*)", error, re.S)
+    if m is None:
+        return {"message": error, "cause": error[:80], "kind": "other"}
+    rest = m.group(4)
+    x = re.search(r" at x = \(([^)]*)\)", rest)
+    x = x or re.search(r" at x1 = ([^,]*), x2 = ([^,]*),", rest)
+    places = re.search(r"\((\d+) place\(s\)", rest)
+    fraction = re.search(r"on ([0-9.e+-]+)% of the tissue", rest)
+    likely = rest.split("likely cause: ", 1)[1] if "likely cause: " in rest else None
+    kind = "other"
+    if "loss of ellipticity" in rest:
+        kind = "loss of ellipticity"
+    elif "inverted" in rest:
+        kind = "element inverted"
+    coords = x.group(1).split(",") if x and x.lastindex == 1 else (x.groups() if x else None)
+    return {
+        "step": int(m.group(2)),
+        "t": float(m.group(3)),
+        "during_advance": bool(m.group(1)),
+        "kind": kind,
+        "cause": rest.split(" at x = ")[0].split(";")[0].split(" (loss of")[0],
+        "x": [float(v) for v in coords] if coords else None,
+        "places": int(places.group(1)) if places else None,
+        "nonelliptic_area_fraction": float(fraction.group(1)) / 100 if fraction else None,
+        "likely_cause": likely,
+    }
+
+
+def run_status(r: dict | None) -> str:
+    """A run's outcome in a few words: ``pass``, or ``FAIL (...)`` with where and why it stopped
+    or which criteria failed (docs/stability.md's tables, the ``unexpected`` list)."""
+    if r is None:
+        return "-"
+    if r["passed"]:
+        return "pass"
+    failed = [k for k, ok in (r.get("criteria") or {}).items() if not ok]
+    if r.get("error"):
+        stop = r.get("stop") or parse_stop(r["error"])
+        if stop and "step" in stop:
+            cause = stop["kind"] if stop["kind"] != "other" else stop["cause"][:40]
+            return f"FAIL ({stop_at(stop)}: {cause})"
+        return f"FAIL ({r['error'][:60]})"
+    return f"FAIL ({', '.join(failed)})"
+
+
+def stop_at(stop: dict | None) -> str:
+    """Where a run stopped: ``step 13, t = 13``, or ``after step 10, t = 10`` for a failure
+    inside the growth advance from t = 10."""
+    if not stop or "step" not in stop:
+        return "-"
+    if stop["during_advance"]:
+        return f"after step {stop['step']}, t = {stop['t']:g}"
+    return f"step {stop['step']}, t = {stop['t']:g}"

@@ -6,7 +6,7 @@ limits of the model, the large-step study, the cost of 'adaptive', the long run 
 with the measured numbers. docs/stability.md holds it below its first lines.
 
     python scripts/figures/hard_cases_tables.py [--json benchmarks/results/hard_cases.json]
-        [--out docs_snippets/hard_cases_readme.md]
+        [--out docs_snippets/hard_cases_readme.md]     (--out -: print it)
 """
 
 from __future__ import annotations
@@ -20,16 +20,13 @@ from pathlib import Path
 from plantgrowth.studies import hard_cases as hc
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies"))
-from hard_cases import INTEGRATORS, run_status, stop_at  # noqa: E402  (the study script)
+from hard_cases import INTEGRATORS  # noqa: E402  (the study script)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--json", type=Path, default=Path("benchmarks/results/hard_cases.json"))
-    parser.add_argument(
-        "--out", type=Path, default=Path("docs_snippets/hard_cases_readme.md"),
-        help="the Markdown file to write ('-': print it)",
-    )  # fmt: skip
+    parser.add_argument("--out", type=Path, default=Path("docs_snippets/hard_cases_readme.md"))
     return parser.parse_args(argv)
 
 
@@ -58,8 +55,9 @@ def render(summary: dict) -> str:
         "## Numerical stability",
         "",
         "`python scripts/studies/hard_cases.py --jobs 2` runs the hard cases of `scenes/hard/`",
-        "(h = 0.1, H = 1, cell_resolution 2, integrator `adaptive`, the scenes' own) and once",
-        "refined (h = 0.05, cell_resolution 3), and writes `benchmarks/results/hard_cases.json`;",
+        "as shipped (the `balanced` preset: h = 0.1, H = 0.5, cell_resolution 2, the surrogate",
+        "at 1e-3 per fine cell; integrator `adaptive`) and once refined (h = 0.05,",
+        "cell_resolution 3), and writes `benchmarks/results/hard_cases.json`;",
         "`tests/test_hard_cases.py` asserts the same criteria on cheap versions (h = 0.35,",
         "cell_resolution 1). Criteria, over all steps and cells (coarse nodes for E_hom): no",
         "NaN/Inf; `min det Fg / det Fg0 >= 1 - 1e-12`; E_hom symmetric positive definite",
@@ -77,13 +75,13 @@ def render(summary: dict) -> str:
     for name, c in cases.items():
         b, f, ch = c["base"], c["refined"], c["refinement"] or {}
         if "criteria" not in b:
-            lines.append(f"| {name} | {run_status(b)} |" + " - |" * 10)
+            lines.append(f"| {name} | {hc.run_status(b)} |" + " - |" * 10)
             continue
         secs = f"{b['seconds']:.0f}/{f['seconds']:.0f}" if f and f.get("seconds") else "-"
         rate = f"{_g(b['growth_log_rate_max'])} ({_g(b['growth_rate_bound'])})"
-        status = run_status(b)
+        status = hc.run_status(b)
         if f is None or not f.get("passed"):
-            status += f"; refined: {run_status(f)}"
+            status += f"; refined: {hc.run_status(f)}"
         elif ch and not ch.get("passed"):
             status = "FAIL (refinement change)"
         lines.append(
@@ -104,8 +102,34 @@ def render(summary: dict) -> str:
         lines += ["", "**Unexpected failures of passing cases (adaptive):**", ""]
         lines += [f"- {u}" for u in summary["unexpected"]]
     lines += _render_limits(limits)
+    lines += _render_finite(summary.get("finite", {}))
     lines += _render_study(summary)
     return "\n".join(lines) + "\n" + narrative(summary)
+
+
+def _first_loss(r: dict | None) -> str:
+    """Where the law was first not elliptic: the stop itself (``"stop"``), or the run's warning
+    (``"warn"``; '-' if the law stayed elliptic)."""
+    stop = (r or {}).get("stop") or {}
+    loss = stop if stop.get("kind") == "loss of ellipticity" else (r or {}).get("instability")
+    if not loss:
+        return "-"
+    x = loss.get("x") or [math.nan] * 2
+    return (
+        f"{hc.stop_at(loss)} at ({x[0]:.3g}, {x[1]:.3g}), {_pct(loss['nonelliptic_area_fraction'])}"
+    )
+
+
+def _end(r: dict | None) -> str:
+    """How a run ended: ran to t_max, or where and why it stopped."""
+    if r is None:
+        return "-"
+    stop = r.get("stop")
+    if r.get("error") is None:
+        return f"ran to t = {_g(r['t_reached'])}" + ("" if r.get("passed") else ", criteria failed")
+    if stop and "step" in stop:
+        return f"stopped, {hc.stop_at(stop)}: {stop['kind']}"
+    return hc.run_status(r)
 
 
 def _render_limits(limits: dict) -> list[str]:
@@ -113,45 +137,58 @@ def _render_limits(limits: dict) -> list[str]:
         "",
         "### Limits of the model",
         "",
-        "Four scenes stop with the model's own RunError (step, time, place, cause) instead of",
-        "running to t_max. They are not part of the table above: each stops at every resolution",
-        "and with every integrator tried (rows `dt = ...`: base resolution).",
+        f"{len(limits)} scenes stop with the model's own RunError (step, time, place, cause)",
+        "instead of running to t_max; they are not part of the table above. Rows `h = 0.1`/`h =",
+        '0.05`: the scene as shipped and refined (`numerics.on_instability = "stop"`, the',
+        "default); the other rows check the time stepping at h = 0.1 with",
+        '`on_instability = "warn"` (the run goes on past the loss of ellipticity and records',
+        "where it was first seen).",
         "",
-        "| case | run | status | stops at | where (x) | cause | Fg ratio reached "
-        "| min det(I+grad u) before | s |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| case | run | law first not elliptic (place, area) | end | max strain | Fg ratio | s |",
+        "|---|---|---|---|---|---|---|",
     ]
-    likely = set()
     for name, L in limits.items():
         rows = [("h = 0.1, dt = {dt:g} {integrator}", L["base"])]
         rows += [("h = 0.05, dt = {dt:g} {integrator}", L["refined"])] if L["refined"] else []
-        rows += [("h = 0.1, dt = {dt:g} {integrator}", c) for c in L["checks"]]
+        rows += [("h = 0.1, dt = {dt:g} {integrator}, warn", c) for c in L["checks"]]
         for label, r in rows:
-            stop = r.get("stop") or {}
-            if stop.get("likely_cause"):
-                likely.add(stop["likely_cause"])
-            x = stop.get("x")
-            where = f"({x[0]:.3g}, {x[1]:.3g}), {stop.get('places')} place(s)" if x else "-"
             ratio = _g(r.get("anisotropy_max"))
             if r.get("anisotropy_max") is None:
-                ratio = f"{_g(L['Fg0_ratio'])} (Fg0; no step completed)"
-            status = "ran to t_max" if r["error"] is None else "stopped"
-            if r["error"] is None and not r["passed"]:
-                status = run_status(r)
+                ratio = f"{_g(L['Fg0_ratio'])} (Fg0)"
             lines.append(
-                f"| {name} | {label.format(**r)} | {status} | {stop_at(stop)} | {where} "
-                f"| {stop.get('cause', '-')} | {ratio} | {_g(r.get('det_deformation_min'))} "
-                f"| {_g(r.get('seconds'), 2)} |"
+                f"| {name} | {label.format(**r)} | {_first_loss(r)} | {_end(r)} "
+                f"| {_g(r.get('max_elastic_strain'), 2)} | {ratio} | {_g(r.get('seconds'), 2)} |"
             )
     lines += [
         "",
-        "`stops at`: `step N, t = T` failed in the solve of step N; `after step N, t = T` while",
-        "advancing the growth from T to T + dt (for `adaptive`: in one of its sub-steps, whose",
-        "midpoint solve sees the inversion first). `min det(I+grad u) before`: over the",
-        "completed steps. The model's message gives as likely cause: "
-        + "; ".join(f'"{c}"' for c in sorted(likely))
-        + ".",
+        "`after step N, t = T`: while advancing the growth from T. Place: reference coordinates of",
+        "the least elliptic cell; area: the non-elliptic area fraction (summary.csv's",
+        "`nonelliptic_area_fraction`). `max strain`: largest principal eps_el, completed steps.",
     ]
+    return lines
+
+
+def _render_finite(finite: dict) -> list[str]:
+    lines = [
+        "",
+        '### Both kinematics: `kinematics = "finite"`',
+        "",
+        "Every scene as shipped (h = 0.1) once more with finite kinematics (MODEL.md 10):",
+        "",
+        "| case | linear: end | finite: end | finite: law first not elliptic (place, area) "
+        "| max strain linear / finite | s per step finite / linear | Newton it. per step |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, f in sorted(finite.items(), key=lambda kv: (kv[1]["finite"]["error"] is None, kv[0])):
+        lin, fin = f["linear"], f["finite"]
+        per_step = [(r.get("seconds") or math.nan) / max(r["steps"] + 1, 1) for r in (fin, lin)]
+        newton = (fin.get("newton_iterations_total") or 0) / max(fin["steps"] + 1, 1)
+        lines.append(
+            f"| {name} | {_end(lin)} | {_end(fin)} | {_first_loss(fin)} "
+            f"| {_g(lin.get('max_elastic_strain'), 2)} / {_g(fin.get('max_elastic_strain'), 2)} "
+            f"| {_g(per_step[0] / per_step[1], 2)} | {_g(newton, 2)} |"
+        )
+    lines += ["", "`max strain`: eps_el (linear) or Ee (finite), over the completed steps."]
     return lines
 
 
@@ -162,9 +199,9 @@ def _render_study(summary: dict) -> list[str]:
         "",
         f"### Large steps: final-area error versus dt = {ref_dt:g} (`{ref_int}`)",
         "",
-        f"Reference: the same scene at dt = {ref_dt:g} with `{ref_int}` (the recommended",
-        "integrator at a step 4x below the scenes' own). Cells: relative error of the final",
-        "area, or where the run stopped; in brackets the wall seconds.",
+        f"Reference: the same scene at dt = {ref_dt:g} with `{ref_int}`. These runs and the long",
+        'runs go on past a loss of ellipticity (`on_instability = "warn"`: they measure the time',
+        "stepping). Cells: final-area error, or where the run stopped; in brackets wall seconds.",
         "",
         "| scene | dt | " + " | ".join(INTEGRATORS) + " |",
         "|---|---|" + "---|" * len(INTEGRATORS),
@@ -172,7 +209,7 @@ def _render_study(summary: dict) -> list[str]:
     for name, s in study.items():
         ref = s["reference"]
         if ref is None or ref["error"] is not None:
-            lines.append(f"| {name} | {ref_dt:g} (reference) | {run_status(ref)} |")
+            lines.append(f"| {name} | {ref_dt:g} (reference) | {hc.run_status(ref)} |")
         for dt in hc.DT_STUDY["dts"]:
             cell = {}
             for r in s["runs"]:
@@ -181,7 +218,7 @@ def _render_study(summary: dict) -> list[str]:
                 if r["error"] is not None:
                     text = f"stopped at {_t_stop(r)}"
                 elif not r["passed"]:
-                    text = f"{_pct(r['area_error'])}, {run_status(r)}"
+                    text = f"{_pct(r['area_error'])}, {hc.run_status(r)}"
                 else:
                     text = _pct(r["area_error"])
                 cell[r["integrator"]] = f"{text} ({_g(r['seconds'], 2)} s)"
@@ -214,7 +251,7 @@ def _render_study(summary: dict) -> list[str]:
     ]
     for r in lr["runs"]:
         lines.append(
-            f"| {r['dt']:g} | {r['integrator']} | {run_status(r)} | {_g(r['t_reached'])} "
+            f"| {r['dt']:g} | {r['integrator']} | {hc.run_status(r)} | {_g(r['t_reached'])} "
             f"| {_g(r['growth_rate_final'], 6)} | {_g(r['anisotropy_max'], 4)} "
             f"| {_g(r['seconds'], 2)} |"
         )
@@ -254,20 +291,111 @@ def _range(values: list[float], digits: int = 2) -> str:
     )
 
 
-def _limit_line(L: dict) -> str:
-    checks = ", ".join(f"dt = {c['dt']:g} {c['integrator']}: {_t_stop(c)}" for c in L["checks"])
+MEANING = {
+    "E_contrast_100": (
+        "(E from 0.02 at x1 = 0 to 2 at x1 = width, stress law): the softest end (a strip along"
+        " x1 = 0 over nearly the whole height) cannot hold its turgor. Free along x1 but held "
+        "along x2 by the stiffer tissue beside it, its walls stretch a lot (most along x1) and "
+        "still pull less than the turgor pushes: the cells press on each other in both "
+        "directions with a net stress of several times the tissue's shear stiffness. The walls "
+        "themselves are stretched; what is compressive is turgor minus wall tension. A real "
+        "tissue would bulge or wrinkle there at once: the scene is outside the model from t = "
+        "0, in both kinematics."
+    ),
+    "E_contrast_100_strain": (
+        "(the same stiffness contrast under the strain law): the same state as E_contrast_100 "
+        "at t = 0 (the growth law acts only after the first step): the soft end cannot hold its"
+        " turgor."
+    ),
+    "P1_steep": (
+        "(turgor P1 from 0 at x1 = 0 to 0.005, 5x the reference, at x1 = width): the cells at "
+        "the high-turgor edge grow fastest (strain law); along that edge (x2) they are held "
+        "back by the slower tissue beside them and press on each other along the edge, more "
+        "than its stiffness carries: the edge would buckle into waves, first in one column of "
+        "cells next to a corner, after the tissue has grown about fivefold in area."
+    ),
+    "clamp_shear": (
+        "(P1_steep's turgor gradient with eta = 50, M = 0.01): at the high-turgor edge the "
+        "clamp saturates G to a shear (eigenvalues 2M and 0: growth along one diagonal only); "
+        "after six steps a strip along that edge is pressed together along a diagonal beyond "
+        "what its stiffness carries: it would buckle."
+    ),
+    "long_run_gradient_E": (
+        "(E from 0.5 to 2 along x1, grown to t = 600 at dt = 5): the soft edge (x1 = 0) grows "
+        "fastest under the strain law; along the edge (x2) it is held to the length of the "
+        "stiffer, slower tissue beside it, so after the tissue has grown about 2.5-fold in area"
+        " it is pressed together along x2 beyond what its stiffness carries: the soft margin "
+        "would buckle into waves, first near the corner x2 = 0."
+    ),
+    "anisotropic_Fg0_x1": (
+        "(pre-grown 4:1 along x1, Fg0 = diag(4, 1)): cells pre-grown 4:1 along x1 have long, "
+        "nearly flat inclined walls and are so compliant across x2 that the linear response to "
+        "turgor alone inverts elements at t = 0, before any step completes (the geometrically "
+        "linear model's limit). With finite kinematics there is no expanded equilibrium: Newton"
+        " ends on the collapsed branch (Ee = -1/2, i.e. Fe = 0) and the law is not elliptic on "
+        "the whole tissue."
+    ),
+}
+"""Each limit scene (scenes/hard/<name>.toml) and which physical limit it reaches, in words
+(checked against the runs' numbers that follow it in the text)."""
+
+
+def _state(r: dict | None) -> str:
+    """The least elliptic cell of a stopped run: principal elastic strains and net stress."""
+    u = (r or {}).get("unstable_state")
+    if not u:
+        return "-"
+    box = u["region"]
     return (
-        f"stops at {_t_stop(L['base'])} at h = 0.1 and {_t_stop(L['refined'])} at h = 0.05 "
-        f"({checks}); Fg ratio reached {_g(L['base']['anisotropy_max'])} / "
-        f"{_g((L['refined'] or {}).get('anisotropy_max'))}, min det(I + grad u) before the stop "
-        f"{_g(L['base']['det_deformation_min'])} / "
-        f"{_g((L['refined'] or {}).get('det_deformation_min'))}"
+        f"non-elliptic cells in x1 {box[0]:.3g}-{box[1]:.3g}, x2 {box[2]:.3g}-{box[3]:.3g}; at "
+        f"the least elliptic ({u['x'][0]:.3g}, {u['x'][1]:.3g}) principal elastic strains "
+        f"{_g(u['strain'][0], 2)} / {_g(u['strain'][1], 2)}, net stress (walls and turgor) "
+        f"{_g(u['net_stress_over_mu'][0], 2)} / {_g(u['net_stress_over_mu'][1], 2)} x the shear "
+        f"modulus, the first at {u['compression_angle']:.0f} deg from x1 (the walls' part "
+        f"{_g(u['wall_stress_over_mu'][0], 2)} / {_g(u['wall_stress_over_mu'][1], 2)})"
     )
 
 
+def limits_text(summary: dict) -> str:
+    """Per stopping case: which physical limit, where and when, in both kinematics."""
+    limits, finite = summary["limits"], summary.get("finite", {})
+    corner = [f["stop_at_corner"] for f in finite.values() if f["finite"].get("error")]
+    corner += [r["stop_at_corner"] for L in limits.values() for r in (L["base"], L["refined"]) if r]
+    located = [c for c in corner if c is not None]
+    names = list(limits) + [n for n, f in finite.items()
+                            if f["finite"].get("error") and n not in limits]  # fmt: skip
+    lines = [
+        "### Which physical limit each stopping case reached\n",
+        "A loss of ellipticity (plantgrowth.models.stability) means: the law's stiffness against",
+        "a short wave in some direction, which includes the net stress (wall stress plus turgor),",
+        "is negative; a real tissue would buckle or wrinkle there, below the model's resolution,",
+        "and the model has no unique smooth solution past that point. In every such stop but the",
+        "collapsed anisotropic_Fg0_x1 the net stress at the least elliptic cell is compressive",
+        "along one direction, and the non-elliptic cells are a strip within 0.24 of the tissue's",
+        "edge (cells are 1.73 wide) which narrows under refinement (area 0.05-0.9% at h = 0.05,",
+        "0.1-1.3% at h = 0.1): the onset is a boundary layer that homogenization does not",
+        "resolve. An inverted element is the geometrically linear model's own limit. The first",
+        "stopping",
+        f"place is within 2 h of a corner in {sum(located)} of {len(located)} stopped runs.",
+        "",
+    ]
+    for name in names:
+        L, f = limits.get(name, {}), finite.get(name, {})
+        checks = "; ".join(f"dt = {c['dt']:g} {c['integrator']} (warn): first not elliptic "
+                           f"{_first_loss(c)}, {_end(c)}" for c in L.get("checks", []))  # fmt: skip
+        tail = f"; {checks}" if checks else ""
+        lines.append(
+            f"- **{name}** {MEANING.get(name, '')} Measured: h = 0.1: {_end(L.get('base'))}, "
+            f"{_first_loss(L.get('base'))} ({_state(L.get('base'))}); h = 0.05: "
+            f"{_end(L.get('refined'))}, {_first_loss(L.get('refined'))}; finite: "
+            f"{_end(f.get('finite'))}, {_first_loss(f.get('finite'))} "
+            f"({_state(f.get('finite'))}){tail}."
+        )
+    return "\n".join(lines) + "\n"
+
+
 def narrative(summary: dict) -> str:
-    """Which integrator, the failure modes of the explicit schemes and the limits of the model,
-    with the measured numbers."""
+    """Which integrator, the explicit schemes' failure modes and the limits, with numbers."""
     dts = " / ".join(f"{dt:g}" for dt in hc.DT_STUDY["dts"])
     lr = summary["long_run"]
     exact = lr["exact_rate"]
@@ -282,46 +410,23 @@ def narrative(summary: dict) -> str:
     subs = _range([c["substeps_per_step"] for c in cost], 3)
     heavy = max(cost, key=lambda c: c["substeps_per_step"], default=None)
     formula = summary["dt_study"].get("reference", {}).get("euler_formula", [])
-    euler_ref = ", ".join(
-        f"{_pct(f['measured'], 3)} (formula {_pct(f['predicted'], 3)}) at dt = {f['dt']:g}"
-        for f in formula
-    )
+    euler_ref = ", ".join(f"{_pct(f['measured'], 3)} (formula {_pct(f['predicted'], 3)}) at "
+                          f"dt = {f['dt']:g}" for f in formula)  # fmt: skip
 
     def rel(r: dict) -> str:
         return _pct(hc.relative_change(exact, r.get("growth_rate_final") or math.nan), 2)
 
-    limits = summary["limits"]
-    shear = limits.get("clamp_shear", {}).get("base", {})
-    aniso = limits.get("anisotropic_Fg0_x1", {})
-    aniso_stop = (aniso.get("base") or {}).get("stop") or {}
     explicit_stops = [
         f"{name} at dt = {r['dt']:g} `{r['integrator']}` stops at {_t_stop(r)} "
         f"({(r['stop'] or {}).get('cause', r['error'][:60])}; mean tr G at the last completed "
         f"step t = {_g(r['t_reached'])}: {_g(r['growth_rate_final'], 4)}, against "
         f"{_g((_run(summary, name, r['dt'], 'adaptive') or {}).get('growth_rate_final'), 4)} "
         f"at the end with `adaptive` at the same dt, "
-        f"{run_status(_run(summary, name, r['dt'], 'adaptive'))})"
+        f"{hc.run_status(_run(summary, name, r['dt'], 'adaptive'))})"
         for name, s in summary["dt_study"].items() for r in s["runs"]
         if r["integrator"] != "adaptive" and r["error"] is not None
     ]  # fmt: skip
     explicit_stops = "; ".join(explicit_stops) or "none"
-    stops = [L[v] for L in limits.values() for v in ("base", "refined") if L.get(v)]
-    stops += [c for L in limits.values() for c in L["checks"]]
-    located = [r for r in stops if r.get("stop_at_corner") is not None]
-    corners = sum(1 for r in located if r["stop_at_corner"])
-    earlier = [
-        name for name, L in limits.items()
-        if L.get("refined") and (L["refined"].get("stop") or {}).get("t", math.inf)
-        < (L["base"].get("stop") or {}).get("t", math.inf)
-    ]  # fmt: skip
-    abrupt = [
-        name for name, L in limits.items()
-        if all((r or {}).get("det_deformation_min") is not None
-               and r["det_deformation_min"] > 1.0
-               for r in [L["base"], L["refined"], *L["checks"]])
-    ]  # fmt: skip
-    M = shear.get("clamp") or math.nan
-    lam_min = shear.get("G_lambda_min")
     return f"""
 ### Which integrator
 
@@ -344,12 +449,11 @@ per step: the second macro solve is the whole extra cost), {ratio}x over all com
 {subs} accepted sub-steps per step (most: {heavy["case"] if heavy else "-"} at
 dt = {_g(heavy["dt"] if heavy else None)}, {_g(heavy["substeps_per_step"] if heavy else None, 3)}:
 at large dt the error control splits the step, and adaptive buys its accuracy with time).
-Homogeneous scenes cost less than 2x, likely because their cell problems are cached.
 
 `exp` (`Fg <- expm(dt G) Fg` with G from the start of the step) is exact on homogeneous scenes
 for any dt (reference: {_errs(summary, "reference", "exp")} at dt = {dts}) and accurate for
 dt <= 5: the long run at dt = 5 ends with tr G {_g(exp5.get("growth_rate_final"), 6)}
-({run_status(exp5) if exp5 else "not run"}; `adaptive` at dt = 5: \
+({hc.run_status(exp5) if exp5 else "not run"}; `adaptive` at dt = 5: \
 {_g(ad5.get("growth_rate_final"), 6)}); on gradient_E its error is
 {_errs(summary, "gradient_E", "exp")} at dt = {dts}. `det Fg = exp(dt tr G) det Fg_old` never
 decreases. `euler` is the paper's explicit scheme: use it only to reproduce the paper.
@@ -377,39 +481,7 @@ decreases. `euler` is the paper's explicit scheme: use it only to reproduce the 
    instability as in (2), with an earlier onset; at dt = 30 the run has only two steps,
    likely too few for it to grow.
 
-### Limits of the model
-
-The four scenes of the limits table stop with "element inverted" at every step size and with
-every integrator tried, so the stop is a property of the model, not of the time stepping
-(`t = T+`: while advancing from T, in a sub-step of `adaptive`, whose midpoint solve looks
-half a step ahead; `euler` stops later because it under-predicts the growth):
-
-- **E_contrast_100_strain** (100x stiffness contrast under the strain law: the soft side grows
-  much faster): {_limit_line(limits["E_contrast_100_strain"])}.
-- **long_run_gradient_E** (E gradient grown to t = 600):
-  {_limit_line(limits["long_run_gradient_E"])}.
-- **clamp_shear** (steep turgor gradient, eta = 50, M = {_g(M)}, max |G_ij| reached
-  {_g(shear.get("G_abs_max"))}): {_limit_line(limits["clamp_shear"])}.
-- **anisotropic_Fg0_x1** (pre-grown 4:1, Fg0 = diag(4, 1)): stops at {_t_stop(aniso.get("base"))}
-  ({aniso_stop.get("places")} place(s) inverted at h = 0.1) at every resolution and step; no
-  step completes.
-
-Likely causes (not proven): the macro problem is geometrically linear, `eps = sym(grad u)`,
-so it cannot represent the large rotations that strong differential growth produces. In
-{", ".join(abrupt) or "none of them"} the smallest det(I + grad u) over the completed steps is
-still > 1 (its value under the initial turgor) at every resolution and step: the element
-inverts within a single step, even at dt = 0.25, rather than by gradual thinning. The first
-inverted element is within 2 h of a tissue corner in {corners} of the {len(located)} stopped
-runs above; the refined mesh stops earlier in {", ".join(earlier) or "none of them"}.
-In clamp_shear the component-wise clamp (`G = clip(G~, -M, M)`, [def_G_11]) saturates G
-towards the rank-one shear `[[M, M], [M, M]]` (eigenvalues 2M and 0), which grows along one
-diagonal only; measured: largest eigenvalue {_g(shear.get("G_lambda_max"))}
-(2M = {_g(2 * M)}), smallest {_g(lam_min, 2)} ({_g((lam_min or math.nan) / M, 2)} M: the
-clipped G is slightly indefinite, i.e. shrinks the other diagonal). In anisotropic_Fg0_x1 the
-reduced cell diag(2, 1/2) has long, thin inclined walls and is so compliant that the linear
-response to the reference turgor inverts every element at t = 0 (the scene file estimates
-grad u22 ~ 47); Fg0 = diag(1, 4) (anisotropic_Fg0_x2) passes.
-"""
+{limits_text(summary)}"""
 
 
 def main(argv: list[str] | None = None) -> int:
