@@ -27,10 +27,6 @@ def scene_table(stem: str, entry: dict) -> list[str]:
     lines = [f"#### {stem}", "", "| run | err area | err mean tr G | err u | err max | CPU s | "
              "wall s | cell solves |", "|---|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
     for name, run in entry["runs"].items():
-        if name == "reference":
-            cost = f"{run['cpu_seconds']:.3g} | {run['wall_seconds']:.3g} | {run['cell_solves']}"
-            lines.append(f"| reference | - | - | - | - | {cost} |")
-            continue
         if run["exit"] != 0:
             lines.append(f"| {name} | stopped: {run['error'][:60]} | | | | | | |")
             continue
@@ -38,6 +34,20 @@ def scene_table(stem: str, entry: dict) -> list[str]:
         errors = " | ".join(_pct(e[k]) for k in ("err_area", "err_trG", "err_u", "err_max"))
         cost = f"{run['cpu_seconds']:.3g} | {run['wall_seconds']:.3g} | {run['cell_solves']}"
         lines.append(f"| {name} | {errors} | {cost} |")
+    if entry.get("overrides"):
+        shown = ", ".join(f"`{k} = {v!r}`" for k, v in entry["overrides"].items())
+        lines += ["", f"Every run of this scene with {shown}."]
+    if "check_of_main_reference" in entry:
+        check = entry["check_of_main_reference"]
+        lines += ["", "Area and mean tr G against main's extrapolated reference (MAIN_REFERENCES); "
+                  "main's reference against this one's: the reference run differs by "
+                  f"{_pct(check['reference_run_area'])} (area), "
+                  f"{_pct(check['reference_run_mean_trG'])} (tr G); extrapolated in h, by "
+                  f"{_pct(check['area'])}, {_pct(check['mean_trG'])}."]  # fmt: skip
+    if "h_extrapolation" in entry:
+        shown = ", ".join(f"{k[4:]} rho {v['rho']:.2g}, correction {_pct(abs(v['correction']))}"
+                          for k, v in entry["h_extrapolation"].items())  # fmt: skip
+        lines += ["", f"Reference extrapolated in h ({shown})."]
     estimate = entry.get("reference_error_estimate", {})
     if estimate:
         shown = ", ".join(f"{k[4:]} {_pct(v)}" for k, v in estimate.items() if k != "err_max")
