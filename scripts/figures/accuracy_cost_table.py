@@ -27,6 +27,8 @@ def scene_table(stem: str, entry: dict) -> list[str]:
     lines = [f"#### {stem}", "", "| run | err area | err mean tr G | err u | err max | CPU s | "
              "wall s | cell solves |", "|---|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
     for name, run in entry["runs"].items():
+        if run["exit"] == 0 and name not in entry.get("errors", {}):
+            continue
         if run["exit"] != 0:
             lines.append(f"| {name} | stopped: {run['error'][:60]} | | | | | | |")
             continue
@@ -42,12 +44,12 @@ def scene_table(stem: str, entry: dict) -> list[str]:
         lines += ["", "Area and mean tr G against main's extrapolated reference (MAIN_REFERENCES); "
                   "main's reference against this one's: the reference run differs by "
                   f"{_pct(check['reference_run_area'])} (area), "
-                  f"{_pct(check['reference_run_mean_trG'])} (tr G); extrapolated in h, by "
+                  f"{_pct(check['reference_run_mean_trG'])} (tr G); extrapolated, by "
                   f"{_pct(check['area'])}, {_pct(check['mean_trG'])}."]  # fmt: skip
-    if "h_extrapolation" in entry:
-        shown = ", ".join(f"{k[4:]} rho {v['rho']:.2g}, correction {_pct(abs(v['correction']))}"
-                          for k, v in entry["h_extrapolation"].items())  # fmt: skip
-        lines += ["", f"Reference extrapolated in h ({shown})."]
+    for knob, per_quantity in entry.get("extrapolation", {}).items():
+        shown = ", ".join(f"{k[4:]} rho {v['rho']:.2g}, {_pct(v['correction'])}"
+                          for k, v in per_quantity.items())  # fmt: skip
+        lines += [f"Reference extrapolated in {knob}: {shown}."]
     estimate = entry.get("reference_error_estimate", {})
     if estimate:
         shown = ", ".join(f"{k[4:]} {_pct(v)}" for k, v in estimate.items() if k != "err_max")

@@ -10,23 +10,24 @@ run`` in a subprocess and the on-disk cell cache off (every run pays for its own
   ``accuracy.cell_resolution``, ``accuracy.cell_tolerance``, ``time.dt``,
   ``time.integrator``); a level that resolves to the shipped scene's knobs is not run again;
 - the three presets (``accuracy.preset``, the scene's own explicit keys kept);
+- candidate presets (``CANDIDATES``);
 - a reference run: the ``fine`` preset with h halved (``REFERENCE``).
 
 Per-scene overrides (``SCENE_OVERRIDES``) apply to every run of a scene: E_contrast_100 goes
 on where its soft end loses strong ellipticity (``numerics.on_instability = "warn"``: the map
 measures discretization error, not the model's validity), the soft disc runs to t = 20.
 
-The converged reference: the final area and mean tr G of the three smooth scenes are the
-extrapolated references of the map before per-cell tensors (``MAIN_REFERENCES``: runs at
-H = 0.125 and 0.0625, every other knob at or beyond its finest level, Richardson in H); they
-are properties of the model, not of the code path, and the reference run checks them. The u
-field and the soft disc's area and tr G are the reference run's, extrapolated in h against the
-``fine`` preset run (which differs from it in h alone) with the ratio of successive changes
-observed on the h sequence when that ratio contracts (``extrapolate_h``). The reference's own
-error is estimated knob by knob from the sequences: with d1, d2 the changes over the last two
-refinements of a knob, the error left beyond its finest level is about d1 rho / (1 - rho),
-rho = d1 / d2 (a geometric tail), or d1 where the changes do not contract; summed over the
-knobs (for h: the change the extrapolation made, or the tail of the reference's own step).
+The converged reference: the reference run extrapolated knob by knob (errors taken as additive
+over the knobs): for h against the ``fine`` preset run (h twice the reference's), for dt and
+the cell resolution and tolerance (whose finest levels the reference shares) with the last
+step of their own sequences; each correction is that last change times rho / (1 - rho), rho
+the ratio of the knob's successive changes on its sequence (``extrapolated_reference``). The
+reference's own error is estimated as half of each correction (the whole last change where the
+changes do not contract) plus the geometric tail of the H sequence, summed. For the three
+smooth scenes the final area and mean tr G are instead the extrapolated references of the map
+before per-cell tensors (``MAIN_REFERENCES``, with their estimated errors): converged values
+are properties of the model, not of the code path, and the new extrapolation checks them; their
+u fields were not kept, so u is always the new extrapolation.
 
 Errors, relative to the reference: the final area, the final mean tr G and the L2 norm of
 u - u_ref at t_max (both fields sampled on one uniform grid of the reference rectangle, P1
@@ -40,6 +41,7 @@ processes may share the file: each merges its runs in under a lock); the sampled
 kept in ``results/accuracy_cost/`` (not committed), which a rerun needs.
 
     python scripts/studies/accuracy_cost.py [--scenes S ...] [--only NAME ...] [--redo NAME ...]
+    python scripts/studies/accuracy_cost.py --summarize   # errors again from the stored runs
 """
 
 from __future__ import annotations
@@ -115,6 +117,9 @@ MAIN_ESTIMATES = {
     "E_contrast_100": {"err_area": 1.3e-4, "err_trG": 2.1e-6},
 }
 """Those estimated errors of MAIN_REFERENCES (area, mean tr G)."""
+CANDIDATES = {"fine+dt:0.25": {"accuracy.preset": "fine", "time.dt": 0.25}}
+"""Candidate presets beside the three (a scene's own time step is kept by a preset: not run on
+E_contrast_100, where this one would change the scene's dt, not the preset's)."""
 FINER = {"h": -1, "H": -1, "cell_resolution": 1, "cell_tolerance": -1, "dt": -1}
 """Direction in which each refinement knob refines (-1: smaller is finer); 0 tolerance last."""
 SAMPLES = (140, 60)  # sample grid of u over the reference rectangle
@@ -137,7 +142,7 @@ def runs_of(scene: dict) -> dict[str, dict]:
         for level in levels:
             runs[f"{knob}:{next(iter(level.values()))}"] = level
     runs |= {f"preset:{name}": {"accuracy.preset": name} for name in PRESETS}
-    return runs | {"reference": REFERENCE}
+    return runs | CANDIDATES | {"reference": REFERENCE}
 
 
 def run(scene_text: str, workdir: Path, samples: Path) -> dict:
@@ -245,30 +250,40 @@ def changes_along(runs: dict[str, dict], names: list[str], fields: dict) -> dict
     return out
 
 
-def extrapolate_h(runs: dict[str, dict], fields: dict) -> tuple[dict, np.ndarray, dict] | None:
-    """The reference run extrapolated in h against the ``fine`` preset run (h twice the
-    reference's, every other refinement knob alike but H): Q_ref + (Q_ref - Q_fine) rho /
-    (1 - rho), rho the ratio of successive changes of the quantity on the h sequence (draft's,
-    balanced's and fine's h, the other knobs as shipped), where it contracts (rho < 0.9; else
-    no extrapolation). Returns the values, the u samples and, per quantity, rho and the
-    relative change the extrapolation made."""
+def extrapolated_reference(
+    runs: dict[str, dict], fields: dict
+) -> tuple[dict, np.ndarray, dict] | None:
+    """The reference run extrapolated knob by knob (errors additive over the knobs): for each
+    refinement knob, the change over its last refinement times rho / (1 - rho), rho the ratio
+    of its successive changes on its sequence around the shipped scene, where the changes
+    contract (rho < 0.9; else no extrapolation). For h the last refinement is the ``fine``
+    preset run (h twice the reference's, every other refinement knob alike but H) to the
+    reference run; for dt, the cell resolution and tolerance, whose finest levels the
+    reference shares, the sequence's own last step (shipped to finest). Returns the values,
+    the u samples and, per knob and quantity, rho and the relative correction made."""
     ref, fine = runs.get("reference"), runs.get("preset:fine")
     if not (ref and fine and ref["exit"] == fine["exit"] == 0):
         return None
-    sequence = knob_sequence(runs, "h")
-    observed = changes_along(runs, sequence, fields)
-    last = errors(ref, fine, fields["reference"], fields["preset:fine"])
-    factors, info = {}, {}
-    for name, changes in observed.items():
-        rho = changes[-1] / changes[-2] if len(changes) > 1 and changes[-2] > 0 else 1.0
-        factors[name] = rho / (1.0 - rho) if rho < 0.9 else 0.0
-        info[name] = {"rho": rho, "correction": factors[name] * last[name]}
-    values = {
-        "area": ref["area"] + (ref["area"] - fine["area"]) * factors["err_area"],
-        "mean_trG": ref["mean_trG"] + (ref["mean_trG"] - fine["mean_trG"]) * factors["err_trG"],
-    }
-    u_ref, u_fine = fields["reference"], fields["preset:fine"]
-    return values, u_ref + (u_ref - u_fine) * factors["err_u"], info
+    values = {k: ref[k] for k in ("area", "mean_trG")}
+    u = fields["reference"].copy()
+    info: dict[str, dict] = {}
+    for knob in ("h", "dt", "cell_resolution", "cell_tolerance"):
+        sequence = knob_sequence(runs, knob)
+        observed = changes_along(runs, sequence, fields)
+        a, b = ("preset:fine", "reference") if knob == "h" else sequence[-2:]
+        last = errors(runs[b], runs[a], fields[b], fields[a])
+        info[knob] = {}
+        for name, changes in observed.items():
+            rho = changes[-1] / changes[-2] if len(changes) > 1 and changes[-2] > 0 else 1.0
+            factor = rho / (1.0 - rho) if rho < 0.9 else 0.0
+            info[knob][name] = {"rho": rho, "correction": factor * last[name],
+                                "last_change": last[name]}  # fmt: skip
+            if name == "err_u":
+                u += (fields[b] - fields[a]) * factor
+            else:
+                key = {"err_area": "area", "err_trG": "mean_trG"}[name]
+                values[key] += (runs[b][key] - runs[a][key]) * factor
+    return values, u, info
 
 
 def summarize(stem: str, runs: dict[str, dict], samples: Path) -> dict:
@@ -276,11 +291,11 @@ def summarize(stem: str, runs: dict[str, dict], samples: Path) -> dict:
     whose refinement removes most of the shipped scene's error; the check of main's
     reference values."""
     fields = {n: np.load(samples / f"{n}.npy") for n, r in runs.items() if r["exit"] == 0}
-    extrapolated = extrapolate_h(runs, fields)
+    extrapolated = extrapolated_reference(runs, fields)
     if extrapolated is None:
         return {}
-    ref, u_ref, h_info = extrapolated
-    out: dict = {"h_extrapolation": h_info, "reference_values": dict(ref)}
+    ref, u_ref, corrections = extrapolated
+    out: dict = {"extrapolation": corrections, "reference_values": dict(ref)}
     main_ref = MAIN_REFERENCES.get(stem)
     if main_ref:
         out["check_of_main_reference"] = {
@@ -294,15 +309,13 @@ def summarize(stem: str, runs: dict[str, dict], samples: Path) -> dict:
         if record["exit"] == 0:
             e = errors(record, ref, fields[name], u_ref)
             table[name] = e | {"err_max": max(e.values())}
-    estimate = {k: abs(v["correction"]) for k, v in h_info.items()}
-    for k, v in h_info.items():
-        if v["rho"] >= 0.9:  # not extrapolated: the last change in h as the tail
-            estimate[k] = errors(runs["reference"], runs["preset:fine"], fields["reference"],
-                                 fields["preset:fine"])[k]  # fmt: skip
-    for knob in set(FINER) - {"h"}:
-        observed = changes_along(runs, knob_sequence(runs, knob), fields)
-        for name in estimate:
-            estimate[name] += tail_estimate(observed[name])
+    estimate = {"err_area": 0.0, "err_trG": 0.0, "err_u": 0.0}
+    for per_quantity in corrections.values():  # half of each correction, or the last change
+        for k, v in per_quantity.items():
+            estimate[k] += 0.5 * abs(v["correction"]) if v["rho"] < 0.9 else v["last_change"]
+    observed = changes_along(runs, knob_sequence(runs, "H"), fields)
+    for name in estimate:
+        estimate[name] += tail_estimate(observed[name])
     if main_ref:  # main's estimated errors (docs/accuracy_cost.md) for area and tr G
         estimate |= MAIN_ESTIMATES[stem]
     out |= {"errors": table, "reference_error_estimate": estimate}
@@ -315,9 +328,9 @@ def summarize(stem: str, runs: dict[str, dict], samples: Path) -> dict:
     return out
 
 
-def save_run(out: Path, stem: str, scene: str, run_name: str, record: dict) -> None:
-    """Merge one run into the JSON under a lock (two processes may share the file) and
-    re-summarize its scene."""
+def save_run(out: Path, stem: str, scene: str, run_name: str, record: dict | None) -> None:
+    """Merge one run (None: none) into the JSON under a lock (two processes may share the
+    file) and re-summarize its scene."""
     with open(out.with_suffix(".lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         data = json.loads(out.read_text()) if out.exists() else {"scenes": {}}
@@ -325,9 +338,15 @@ def save_run(out: Path, stem: str, scene: str, run_name: str, record: dict) -> N
         data["command"] = "python scripts/studies/accuracy_cost.py"
         data["cost"] = "CPU seconds of the whole plantgrowth process (user + system), cache off"
         entry = data["scenes"].setdefault(stem, {"scene": scene, "runs": {}})
-        entry["runs"][run_name] = record
+        if record is not None:
+            entry["runs"][run_name] = record
         entry["overrides"] = SCENE_OVERRIDES.get(stem, {})
-        for key in ("check_of_main_reference", "h_extrapolation", "reference_values"):
+        for key in (
+            "check_of_main_reference",
+            "extrapolation",
+            "h_extrapolation",
+            "reference_values",
+        ):
             entry.pop(key, None)
         entry |= summarize(stem, entry["runs"], SAMPLES_DIR / stem)
         out.write_text(json.dumps(data, indent=1))
@@ -339,7 +358,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--redo", nargs="*", default=[], help="run names to repeat")
     parser.add_argument("--only", nargs="*", default=None, help="run only these names")
     parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--summarize", action="store_true", help="re-summarize only, no runs")
     args = parser.parse_args(argv)
+    if args.summarize:
+        for name in args.scenes:
+            save_run(args.out, Path(name).stem, f"scenes/{name}", "", None)
+        return 0
     for name in args.scenes:
         path = ROOT / "scenes" / name
         base = tomllib.loads(path.read_text())
