@@ -18,7 +18,8 @@ on where its soft end loses strong ellipticity (``numerics.on_instability = "war
 measures discretization error, not the model's validity), the soft disc runs to t = 20.
 
 The converged reference: the reference run extrapolated knob by knob (errors taken as additive
-over the knobs): for h against the ``fine`` preset run (h twice the reference's), for dt and
+over the knobs): for h against the ``fine`` preset run (h twice the reference's; rho from
+that change and the h sequence's last, h = 0.1 to 0.05), for dt and
 the cell resolution and tolerance (whose finest levels the reference shares) with the last
 step of their own sequences; each correction is that last change times rho / (1 - rho), rho
 the ratio of the knob's successive changes on its sequence (``extrapolated_reference``). The
@@ -258,9 +259,10 @@ def extrapolated_reference(
     of its successive changes on its sequence around the shipped scene, where the changes
     contract (rho < 0.9; else no extrapolation). For h the last refinement is the ``fine``
     preset run (h twice the reference's, every other refinement knob alike but H) to the
-    reference run; for dt, the cell resolution and tolerance, whose finest levels the
-    reference shares, the sequence's own last step (shipped to finest). Returns the values,
-    the u samples and, per knob and quantity, rho and the relative correction made."""
+    reference run, the one before it the h sequence's last (h = 0.1 to 0.05); for dt, the
+    cell resolution and tolerance, whose finest levels the reference shares, the sequence's
+    own last step (shipped to finest). Returns the values, the u samples and, per knob and
+    quantity, rho and the relative correction made."""
     ref, fine = runs.get("reference"), runs.get("preset:fine")
     if not (ref and fine and ref["exit"] == fine["exit"] == 0):
         return None
@@ -274,6 +276,8 @@ def extrapolated_reference(
         last = errors(runs[b], runs[a], fields[b], fields[a])
         info[knob] = {}
         for name, changes in observed.items():
+            if knob == "h":  # the fine preset to the reference: one more halving of h
+                changes = [*changes, last[name]]
             rho = changes[-1] / changes[-2] if len(changes) > 1 and changes[-2] > 0 else 1.0
             factor = rho / (1.0 - rho) if rho < 0.9 else 0.0
             info[knob][name] = {"rho": rho, "correction": factor * last[name],
