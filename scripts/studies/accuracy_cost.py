@@ -119,8 +119,9 @@ MAIN_ESTIMATES = {
 }
 """Those estimated errors of MAIN_REFERENCES (area, mean tr G)."""
 CANDIDATES = {"fine+dt:0.25": {"accuracy.preset": "fine", "time.dt": 0.25}}
-"""Candidate presets beside the three (a scene's own time step is kept by a preset: not run on
-E_contrast_100, where this one would change the scene's dt, not the preset's)."""
+"""Candidate presets beside the three. fine+dt:0.25 was run on soft_disc and gradient_E_strain
+only (``--only``): it left the soft disc's error where fine's is (h dominates there); on
+E_contrast_100 it would change the scene's own dt, which a preset keeps."""
 FINER = {"h": -1, "H": -1, "cell_resolution": 1, "cell_tolerance": -1, "dt": -1}
 """Direction in which each refinement knob refines (-1: smaller is finer); 0 tolerance last."""
 SAMPLES = (140, 60)  # sample grid of u over the reference rectangle
