@@ -336,7 +336,8 @@ def summarize(stem: str, runs: dict[str, dict], samples: Path) -> dict:
 def save_run(out: Path, stem: str, scene: str, run_name: str, record: dict | None) -> None:
     """Merge one run (None: none) into the JSON under a lock (two processes may share the
     file) and re-summarize its scene."""
-    with open(out.with_suffix(".lock"), "w") as lock:
+    SAMPLES_DIR.mkdir(parents=True, exist_ok=True)
+    with open(SAMPLES_DIR / "accuracy_cost.lock", "w") as lock:  # not committed
         fcntl.flock(lock, fcntl.LOCK_EX)
         data = json.loads(out.read_text()) if out.exists() else {"scenes": {}}
         data["machine"] = machine_description()
