@@ -27,9 +27,7 @@ def scene_table(stem: str, entry: dict) -> list[str]:
     lines = [f"#### {stem}", "", "| run | err area | err mean tr G | err u | err max | CPU s | "
              "wall s | cell solves |", "|---|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
     for name, run in entry["runs"].items():
-        if name == "reference":
-            cost = f"{run['cpu_seconds']:.3g} | {run['wall_seconds']:.3g} | {run['cell_solves']}"
-            lines.append(f"| reference | - | - | - | - | {cost} |")
+        if run["exit"] == 0 and name not in entry.get("errors", {}):
             continue
         if run["exit"] != 0:
             lines.append(f"| {name} | stopped: {run['error'][:60]} | | | | | | |")
@@ -38,6 +36,20 @@ def scene_table(stem: str, entry: dict) -> list[str]:
         errors = " | ".join(_pct(e[k]) for k in ("err_area", "err_trG", "err_u", "err_max"))
         cost = f"{run['cpu_seconds']:.3g} | {run['wall_seconds']:.3g} | {run['cell_solves']}"
         lines.append(f"| {name} | {errors} | {cost} |")
+    if entry.get("overrides"):
+        shown = ", ".join(f"`{k} = {v!r}`" for k, v in entry["overrides"].items())
+        lines += ["", f"Every run of this scene with {shown}."]
+    if "check_of_main_reference" in entry:
+        check = entry["check_of_main_reference"]
+        lines += ["", "Area and mean tr G against main's extrapolated reference (MAIN_REFERENCES); "
+                  "main's reference against this one's: the reference run differs by "
+                  f"{_pct(check['reference_run_area'])} (area), "
+                  f"{_pct(check['reference_run_mean_trG'])} (tr G); extrapolated, by "
+                  f"{_pct(check['area'])}, {_pct(check['mean_trG'])}."]  # fmt: skip
+    for knob, per_quantity in entry.get("extrapolation", {}).items():
+        shown = ", ".join(f"{k[4:]} rho {v['rho']:.2g}, {_pct(v['correction'])}"
+                          for k, v in per_quantity.items())  # fmt: skip
+        lines += [f"Reference extrapolated in {knob}: {shown}."]
     estimate = entry.get("reference_error_estimate", {})
     if estimate:
         shown = ", ".join(f"{k[4:]} {_pct(v)}" for k, v in estimate.items() if k != "err_max")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tomllib
 from pathlib import Path
 
 import matplotlib
@@ -40,9 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     data = json.loads(args.data.read_text())
     scenes = data["scenes"]
-    fig, axes = plt.subplots(1, len(scenes), figsize=(5.2 * len(scenes), 4.6), squeeze=False)
+    ncols = min(len(scenes), 2)
+    nrows = -(-len(scenes) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(5.6 * ncols, 4.6 * nrows), squeeze=False)
     knobs = ("h", "H", "cell_resolution", "cell_tolerance", "dt", "integrator")
-    for ax, (stem, entry) in zip(axes[0], scenes.items(), strict=True):
+    for ax, (stem, entry) in zip(axes.flat, scenes.items(), strict=False):
         for knob in knobs:
             names = [n for n in entry["runs"] if n.startswith(knob + ":")] + ["shipped"]
             points = sorted(p for n in names if (p := _point(entry, n)))
@@ -55,7 +58,9 @@ def main(argv: list[str] | None = None) -> int:
             ax.plot(*p, "o", ms=9, mfc="none", mec="k", label="shipped scene")
         for level in (0.03, 0.01, 0.001):
             ax.axhline(level, color="0.7", lw=0.6, ls="--")
-        ax.set(xscale="log", yscale="log", title=stem, xlabel="CPU seconds of the whole run")
+        t_max = tomllib.loads(entry["runs"]["shipped"]["scene_text"])["time"]["t_max"]
+        title = f"{stem} (t = {t_max:g})"
+        ax.set(xscale="log", yscale="log", title=title, xlabel="CPU seconds of the whole run")
         ax.set_ylabel("largest relative error (area, mean tr G, u)")
         ax.grid(True, which="major", lw=0.3)
     axes[0][0].legend(fontsize=7, loc="lower left")

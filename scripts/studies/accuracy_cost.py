@@ -1,20 +1,34 @@
-"""The accuracy-cost map (issue 9): error against a converged reference versus run time.
+"""The accuracy-cost map (issue 9; re-run for issue 20 with per-cell tensors): error against a
+converged reference versus run time.
 
-For each scene (default: ``gradient_E_strain``, ``gradient_P1_stress`` and the hard case
-``E_contrast_100``) it runs, with ``plantgrowth run`` in a subprocess and the on-disk cell
-cache off (every run pays for its own cell solves):
+For each scene (default: ``gradient_E_strain``, ``gradient_P1_stress``, the hard case
+``E_contrast_100`` and the small feature ``biology/soft_disc``) it runs, with ``plantgrowth
+run`` in a subprocess and the on-disk cell cache off (every run pays for its own cell solves):
 
 - the scene as shipped (its preset: ``balanced``) and each numerical knob varied alone from
-  it: ``tissue.h``, ``tissue.H``, ``accuracy.cell_resolution``, ``accuracy.cell_tolerance``,
-  ``time.dt`` and ``time.integrator``;
+  it, at the levels around the presets (``tissue.h``, ``tissue.H``,
+  ``accuracy.cell_resolution``, ``accuracy.cell_tolerance``, ``time.dt``,
+  ``time.integrator``); a level that resolves to the shipped scene's knobs is not run again;
 - the three presets (``accuracy.preset``, the scene's own explicit keys kept);
-- a reference with every knob refined at once: two runs at H and H/2 extrapolated in H
-  (Richardson: H is the knob that converges slowest, at first order), the others at or beyond
-  the finest level of their sequences. The reference's own error is estimated knob by knob
-  from the sequences: with d1, d2 the changes over the last two refinements of a knob, the
-  error left beyond its finest level is about d1 rho / (1 - rho), rho = d1 / d2 (a geometric
-  tail; successive refinement), or d1 where the changes do not contract; for H, half the
-  extrapolation's correction (an order between 0.7 and 1.6), all summed.
+- candidate presets (``CANDIDATES``);
+- a reference run: the ``fine`` preset with h halved (``REFERENCE``).
+
+Per-scene overrides (``SCENE_OVERRIDES``) apply to every run of a scene: E_contrast_100 goes
+on where its soft end loses strong ellipticity (``numerics.on_instability = "warn"``: the map
+measures discretization error, not the model's validity), the soft disc runs to t = 20.
+
+The converged reference: the reference run extrapolated knob by knob (errors taken as additive
+over the knobs): for h against the ``fine`` preset run (h twice the reference's; rho from
+that change and the h sequence's last, h = 0.1 to 0.05), for dt and
+the cell resolution and tolerance (whose finest levels the reference shares) with the last
+step of their own sequences; each correction is that last change times rho / (1 - rho), rho
+the ratio of the knob's successive changes on its sequence (``extrapolated_reference``). The
+reference's own error is estimated as half of each correction (the whole last change where the
+changes do not contract) plus the geometric tail of the H sequence, summed. For the three
+smooth scenes the final area and mean tr G are instead the extrapolated references of the map
+before per-cell tensors (``MAIN_REFERENCES``, with their estimated errors): converged values
+are properties of the model, not of the code path, and the new extrapolation checks them; their
+u fields were not kept, so u is always the new extrapolation.
 
 Errors, relative to the reference: the final area, the final mean tr G and the L2 norm of
 u - u_ref at t_max (both fields sampled on one uniform grid of the reference rectangle, P1
@@ -23,16 +37,19 @@ translation fixed by the pinned origin is not part of the tissue's shape). Cost:
 seconds of the whole process (imports and set-up included; robust to other load on the
 machine), and its wall seconds. Writes
 ``benchmarks/results/accuracy_cost.json`` after every run (a rerun reuses the runs already
-there with the same scene text and resolved knobs; ``--redo NAME`` repeats some); the sampled
-u fields are kept in ``results/accuracy_cost/`` (not committed), which a rerun needs.
+there with the same scene text and resolved knobs; ``--redo NAME`` repeats some; two
+processes may share the file: each merges its runs in under a lock); the sampled u fields are
+kept in ``results/accuracy_cost/`` (not committed), which a rerun needs.
 
-    python scripts/studies/accuracy_cost.py [--scenes S ...] [--redo preset:balanced ...]
+    python scripts/studies/accuracy_cost.py [--scenes S ...] [--only NAME ...] [--redo NAME ...]
+    python scripts/studies/accuracy_cost.py --summarize   # errors again from the stored runs
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import fcntl
 import json
 import os
 import resource
@@ -52,27 +69,59 @@ from plantgrowth.scene.presets import PRESETS
 from plantgrowth.scene.toml_text import dict_to_toml
 
 ROOT = Path(__file__).resolve().parents[2]
-SCENES = ("gradient_E_strain.toml", "gradient_P1_stress.toml", "hard/E_contrast_100.toml")
+SCENES = (
+    "gradient_E_strain.toml",
+    "gradient_P1_stress.toml",
+    "hard/E_contrast_100.toml",
+    "biology/soft_disc.toml",
+)
+SCENE_OVERRIDES = {
+    "E_contrast_100": {"numerics.on_instability": "warn"},
+    "soft_disc": {"time.t_max": 20.0, "numerics.on_instability": "warn"},
+}
+"""Applied to every run of the scene (reference included)."""
 OUT = ROOT / "benchmarks/results/accuracy_cost.json"
 SAMPLES_DIR = ROOT / "results/accuracy_cost"
 KNOBS: dict[str, list[dict]] = {
-    "h": [{"tissue.h": h} for h in (0.4, 0.2, 0.05, 0.025)],
-    "H": [{"tissue.H": H} for H in (4.0, 2.0, 1.0, 0.25, 0.125)],
-    "cell_resolution": [{"accuracy.cell_resolution": r} for r in (1, 3, 4, 6)],
-    "cell_tolerance": [{"accuracy.cell_tolerance": c} for c in (3e-2, 1e-2, 3e-3, 1e-4, 0.0)],
-    "dt": [{"time.dt": dt} for dt in (4.0, 2.0, 0.5, 0.25)],
-    "integrator": [{"time.integrator": name} for name in ("euler", "exp", "adaptive")],
+    "h": [{"tissue.h": h} for h in (0.2, 0.05)],
+    "H": [{"tissue.H": H} for H in (2.0, 0.125)],
+    "cell_resolution": [{"accuracy.cell_resolution": r} for r in (1, 3)],
+    "cell_tolerance": [{"accuracy.cell_tolerance": c} for c in (1e-2, 1e-4)],
+    "dt": [{"time.dt": dt} for dt in (2.0, 0.5)],
+    "integrator": [{"time.integrator": name} for name in ("euler", "exp")],
 }
+"""Around the presets: h and dt at draft's and fine's levels beside balanced's (the shipped
+scene), the cell knobs at draft's and fine's, H at two points only (with per-cell tensors H
+samples just the cell geometry and nu, constant in these scenes)."""
 REFERENCE = {
     "tissue.h": 0.025,
-    "accuracy.cell_resolution": 6,
+    "tissue.H": 0.0625,
+    "accuracy.cell_resolution": 3,
     "accuracy.cell_tolerance": 1e-4,
-    "time.dt": 0.25,
+    "time.dt": 0.5,
 }
-REFERENCE_H = (0.125, 0.0625)
-"""The reference is extrapolated in H (Richardson, order 1: the observed ratio of successive
-changes under halving H is about 0.5 for u, below for area and tr G) from two runs at these H;
-h, dt, the cell resolution and tolerance are at or beyond the finest level of their sequences."""
+"""The ``fine`` preset with h halved: h, the one knob whose refinement still moves the fine
+preset's result, beyond its sequence; dt, the cell resolution and tolerance at the finest
+level of theirs (their tails beyond it are in the reference's error estimate)."""
+MAIN_REFERENCES = {
+    "gradient_E_strain": {"area": 41.840810975960295, "mean_trG": 0.010238230866627791},
+    "gradient_P1_stress": {"area": 80.05706117592464, "mean_trG": 0.019792531077876787},
+    "E_contrast_100": {"area": 58.01059298678424, "mean_trG": 0.015835350715252845},
+}
+"""The converged area and mean tr G at t = 60 of the map before per-cell tensors (commit
+2c36810, benchmarks/results/accuracy_cost.json there: 2 Q(H = 0.0625) - Q(H = 0.125), h =
+0.025, cell resolution 6, tolerance 1e-4, dt = 0.25; estimated errors 0.0062% / 0.0011%,
+0.0022% / 0.000095%, 0.013% / 0.00021%). Their u fields were not kept."""
+MAIN_ESTIMATES = {
+    "gradient_E_strain": {"err_area": 6.2e-5, "err_trG": 1.1e-5},
+    "gradient_P1_stress": {"err_area": 2.2e-5, "err_trG": 9.5e-7},
+    "E_contrast_100": {"err_area": 1.3e-4, "err_trG": 2.1e-6},
+}
+"""Those estimated errors of MAIN_REFERENCES (area, mean tr G)."""
+CANDIDATES = {"fine+dt:0.25": {"accuracy.preset": "fine", "time.dt": 0.25}}
+"""Candidate presets beside the three. fine+dt:0.25 was run on soft_disc and gradient_E_strain
+only (``--only``): it left the soft disc's error where fine's is (h dominates there); on
+E_contrast_100 it would change the scene's own dt, which a preset keeps."""
 FINER = {"h": -1, "H": -1, "cell_resolution": 1, "cell_tolerance": -1, "dt": -1}
 """Direction in which each refinement knob refines (-1: smaller is finer); 0 tolerance last."""
 SAMPLES = (140, 60)  # sample grid of u over the reference rectangle
@@ -95,7 +144,7 @@ def runs_of(scene: dict) -> dict[str, dict]:
         for level in levels:
             runs[f"{knob}:{next(iter(level.values()))}"] = level
     runs |= {f"preset:{name}": {"accuracy.preset": name} for name in PRESETS}
-    return runs | {f"reference_H{H}": REFERENCE | {"tissue.H": H} for H in REFERENCE_H}
+    return runs | CANDIDATES | {"reference": REFERENCE}
 
 
 def run(scene_text: str, workdir: Path, samples: Path) -> dict:
@@ -112,6 +161,9 @@ def run(scene_text: str, workdir: Path, samples: Path) -> dict:
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     record = {"exit": proc.returncode, "wall_seconds": wall, "cpu_seconds": cpu}
+    warned = [line for line in proc.stderr.splitlines() if "ellipticity" in line]
+    if warned:
+        record["ellipticity_warnings"] = warned[:3]
     if proc.returncode != 0:
         return record | {"error": (proc.stderr.strip().splitlines() or ["?"])[-1]}
     with open(outdir / "summary.csv", newline="") as f:
@@ -190,38 +242,88 @@ def zero_mean_u1(u: np.ndarray) -> np.ndarray:
     return np.stack([u[0] - np.nanmean(u[0]), u[1]])
 
 
-def extrapolated_reference(runs: dict[str, dict], samples: Path) -> tuple[dict, np.ndarray] | None:
-    """The reference (area, mean tr G, u samples) extrapolated from the H and H/2 runs."""
-    coarse, fine = (runs.get(f"reference_H{H}") for H in REFERENCE_H)
-    if not (coarse and fine and coarse["exit"] == fine["exit"] == 0):
+def changes_along(runs: dict[str, dict], names: list[str], fields: dict) -> dict[str, list]:
+    """The relative changes of area, mean tr G and u between successive runs of names."""
+    pairs = list(zip(names[:-1], names[1:], strict=True))
+    out: dict[str, list] = {"err_area": [], "err_trG": [], "err_u": []}
+    for a, b in pairs:
+        for k, v in errors(runs[a], runs[b], fields[a], fields[b]).items():
+            out[k].append(v)
+    return out
+
+
+def extrapolated_reference(
+    runs: dict[str, dict], fields: dict
+) -> tuple[dict, np.ndarray, dict] | None:
+    """The reference run extrapolated knob by knob (errors additive over the knobs): for each
+    refinement knob, the change over its last refinement times rho / (1 - rho), rho the ratio
+    of its successive changes on its sequence around the shipped scene, where the changes
+    contract (rho < 0.9; else no extrapolation). For h the last refinement is the ``fine``
+    preset run (h twice the reference's, every other refinement knob alike but H) to the
+    reference run, the one before it the h sequence's last (h = 0.1 to 0.05); for dt, the
+    cell resolution and tolerance, whose finest levels the reference shares, the sequence's
+    own last step (shipped to finest). Returns the values, the u samples and, per knob and
+    quantity, rho and the relative correction made."""
+    ref, fine = runs.get("reference"), runs.get("preset:fine")
+    if not (ref and fine and ref["exit"] == fine["exit"] == 0):
         return None
-    u = [np.load(samples / f"reference_H{H}.npy") for H in REFERENCE_H]
-    ref = {k: 2.0 * fine[k] - coarse[k] for k in ("area", "mean_trG")}
-    return ref, 2.0 * u[1] - u[0]
+    values = {k: ref[k] for k in ("area", "mean_trG")}
+    u = fields["reference"].copy()
+    info: dict[str, dict] = {}
+    for knob in ("h", "dt", "cell_resolution", "cell_tolerance"):
+        sequence = knob_sequence(runs, knob)
+        observed = changes_along(runs, sequence, fields)
+        a, b = ("preset:fine", "reference") if knob == "h" else sequence[-2:]
+        last = errors(runs[b], runs[a], fields[b], fields[a])
+        info[knob] = {}
+        for name, changes in observed.items():
+            if knob == "h":  # the fine preset to the reference: one more halving of h
+                changes = [*changes, last[name]]
+            rho = changes[-1] / changes[-2] if len(changes) > 1 and changes[-2] > 0 else 1.0
+            factor = rho / (1.0 - rho) if rho < 0.9 else 0.0
+            info[knob][name] = {"rho": rho, "correction": factor * last[name],
+                                "last_change": last[name]}  # fmt: skip
+            if name == "err_u":
+                u += (fields[b] - fields[a]) * factor
+            else:
+                key = {"err_area": "area", "err_trG": "mean_trG"}[name]
+                values[key] += (runs[b][key] - runs[a][key]) * factor
+    return values, u, info
 
 
-def summarize(runs: dict[str, dict], samples: Path) -> dict:
+def summarize(stem: str, runs: dict[str, dict], samples: Path) -> dict:
     """Errors of every run against the reference; the reference's estimated error; the knob
-    whose refinement removes most of the shipped scene's error."""
-    extrapolated = extrapolated_reference(runs, samples)
+    whose refinement removes most of the shipped scene's error; the check of main's
+    reference values."""
+    fields = {n: np.load(samples / f"{n}.npy") for n, r in runs.items() if r["exit"] == 0}
+    extrapolated = extrapolated_reference(runs, fields)
     if extrapolated is None:
         return {}
-    ref, u_ref = extrapolated
-    fields = {n: np.load(samples / f"{n}.npy") for n, r in runs.items() if r["exit"] == 0}
+    ref, u_ref, corrections = extrapolated
+    out: dict = {"extrapolation": corrections, "reference_values": dict(ref)}
+    main_ref = MAIN_REFERENCES.get(stem)
+    if main_ref:
+        out["check_of_main_reference"] = {
+            k: (ref[k] - main_ref[k]) / abs(main_ref[k]) for k in main_ref
+        } | {"reference_run_" + k: (runs["reference"][k] - main_ref[k]) / abs(main_ref[k])
+             for k in main_ref}  # fmt: skip
+        ref = dict(main_ref)
+        out["reference_values"] = ref | {"source": "MAIN_REFERENCES (area, mean_trG)"}
     table = {}
     for name, record in runs.items():
         if record["exit"] == 0:
             e = errors(record, ref, fields[name], u_ref)
             table[name] = e | {"err_max": max(e.values())}
-    finest = f"reference_H{REFERENCE_H[1]}"
-    estimate = {k: 0.5 * v for k, v in table[finest].items() if k != "err_max"}
-    for knob in set(FINER) - {"H"}:
-        sequence = knob_sequence(runs, knob)
-        pairs = list(zip(sequence[:-1], sequence[1:], strict=True))
-        for name in estimate:
-            changes = [errors(runs[a], runs[b], fields[a], fields[b])[name] for a, b in pairs]
-            estimate[name] += tail_estimate(changes)
-    out = {"errors": table, "reference_error_estimate": estimate}
+    estimate = {"err_area": 0.0, "err_trG": 0.0, "err_u": 0.0}
+    for per_quantity in corrections.values():  # half of each correction, or the last change
+        for k, v in per_quantity.items():
+            estimate[k] += 0.5 * abs(v["correction"]) if v["rho"] < 0.9 else v["last_change"]
+    observed = changes_along(runs, knob_sequence(runs, "H"), fields)
+    for name in estimate:
+        estimate[name] += tail_estimate(observed[name])
+    if main_ref:  # main's estimated errors (docs/accuracy_cost.md) for area and tr G
+        estimate |= MAIN_ESTIMATES[stem]
+    out |= {"errors": table, "reference_error_estimate": estimate}
     shipped = table.get("shipped")
     if shipped:
         finest = {knob: min((table[n]["err_max"] for n in table if n.startswith(knob + ":")),
@@ -231,37 +333,67 @@ def summarize(runs: dict[str, dict], samples: Path) -> dict:
     return out
 
 
+def save_run(out: Path, stem: str, scene: str, run_name: str, record: dict | None) -> None:
+    """Merge one run (None: none) into the JSON under a lock (two processes may share the
+    file) and re-summarize its scene."""
+    SAMPLES_DIR.mkdir(parents=True, exist_ok=True)
+    with open(SAMPLES_DIR / "accuracy_cost.lock", "w") as lock:  # not committed
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        data = json.loads(out.read_text()) if out.exists() else {"scenes": {}}
+        data["machine"] = machine_description()
+        data["command"] = "python scripts/studies/accuracy_cost.py"
+        data["cost"] = "CPU seconds of the whole plantgrowth process (user + system), cache off"
+        entry = data["scenes"].setdefault(stem, {"scene": scene, "runs": {}})
+        if record is not None:
+            entry["runs"][run_name] = record
+        entry["overrides"] = SCENE_OVERRIDES.get(stem, {})
+        for key in (
+            "check_of_main_reference",
+            "extrapolation",
+            "h_extrapolation",
+            "reference_values",
+        ):
+            entry.pop(key, None)
+        entry |= summarize(stem, entry["runs"], SAMPLES_DIR / stem)
+        out.write_text(json.dumps(data, indent=1))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", nargs="*", default=list(SCENES))
     parser.add_argument("--redo", nargs="*", default=[], help="run names to repeat")
     parser.add_argument("--only", nargs="*", default=None, help="run only these names")
     parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--summarize", action="store_true", help="re-summarize only, no runs")
     args = parser.parse_args(argv)
-    data = json.loads(args.out.read_text()) if args.out.exists() else {"scenes": {}}
-    data["machine"] = machine_description()
-    data["command"] = "python scripts/studies/accuracy_cost.py"
-    data["cost"] = "CPU seconds of the whole plantgrowth process (user + system), cache off"
+    if args.summarize:
+        for name in args.scenes:
+            save_run(args.out, Path(name).stem, f"scenes/{name}", "", None)
+        return 0
     for name in args.scenes:
         path = ROOT / "scenes" / name
         base = tomllib.loads(path.read_text())
-        entry = data["scenes"].setdefault(path.stem, {"scene": f"scenes/{name}", "runs": {}})
         samples = SAMPLES_DIR / path.stem
+        scene_overrides = SCENE_OVERRIDES.get(path.stem, {})
+        shipped = knobs_of(dict_to_toml(with_overrides(base, scene_overrides)))
         for run_name, overrides in runs_of(base).items():
             if args.only is not None and run_name not in args.only:
                 continue
-            text = dict_to_toml(with_overrides(base, overrides))
-            old = entry["runs"].get(run_name)
-            same = old and old["scene_text"] == text and old.get("resolved") == knobs_of(text)
+            text = dict_to_toml(with_overrides(base, scene_overrides | overrides))
+            knobs = knobs_of(text)
+            if ":" in run_name and not run_name.startswith("preset:") and knobs == shipped:
+                continue  # this level is the shipped scene's
+            data = json.loads(args.out.read_text()) if args.out.exists() else {"scenes": {}}
+            old = data["scenes"].get(path.stem, {}).get("runs", {}).get(run_name)
+            same = old and old["scene_text"] == text and old.get("resolved") == knobs
             if same and run_name not in args.redo:
                 continue
             with tempfile.TemporaryDirectory() as tmp:
                 load = os.getloadavg()[0]
                 record = run(text, Path(tmp), samples / f"{run_name}.npy")
-            entry["runs"][run_name] = record | {"scene_text": text, "load_before": load}
-            entry |= summarize(entry["runs"], samples)
-            args.out.write_text(json.dumps(data, indent=1))
-            shown = {k: v for k, v in record.items() if k != "resolved"}
+            record |= {"scene_text": text, "load_before": load}
+            save_run(args.out, path.stem, f"scenes/{name}", run_name, record)
+            shown = {k: v for k, v in record.items() if k not in ("resolved", "scene_text")}
             print(path.stem, run_name, json.dumps(shown), flush=True)
     return 0
 
