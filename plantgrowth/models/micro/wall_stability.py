@@ -57,4 +57,3 @@ class WallStability:
     def cell_minima(self) -> np.ndarray:
         """(n_cells,) the smallest value of each owned triangle (the ``stability`` field)."""
         return self.values(screened=False).reshape(-1, SAMPLES_PER_CELL).min(axis=1)
-
