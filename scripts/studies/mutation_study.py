@@ -53,7 +53,8 @@ PYTEST_ARGS = ["-m", "pytest", "-q", "-m", "not slow", "-x", "-p", "no:cacheprov
 RUN_TIMEOUT = 3600.0  # seconds per suite run; the whole serial suite takes ~3-5 min
 CATEGORIES = (
     "sign", "factor", "transposition", "wrong configuration", "wrong average",
-    "wrong law or integrator", "wrong boundary condition",
+    "wrong law or integrator", "wrong boundary condition", "wrong index", "wrong scale",
+    "missing check",
 )  # fmt: skip
 
 
@@ -193,14 +194,14 @@ MUTANTS = (
           "scene.tissue.H, problem.midpoints[:, 1::-1], comm"),),
     ),
     Mutant(
-        "E_factor_wrong_cell", "plantgrowth/models/macro/model.py", "index",
+        "E_factor_wrong_cell", "plantgrowth/models/macro/model.py", "wrong index",
         "each fine cell's E_hom scaled by the E of its neighbour in the cell order (issue 20, "
         "item 4: the per-cell E factor)",
         (("self.E = scene.material.E(*(at_cells if self.per_cell else at_nodes))",
           "self.E = np.roll(scene.material.E(*(at_cells if self.per_cell else at_nodes)), 1)"),),
     ),
     Mutant(
-        "cell_growth_wrong_cell", "plantgrowth/unitcell/homogenization.py", "index",
+        "cell_growth_wrong_cell", "plantgrowth/unitcell/homogenization.py", "wrong index",
         "the surrogate asked at another cell's stretch (the queries' s reversed)",
         (("answer = self.surrogate.evaluate(tables, pairs.indices, s[point])",
           "answer = self.surrogate.evaluate(tables, pairs.indices, s[point][::-1])"),),
@@ -301,7 +302,7 @@ MUTANTS = (
           "self._length = {n: fem.form(1.0 * self.ds(self.tags[n])) for n in self.names}"),),
     ),
     Mutant(
-        "acoustic_tensor_transposed", "plantgrowth/models/stability.py", "wrong index",
+        "acoustic_tensor_transposed", "plantgrowth/models/stability.py", "transposition",
         "the acoustic tensor's geometric part Fe^T M(N) Fe instead of Fe M(N) Fe^T (the tangent's "
         "indices contracted in the wrong order: the same for a pure stretch)",
         (("Qx = Fe[:, None] @ M @ np.swapaxes(Fe, 1, 2)[:, None]",
