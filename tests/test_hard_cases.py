@@ -15,8 +15,8 @@ one where the geometrically linear model inverts an element. Studies of the inte
 (large steps, the lagged coupling) go on past a loss of ellipticity (``"warn"``): they measure
 the time stepping, not the model's validity.
 
-With ``kinematics = "finite"`` (MODEL.md 10) every scene runs again to its own t_max: the
-FINITE_PASSING ones keep every criterion (and the homogeneous ones the exact rate); the
+With ``kinematics = "finite"`` (docs/model.md section 10) every scene runs again to its own
+t_max: the FINITE_PASSING ones keep every criterion (and the homogeneous ones the exact rate); the
 FINITE_LIMITS stop where the law loses strong ellipticity.
 """
 
@@ -180,7 +180,7 @@ def test_homogeneous_strain_rate_is_exact(run, name, kinematics):
     """Homogeneous tissue, constant P1, strain law: the wall-averaged stress is (1 - phi_w) P1 I,
     so eps_hom = (1 - nu)/E (1 - phi_w) P1 I and G = min(M, eta (1 - nu)/E (1 - phi_w)/phi_w P1) I
     for any cell geometry, nu and Fg, in both kinematics (finite: S = 0, so Ee is the linear
-    eps_el; MODEL.md 10 (2)). Tolerance: the homogenizer rounds the cell inputs to
+    eps_el; docs/model.md section 10 (2)). Tolerance: the homogenizer rounds the cell inputs to
     accuracy.key_tolerance = 1e-6 (l1 = 1/3 -> 0.333333: phi_w off by 3e-7 relative);
     otherwise round-off (~1e-13); Newton's 1e-10 is below both."""
     if kinematics == "finite" and name not in FINITE_PASSING:

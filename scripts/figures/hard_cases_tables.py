@@ -173,7 +173,8 @@ def _render_finite(finite: dict) -> list[str]:
         "",
         '### Both kinematics: `kinematics = "finite"`',
         "",
-        "Every scene as shipped (h = 0.1) once more with finite kinematics (MODEL.md 10):",
+        "Every scene as shipped (h = 0.1) once more with finite kinematics "
+        "(docs/model.md section 10):",
         "",
         "| case | linear: end | finite: end | finite: law first not elliptic (place, area) "
         "| max strain linear / finite | s per step finite / linear | Newton it. per step |",
