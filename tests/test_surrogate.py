@@ -14,7 +14,16 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth.base.tensors import rotate2, rotate4, tensor_from_voigt, voigt_matrix
+from plantgrowth.base.tensors import (
+    det2,
+    inv2,
+    rotate2,
+    rotate4,
+    rotate_voigt,
+    smallest_eigenvalue_sym3,
+    tensor_from_voigt,
+    voigt_matrix,
+)
 from plantgrowth.unitcell import surrogate
 from plantgrowth.unitcell.homogenization import Homogenizer
 
@@ -56,6 +65,27 @@ def test_voigt_round_trip_and_rotations():
     np.testing.assert_allclose(rotate4(np.swapaxes(R, 1, 2), rotate4(R, T)), T, atol=1e-12)
     K = C[:, :2, :2]
     np.testing.assert_allclose(rotate2(np.swapaxes(R, 1, 2), rotate2(R, K)), K, atol=1e-12)
+    # the Voigt shortcut is the full 4th-order rotation (round-off of a few products of O(1))
+    turned = voigt_matrix(rotate4(R, T))
+    np.testing.assert_allclose(rotate_voigt(R, C), turned, rtol=0.0, atol=1e-12)
+
+
+def test_closed_forms_agree_with_numpy():
+    """det2, inv2 and smallest_eigenvalue_sym3 (the per-cell closed forms of every step) against
+    numpy's batched LU and eigensolver, on random matrices and on nearly singular ones (an
+    eigenvalue 1e-6 of the largest, as a honeycomb's shear modulus is 1e-2 of its stiffness):
+    agreement to round-off of the entries' size (1e-12)."""
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(200, 2, 2))
+    np.testing.assert_allclose(det2(A), np.linalg.det(A), rtol=0.0, atol=1e-12)
+    np.testing.assert_allclose(inv2(A) @ A, np.tile(np.eye(2), (200, 1, 1)), atol=1e-9)
+    B = rng.normal(size=(200, 3, 3))
+    B = B + np.swapaxes(B, 1, 2)
+    Q = np.linalg.qr(rng.normal(size=(200, 3, 3)))[0]
+    small = Q @ (np.array([1e-6, 0.5, 1.0])[None, :, None] * np.swapaxes(Q, 1, 2))
+    for M in (B, small):
+        expected = np.linalg.eigvalsh(M)[:, 0]
+        np.testing.assert_allclose(smallest_eigenvalue_sym3(M), expected, rtol=0.0, atol=1e-12)
 
 
 @pytest.mark.skip_in_parallel

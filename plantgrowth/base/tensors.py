@@ -86,9 +86,58 @@ def rotate2(R: np.ndarray, T: np.ndarray) -> np.ndarray:
     return R @ T @ np.swapaxes(R, 1, 2)
 
 
+def rotate_voigt(R: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Voigt matrices (n, 3, 3) of :func:`rotate4` applied to the tensors of ``C``, directly:
+    ``T C T^T`` with T the stress transformation of R = [[c, -s], [s, c]],
+    ``T = [[c^2, s^2, -2cs], [s^2, c^2, 2cs], [cs, -cs, c^2 - s^2]]`` (the engineering strain's
+    transformation is T^-T)."""
+    c, s = R[:, 0, 0], R[:, 1, 0]
+    cc, ss, cs = c * c, s * s, c * s
+    T = np.stack(
+        [
+            np.stack([cc, ss, -2.0 * cs], -1),
+            np.stack([ss, cc, 2.0 * cs], -1),
+            np.stack([cs, -cs, cc - ss], -1),
+        ],
+        -2,
+    )
+    return T @ C @ np.swapaxes(T, 1, 2)
+
+
 def rotate4(R: np.ndarray, T: np.ndarray) -> np.ndarray:
     """``T'_ijkl = R_ia R_jb R_kc R_ld T_abcd`` for stacks (n, ...) of 4th-order tensors, as
     ``Q T Q^T`` with ``Q = R (x) R`` on the index pairs (ij), (kl): two batched 4 x 4 products."""
     n = len(R)
     Q = (R[:, :, None, :, None] * R[:, None, :, None, :]).reshape(n, 4, 4)
     return (Q @ T.reshape(n, 4, 4) @ np.swapaxes(Q, 1, 2)).reshape(n, 2, 2, 2, 2)
+
+
+def smallest_eigenvalue_sym3(A: np.ndarray) -> np.ndarray:
+    """(n,) the smallest eigenvalue of symmetric (n, 3, 3) matrices (the trigonometric closed
+    form: ``q + 2 p cos(acos(det((A - q I) / p) / 2) / 3 + 2 pi / 3)``, q = tr A / 3)."""
+    q = np.trace(A, axis1=1, axis2=2) / 3.0
+    off = A[:, 0, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 2] ** 2
+    diag = (A[:, 0, 0] - q) ** 2 + (A[:, 1, 1] - q) ** 2 + (A[:, 2, 2] - q) ** 2
+    p = np.sqrt((diag + 2.0 * off) / 6.0)
+    safe = np.where(p > 0.0, p, 1.0)
+    a, d, f = ((A[:, k, k] - q) / safe for k in range(3))  # B = (A - q I) / p, symmetric
+    b, c, e = A[:, 0, 1] / safe, A[:, 0, 2] / safe, A[:, 1, 2] / safe
+    r = 0.5 * (a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c))  # det(B) / 2
+    angle = np.arccos(np.clip(r, -1.0, 1.0)) / 3.0
+    return np.where(p > 0.0, q + 2.0 * p * np.cos(angle + 2.0 * np.pi / 3.0), q)
+
+
+def det2(A: np.ndarray) -> np.ndarray:
+    """(...,) ``A11 A22 - A12 A21`` of (..., 2, 2) matrices (closed form: a few times faster
+    than np.linalg.det's batched LU on the per-cell stacks of every step)."""
+    return A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
+
+
+def inv2(A: np.ndarray) -> np.ndarray:
+    """(..., 2, 2) inverses ``[[A22, -A12], [-A21, A11]] / det A`` (closed form, as :func:`det2`;
+    a singular matrix gives inf or NaN entries rather than an error)."""
+    adjugate = np.stack(
+        [np.stack([A[..., 1, 1], -A[..., 0, 1]], -1), np.stack([-A[..., 1, 0], A[..., 0, 0]], -1)],
+        -2,
+    )
+    return adjugate / det2(A)[..., None, None]

@@ -11,6 +11,7 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
+from plantgrowth.base.tensors import det2, smallest_eigenvalue_sym3
 
 RESIDUAL_BOUND = 1e-8
 """Largest accepted relative residual of a linear solve; LU's round-off is ~1e-14, CG stops at
@@ -39,7 +40,7 @@ def growth_problems(Fg: np.ndarray, points: np.ndarray, G: np.ndarray | None = N
     problems += nonfinite_problems("Fg", Fg, points, EULER_HINT)
     if problems:
         return problems
-    det = np.linalg.det(Fg)
+    det = det2(Fg)
     bad = det <= 0.0
     if bad.any():
         problems.append(
@@ -67,7 +68,7 @@ def stiffness_problems(C: np.ndarray, nodes: np.ndarray) -> list[str]:
         bad = ~np.all(np.isfinite(C.reshape(len(C), -1)), axis=1)
         return [f"{_where(bad, nodes, 'E_hom is NaN or Inf at a coarse node')}"]
     asym = np.abs(C - np.swapaxes(C, 1, 2)).max(axis=(1, 2)) > 1e-8 * np.abs(C).max(axis=(1, 2))
-    smallest = np.linalg.eigvalsh(0.5 * (C + np.swapaxes(C, 1, 2)))[:, 0]
+    smallest = smallest_eigenvalue_sym3(0.5 * (C + np.swapaxes(C, 1, 2)))
     bad = asym | (smallest <= 0.0)
     if not bad.any():
         return []

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from plantgrowth.base.tensors import from_voigt_stress, voigt_vector
+from plantgrowth.base.tensors import from_voigt_stress, inv2, voigt_vector
 
 INTEGRATORS = ("euler", "exp")
 
@@ -29,14 +29,14 @@ def positive_part(A: np.ndarray) -> np.ndarray:
 
 def elastic_strain(grad_u: np.ndarray, Fg: np.ndarray) -> np.ndarray:
     """``eps_el = sym(grad(u) Fg^{-1}) + sym(Fg^{-1}) - I``."""
-    Finv = np.linalg.inv(Fg)
+    Finv = inv2(Fg)
     A = grad_u @ Finv + Finv
     return 0.5 * (A + np.swapaxes(A, 1, 2)) - np.eye(2)
 
 
 def green_lagrange_strain(grad_u: np.ndarray, Fg: np.ndarray) -> np.ndarray:
     """``Ee = (Fe^T Fe - I) / 2`` with ``Fe = (I + grad u) Fg^{-1}`` (docs/model.md section 10)."""
-    Fe = (np.eye(2) + grad_u) @ np.linalg.inv(Fg)
+    Fe = (np.eye(2) + grad_u) @ inv2(Fg)
     return 0.5 * (np.swapaxes(Fe, 1, 2) @ Fe - np.eye(2))
 
 

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from plantgrowth.base.tensors import det2, smallest_eigenvalue_sym3
+
 VOIGT_INDEX = np.array([[0, 2], [2, 1]])
 """v(M, J): the Voigt row of the tensor index pair (M, J)."""
 DIRECTIONS = 24
@@ -193,7 +195,7 @@ def lower_bound(Fe: np.ndarray, S: np.ndarray, C_voigt: np.ndarray) -> np.ndarra
     lambda_min(C) |e|^2 >= lambda_min(C) |sym(w (x) N)|^2 >= lambda_min(C) |w|^2 / 2`` (e the
     Voigt vector of sym(w (x) N) with engineering shear). A cheap certificate of ellipticity:
     where it is positive, no direction needs sweeping."""
-    C_min = _smallest_symmetric3(C_voigt)
+    C_min = smallest_eigenvalue_sym3(C_voigt)
     FtF = np.swapaxes(Fe, 1, 2) @ Fe
     bound = _smallest_symmetric2(S) + _smallest_symmetric2(FtF) * 0.5 * C_min
     return np.where(C_min > 0.0, bound, -np.inf)
@@ -205,19 +207,6 @@ def _smallest_symmetric2(A: np.ndarray) -> np.ndarray:
     return 0.5 * (A[:, 0, 0] + A[:, 1, 1]) - np.hypot(half, 0.5 * (A[:, 0, 1] + A[:, 1, 0]))
 
 
-def _smallest_symmetric3(A: np.ndarray) -> np.ndarray:
-    """(n,) the smallest eigenvalue of symmetric (n, 3, 3) matrices (the trigonometric closed
-    form: ``q + 2 p cos(acos(det((A - q I) / p) / 2) / 3 + 2 pi / 3)``, q = tr A / 3)."""
-    q = np.trace(A, axis1=1, axis2=2) / 3.0
-    off = A[:, 0, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 2] ** 2
-    diag = (A[:, 0, 0] - q) ** 2 + (A[:, 1, 1] - q) ** 2 + (A[:, 2, 2] - q) ** 2
-    p = np.sqrt((diag + 2.0 * off) / 6.0)
-    safe = np.where(p > 0.0, p, 1.0)
-    r = np.linalg.det((A - q[:, None, None] * np.eye(3)) / safe[:, None, None]) / 2.0
-    angle = np.arccos(np.clip(r, -1.0, 1.0)) / 3.0
-    return np.where(p > 0.0, q + 2.0 * p * np.cos(angle + 2.0 * np.pi / 3.0), q)
-
-
 def stretch_of_strain(eps: np.ndarray) -> np.ndarray:
     """(n, 2, 2) ``sqrt(I + 2 eps)``: the symmetric stretch whose Green-Lagrange strain is eps
     (how a linear run's elastic strain is judged by the finite law), in closed form for 2 x 2:
@@ -225,7 +214,7 @@ def stretch_of_strain(eps: np.ndarray) -> np.ndarray:
     not positive definite has compressed a direction to nothing: far past any stability limit,
     it gets Fe = 0."""
     M = np.eye(2) + 2.0 * eps
-    det, trace = np.linalg.det(M), M[:, 0, 0] + M[:, 1, 1]
+    det, trace = det2(M), M[:, 0, 0] + M[:, 1, 1]
     positive = (det > 0.0) & (trace > 0.0)  # both eigenvalues
     root_det = np.sqrt(np.where(positive, det, 1.0))
     scale = np.sqrt(np.where(positive, trace + 2.0 * root_det, 1.0))

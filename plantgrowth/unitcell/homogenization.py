@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
 
-from plantgrowth.base.tensors import rotate2, rotate4, tensor_from_voigt, voigt_matrix
+from plantgrowth.base.tensors import rotate2, rotate4, rotate_voigt, voigt_matrix
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.unitcell import surrogate
 from plantgrowth.unitcell.cache import CellCache, cache_root
@@ -203,8 +203,7 @@ class Homogenizer:
         self.solves_last_call = answer.solves + self._check(tables, pairs.indices, s[point], answer)
         combine = sp.csr_matrix((pairs.data, (point, np.arange(len(point)))), (n, len(point)))
         tensors = self._unpack(combine @ answer.values, E)
-        C = voigt_matrix(rotate4(R, tensor_from_voigt(tensors.C)))
-        rotated = {"C": C}
+        rotated = {"C": rotate_voigt(R, tensors.C)}
         for name in ("K", "dbar_v"):
             if getattr(tensors, name) is not None:
                 rotated[name] = rotate2(R, getattr(tensors, name))

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from plantgrowth.base.tensors import det2
 from plantgrowth.unitcell.scheduler import CellScheduler
 
 log = logging.getLogger("plantgrowth")
@@ -51,7 +52,7 @@ def split_growth(Fg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ``atan2(F21 - F12, F11 + F22)``, ``U = R^T F`` (symmetric, det 1), and
     ``U = cosh(r) I + sinh(r)/r S`` gives ``r = arccosh(tr U / 2)``, ``S = (U - cosh(r) I) r /
     sinh(r)``."""
-    F = Fg / np.sqrt(np.linalg.det(Fg))[:, None, None]
+    F = Fg / np.sqrt(det2(Fg))[:, None, None]
     angle = np.arctan2(F[:, 1, 0] - F[:, 0, 1], F[:, 0, 0] + F[:, 1, 1])
     c, s = np.cos(angle), np.sin(angle)
     R = np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
@@ -190,10 +191,12 @@ class LatticeSurrogate:
         that are not known yet."""
         used = weights > 0.0
         table_ids = np.broadcast_to(ids[:, None], used.shape)[used]
-        keys = np.unique(self._encode(table_ids, points[used][:, 0], points[used][:, 1]))
+        keys = self._encode(table_ids, points[used][:, 0], points[used][:, 1])
         known, _ = self._index()
-        found = np.minimum(np.searchsorted(known, keys), max(len(known) - 1, 0))
-        new = keys if not len(known) else keys[known[found] != keys]
+        if len(known):  # look the keys up first: the unknown ones are few, and only they sort
+            found = np.minimum(np.searchsorted(known, keys), len(known) - 1)
+            keys = keys[known[found] != keys]
+        new = np.unique(keys)
         names = {v: k for k, v in self._table_ids.items()}
         low = (1 << 21) - 1
         i, j = ((new >> 21) & low) - _OFFSET, (new & low) - _OFFSET
@@ -226,10 +229,10 @@ class LatticeSurrogate:
         coarse = None  # the level's interpolant of the pending queries: the last round's fine
         while self.comm.allreduce(len(pending), op=MPI.MAX):
             sub = ids[pending]
-            coarse_pts, coarse_w = _corners(s[pending], level[pending])
             fine_pts, fine_w = _corners(s[pending], level[pending] + 1)
             needed = self._missing(sub, fine_pts, fine_w)
             if coarse is None:
+                coarse_pts, coarse_w = _corners(s[pending], level[pending])
                 needed += self._missing(sub, coarse_pts, coarse_w)
             solves += self._solve_points(needed)
             if coarse is None:

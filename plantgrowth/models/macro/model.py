@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import MeshGather, dof_state, restore_dofs
-from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS
+from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS, det2
 from plantgrowth.models import diagnostics, growth, stability
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.macro.boundary import Boundary
@@ -250,7 +250,7 @@ class MacroModel:
         midpoints = problem.midpoints[:, :2]
         diagnostics.stop_if(
             diagnostics.growth_problems(Fg, midpoints, G)
-            + diagnostics.inversion_problems(np.linalg.det(np.eye(2) + grad_u), midpoints),
+            + diagnostics.inversion_problems(det2(np.eye(2) + grad_u), midpoints),
             self.comm,
         )
         stable = problem.stability_values(grad_u)
@@ -287,11 +287,11 @@ class MacroModel:
         problem, comm = self.problem, self.comm
         n = problem.n_owned
         areas = problem.areas
-        area = np.sum(areas * np.linalg.det(np.eye(2) + problem.grad_u()[:n]))
+        area = np.sum(areas * det2(np.eye(2) + problem.grad_u()[:n]))
         means = np.array([np.sum(areas * G[:n, 0, 0]), np.sum(areas * G[:n, 1, 1])])
         means = comm.allreduce(means, op=MPI.SUM) / problem.total_area
         u1_max, u2_max = max_abs_components(problem.u, comm)
-        det_min = float(np.linalg.det(Fg[:n]).min()) if n else np.inf
+        det_min = float(det2(Fg[:n]).min()) if n else np.inf
         return {
             "area": comm.allreduce(area, op=MPI.SUM),
             "growth_rate_11": means[0],

@@ -23,7 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth.base.errors import RunError
-from plantgrowth.base.tensors import from_voigt_stress, voigt_vector
+from plantgrowth.base.tensors import from_voigt_stress, inv2, voigt_vector
 from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction, grown_length
 from plantgrowth.models import growth, stability
@@ -279,7 +279,7 @@ class MacroProblem:
         Fg = self.cell_values(self.Fg).reshape(-1, 2, 2)
         C = self.cell_values(self.C).reshape(-1, 3, 3)
         if self.finite:
-            Fe = (np.eye(2) + grad_u) @ np.linalg.inv(Fg)
+            Fe = (np.eye(2) + grad_u) @ inv2(Fg)
             Ee = 0.5 * (np.swapaxes(Fe, 1, 2) @ Fe - np.eye(2))
         else:
             Ee = growth.elastic_strain(grad_u, Fg)
