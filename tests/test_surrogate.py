@@ -171,18 +171,18 @@ def test_each_rank_refines_only_its_block_of_queries(monkeypatch):
     block of the queries (12 queries: 6 per rank on 2 ranks), and the answer it returns is
     still the whole one."""
     rows: list[int] = []
-    original = surrogate.LatticeSurrogate._interpolate
+    original = surrogate.LatticeSurrogate._lookup
 
     def counting(self, ids, points, weights):
         rows.append(len(ids))
         return original(self, ids, points, weights)
 
-    monkeypatch.setattr(surrogate.LatticeSurrogate, "_interpolate", counting)
+    monkeypatch.setattr(surrogate.LatticeSurrogate, "_lookup", counting)
     Fg = random_growth(np.random.default_rng(7), 12, spread=0.15)
     args = (np.repeat(GEOMETRY, 12, 0), np.ones(12), np.full(12, 0.3), Fg)
     result = homogenizer(1e-3, MPI.COMM_WORLD).homogenize(*args)
     comm = MPI.COMM_WORLD
     assert result.C.shape == (12, 3, 3)
-    first_round = rows[0]  # the coarse interpolant of every query of this rank's block
+    first_round = rows[0]  # the corners of every query of this rank's block
     assert first_round == 12 // comm.size
     assert comm.allreduce(first_round) == 12

@@ -186,33 +186,28 @@ class LatticeSurrogate:
         ids = [self._table_ids.setdefault(t, len(self._table_ids)) for t in tables]
         return np.array(ids, dtype=np.int64)
 
-    def _missing(self, ids: np.ndarray, points: np.ndarray, weights: np.ndarray) -> list[Point]:
-        """The lattice points of non-zero weight (corners (n, 4, 2) in the tables ``ids`` (n,))
+    def _lookup(
+        self, ids: np.ndarray, points: np.ndarray, weights: np.ndarray
+    ) -> tuple[np.ndarray, list[Point]]:
+        """For corners (n, 4, 2) in the tables ``ids`` (n,) with weights (n, 4): their rows
+        (n, 4) among the known lattice points (a corner of zero weight, a query on a lattice
+        line, may be unknown: its row is any, and it adds 0) and the corners of non-zero weight
         that are not known yet."""
-        used = weights > 0.0
-        table_ids = np.broadcast_to(ids[:, None], used.shape)[used]
-        keys = self._encode(table_ids, points[used][:, 0], points[used][:, 1])
         known, _ = self._index()
-        if len(known):  # look the keys up first: the unknown ones are few, and only they sort
-            found = np.minimum(np.searchsorted(known, keys), len(known) - 1)
-            keys = keys[known[found] != keys]
+        keys = self._encode(ids[:, None], points[..., 0], points[..., 1])
+        if not len(known):
+            return np.zeros(keys.shape, dtype=np.int64), self._points(keys[weights > 0.0])
+        rows = np.minimum(np.searchsorted(known, keys), len(known) - 1)
+        return rows, self._points(keys[(known[rows] != keys) & (weights > 0.0)])
+
+    def _points(self, keys: np.ndarray) -> list[Point]:
+        """The distinct lattice points of the keys."""
         new = np.unique(keys)
         names = {v: k for k, v in self._table_ids.items()}
         low = (1 << 21) - 1
         i, j = ((new >> 21) & low) - _OFFSET, (new & low) - _OFFSET
         columns = ((new >> 42).tolist(), i.tolist(), j.tolist())
         return [(names[k], (a, b)) for k, a, b in zip(*columns, strict=True)]
-
-    def _interpolate(self, ids: np.ndarray, points: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        """Bilinear values (n, m) from the corner points (n, 4, 2) and weights (n, 4) in the
-        tables ``ids`` (n,); every corner of non-zero weight is known."""
-        keys, rows = self._index()
-        if not len(ids):
-            return np.zeros((0, rows.shape[1]))
-        wanted = self._encode(ids[:, None], points[..., 0], points[..., 1])
-        found = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
-        # a corner of zero weight (a query on a lattice line) may be unknown: it adds 0
-        return np.einsum("nc,ncm->nm", weights, rows[found])
 
     def evaluate(self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray) -> Answer:
         """The surrogate's answer to this rank's n queries (0 too): query k asks table
@@ -229,15 +224,19 @@ class LatticeSurrogate:
         coarse = None  # the level's interpolant of the pending queries: the last round's fine
         while self.comm.allreduce(len(pending), op=MPI.MAX):
             sub = ids[pending]
-            fine_pts, fine_w = _corners(s[pending], level[pending] + 1)
-            needed = self._missing(sub, fine_pts, fine_w)
+            corners = [_corners(s[pending], level[pending] + 1)]  # the fine level, then
+            if coarse is None:  # in the first round only, the coarse one
+                corners.append(_corners(s[pending], level[pending]))
+            found = [self._lookup(sub, points, weights) for points, weights in corners]
+            added = self._solve_points([p for _, missing in found for p in missing])
+            if added:  # the same count on every rank: the known points changed
+                found = [self._lookup(sub, points, weights) for points, weights in corners]
+            solves += added
+            table = self._index()[1]
+            fine_w = corners[0][1]
+            fine = np.einsum("nc,ncm->nm", fine_w, table[found[0][0]])  # bilinear values
             if coarse is None:
-                coarse_pts, coarse_w = _corners(s[pending], level[pending])
-                needed += self._missing(sub, coarse_pts, coarse_w)
-            solves += self._solve_points(needed)
-            if coarse is None:
-                coarse = self._interpolate(sub, coarse_pts, coarse_w)
-            fine = self._interpolate(sub, fine_pts, fine_w)
+                coarse = np.einsum("nc,ncm->nm", corners[1][1], table[found[1][0]])
             if values is None:
                 values = np.zeros((n, fine.shape[1]))
             estimates[pending] = self.relative_difference(coarse, fine)
