@@ -278,18 +278,21 @@ LONG = "growth of the shoot apical meristem under anisotropic stress, " * 3 + "x
 
 
 @pytest.mark.parametrize("model, field, component", KINDS)
-@pytest.mark.parametrize("title", [None, LONG])
+@pytest.mark.parametrize("title", [None, LONG], ids=["default_title", "long_title"])
 def test_titles_and_legends_fit_in_the_figure(runs, model, field, component, title):
     """The title (wrapped), the legend and the axes lie inside the figure and do not overlap
-    (the title was outside in 2 of these 6 kinds before issue 21)."""
+    (the title was outside in 2 of these 6 kinds before issue 21, the legend on the x1 label in
+    1)."""
     dirs, _ = runs
     series = read_series(dirs[model])
     fig = draw(series, field, series.times[-1], component, title)
     renderer = fig.canvas.get_renderer()
     heading = fig._suptitle.get_window_extent(renderer)
     assert _inside(heading, fig.bbox)
-    assert _inside(fig.legends[0].get_window_extent(renderer), fig.bbox)
+    legend = fig.legends[0].get_window_extent(renderer)
+    assert _inside(legend, fig.bbox)
     assert fig.axes[0].get_window_extent(renderer).y1 <= heading.y0
+    assert legend.y1 <= fig.axes[0].xaxis.get_tightbbox(renderer).y0  # under the x1 label
     if title is not None:
         text = fig._suptitle.get_text()
         assert "".join(text.split()) == "".join(title.split())  # only broken into lines

@@ -42,4 +42,5 @@ def write_animation(
     with writer.saving(fig, str(output), dpi):
         for t in frames:
             draw(series, name, t, component, title_at(t), view, fig)
+            fig.canvas.draw()  # the layout's second pass (see render.fit_height)
             writer.grab_frame()

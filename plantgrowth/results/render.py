@@ -35,10 +35,11 @@ MAX_ARROWS = 600  # macro vector fields: arrows thinned to about this many
 TIME_TOLERANCE = 1e-9  # relative: --time just outside the written range is its end
 PICTURES = (".png", ".pdf", ".svg")  # matplotlib's Agg, PDF and SVG backends
 ALL_TIMES = "all"  # --time all: an animation over the written times
-ARROW_SPACINGS = 1.5  # the longest arrow, in site spacings: matplotlib's own autoscale draws
-# the mean arrow 0.9 spacings long on the test runs, i.e. the longest (2 x the mean for u
-# growing linearly along the tissue) about 1.8; 1.5 keeps neighbours apart
-BAR_SPACINGS = 0.9  # a direction bar: matplotlib's autoscale length for unit vectors
+ARROW_SPACINGS = 1.5  # the longest arrow, in site spacings: matplotlib's own autoscale drew
+# the longest u arrow 2.1 (macro) and 2.2 (micro) spacings long on the tests' runs (into its
+# neighbours); 1.5 keeps them apart
+BAR_SPACINGS = 0.9  # a direction bar: matplotlib's autoscale length for unit vectors (0.91 on
+# the macro test run; 0.25 for the 8 cells of the micro one, too short to read)
 FIGURE_WIDTH = 9.0  # inches (the README figures)
 STRIP = 0.4  # inches: the row under the axes that holds the legend and the arrows' key
 
@@ -221,12 +222,14 @@ def colour_range(values: np.ndarray, vmin: float | None, vmax: float | None) -> 
 
 
 def arrows_spacing(series: ResultSeries, on_nodes: bool) -> float:
-    """The distance between arrow sites: sqrt(area of the reference box / number of sites)."""
+    """The distance between arrow sites: sqrt(area of the reference box / number of sites),
+    the sites (cells, or the thinned nodes or triangles) counted on the reference tissue."""
+    x0 = series.points
     if series.outlines is not None and "cell_id" in series.names and not on_nodes:
         sites = len(np.unique(series.cell_field("cell_id", series.times[0])))
     else:
-        sites = min(len(series.points) if on_nodes else len(series.triangles), MAX_ARROWS)
-    span = np.ptp(series.points, axis=0)
+        sites = len(_thinned(x0 if on_nodes else x0[series.triangles].mean(axis=1)))
+    span = np.ptp(x0, axis=0)
     return float(np.sqrt(span[0] * span[1] / sites))
 
 
@@ -407,10 +410,13 @@ def fitted_title(fig: Figure, title: str) -> str:
 
 
 def fit_height(fig: Figure) -> None:
-    """Grow the figure until everything lies inside it (a safety net: constrained layout left
-    the title and the legend outside when the legend hung under an equal-aspect axes that
-    filled the width, in 2 of the 6 kinds of pictures of the tests' runs)."""
-    for _ in range(4):
+    """Lay the figure out until it settles (constrained layout needs a second pass after the
+    title is wrapped: the x1 label sat on the legend after one) and grow it until everything
+    lies inside it (a safety net: constrained layout left the title and the legend outside
+    when the legend hung under an equal-aspect axes that filled the width, in 2 of the 6 kinds
+    of pictures of the tests' runs)."""
+    placed = None
+    for _ in range(6):
         fig.canvas.draw()
         renderer = fig.canvas.get_renderer()
         inches = fig.dpi_scale_trans.inverted()
@@ -419,10 +425,15 @@ def fit_height(fig: Figure) -> None:
                   for ax in fig.axes for key in ax.artists if hasattr(key, "text")]  # fmt: skip
         below = max(-min(b.y0 for b in boxes), 0.0)
         above = max(max(b.y1 for b in boxes) - fig.get_figheight(), 0.0)
-        if below + above <= 0.0:
+        if below + above > 0.0:
+            fig.set_figheight(fig.get_figheight() + below + above + 0.1)
+            _keep_strip(fig)
+            placed = None
+            continue
+        now = np.array([ax.get_position().bounds[1::2] for ax in fig.axes])  # bottom, height
+        if placed is not None and np.allclose(now, placed, rtol=0.0, atol=1e-3):
             return
-        fig.set_figheight(fig.get_figheight() + below + above + 0.1)
-        _keep_strip(fig)
+        placed = now
 
 
 def render(
