@@ -42,6 +42,7 @@ BAR_SPACINGS = 0.9  # a direction bar: matplotlib's autoscale length for unit ve
 # the macro test run; 0.25 for the 8 cells of the micro one, too short to read)
 FIGURE_WIDTH = 9.0  # inches (the README figures)
 STRIP = 0.4  # inches: the row under the axes that holds the legend and the arrows' key
+KEY_AT = FIGURE_WIDTH - 1.3  # inches from the left: the key arrow's tip (its label after it)
 
 
 class RenderError(InputError):
@@ -222,13 +223,14 @@ def colour_range(values: np.ndarray, vmin: float | None, vmax: float | None) -> 
 
 
 def arrows_spacing(series: ResultSeries, on_nodes: bool) -> float:
-    """The distance between arrow sites: sqrt(area of the reference box / number of sites),
-    the sites (cells, or the thinned nodes or triangles) counted on the reference tissue."""
+    """The distance between arrow sites on the reference tissue: sqrt(area of its box / number
+    of sites), the sites the cells or the thinned nodes or triangles (chosen on the reference
+    tissue, they follow it as it grows)."""
     x0 = series.points
     if series.outlines is not None and "cell_id" in series.names and not on_nodes:
         sites = len(np.unique(series.cell_field("cell_id", series.times[0])))
     else:
-        sites = len(_thinned(x0 if on_nodes else x0[series.triangles].mean(axis=1)))
+        sites = len(_thinned(_sites(x0, series.triangles, on_nodes)))
     span = np.ptp(x0, axis=0)
     return float(np.sqrt(span[0] * span[1] / sites))
 
@@ -290,8 +292,19 @@ def _thinned(centres: np.ndarray) -> np.ndarray:
     return np.sort(np.unique(bins, axis=0, return_index=True)[1])
 
 
+def _sites(x: np.ndarray, triangles: np.ndarray, on_nodes: bool) -> np.ndarray:
+    """Where a field's values sit: the nodes, or the triangles' centres."""
+    return x if on_nodes else x[triangles].mean(axis=1)
+
+
 def _arrows(ax, name: str, where: np.ndarray, vectors: np.ndarray, arrows: Arrows) -> None:
-    """Arrows (directions: bars centred on their site) at the view's scale, with a key."""
+    """Arrows (directions: bars centred on their site) at the view's scale, with a key; none
+    for a zero vector (a site at rest, an isotropic cell: no direction), noted in the legend
+    if every site drawn has one (matplotlib would draw dots)."""
+    moving = np.linalg.norm(vectors, axis=1) > 0.0
+    if not moving.any():
+        ax.plot([], [], " ", label=f"{name} = 0 at every site")
+    where, vectors = where[moving], vectors[moving]
     scaled = dict(angles="xy", scale_units="xy", scale=arrows.scale, color="C3")
     if name.endswith("_direction"):  # an axis: a bar centred on its site
         ax.quiver(*where.T, *vectors.T, pivot="middle", headwidth=0, headlength=0,
@@ -299,7 +312,7 @@ def _arrows(ax, name: str, where: np.ndarray, vectors: np.ndarray, arrows: Arrow
         return
     quiver = ax.quiver(*where.T, *vectors.T, width=0.003, **scaled)
     if arrows.key is not None:
-        ax.quiverkey(quiver, 0.68 * FIGURE_WIDTH, STRIP / 2, arrows.key,
+        ax.quiverkey(quiver, KEY_AT, STRIP / 2, arrows.key,
                      f"|{name}| = {arrows.key:g}", labelpos="E", coordinates="inches",
                      fontproperties={"size": 9})  # fmt: skip
 
@@ -345,9 +358,8 @@ def draw(
     else:
         ax.tripcolor(tri, facecolors=np.ones(len(series.triangles)), cmap="Greys",
                      vmin=0.0, vmax=5.0)  # fmt: skip
-        centres = x if on_nodes else x[series.triangles].mean(axis=1)
-        sites = _thinned(centres)
-        _arrows(ax, name, centres[sites], values[sites], view.arrows)
+        sites = _thinned(_sites(x0, series.triangles, on_nodes))  # the same at every time
+        _arrows(ax, name, _sites(x, series.triangles, on_nodes)[sites], values[sites], view.arrows)
     if cells is not None:
         if on_nodes:
             ax.add_collection(PolyCollection(cells.polygons, facecolors="none",
@@ -363,13 +375,19 @@ def draw(
     ax.set_ylim(*view.box[2:])
     ax.set_xlabel("$x_1$")
     ax.set_ylabel("$x_2$")
-    fig.legend(*ax.get_legend_handles_labels(), loc="center", fontsize=9, frameon=False,
-               bbox_to_anchor=(0.45 * FIGURE_WIDTH, STRIP / 2),
-               bbox_transform=fig.dpi_scale_trans)  # fmt: skip
+    _legend_row(fig, ax)
     fig.suptitle(fitted_title(fig, title or f"{series.directory.name}: {label}, t = {t:g}"))
     if fitted:
         fit_height(fig)
     return fig
+
+
+def _legend_row(fig: Figure, ax) -> None:
+    """The legend in one row in the bottom STRIP, from the left (the arrows' key is right)."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="center left", ncol=max(len(labels), 1), fontsize=9,
+               frameon=False, bbox_to_anchor=(0.5, STRIP / 2),
+               bbox_transform=fig.dpi_scale_trans)  # fmt: skip
 
 
 def new_figure(view: View) -> Figure:
