@@ -282,8 +282,8 @@ LONG = "growth of the shoot apical meristem under anisotropic stress, " * 3 + "x
 @pytest.mark.parametrize("title", [None, LONG], ids=["default_title", "long_title"])
 def test_titles_and_legends_fit_in_the_figure(runs, model, field, component, title):
     """The title (wrapped), the legend and the axes lie inside the figure and do not overlap
-    (the title was outside in 2 of these 6 kinds before issue 21, the legend on the x1 label in
-    1)."""
+    (before issue 21: the title outside the macro arrows' picture, the legend on the x1 label of
+    the micro trG one; a 330-character title ran off both sides)."""
     dirs, _ = runs
     series = read_series(dirs[model])
     fig = draw(series, field, series.times[-1], component, title)

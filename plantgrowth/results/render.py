@@ -428,11 +428,10 @@ def fitted_title(fig: Figure, title: str) -> str:
 
 
 def fit_height(fig: Figure) -> None:
-    """Lay the figure out until it settles (constrained layout needs a second pass after the
-    title is wrapped: the x1 label sat on the legend after one) and grow it until everything
-    lies inside it (a safety net: constrained layout left the title and the legend outside
-    when the legend hung under an equal-aspect axes that filled the width, in 2 of the 6 kinds
-    of pictures of the tests' runs)."""
+    """Lay the figure out until the axes settle (after one pass with a wrapped title the x1
+    label sat on the legend: measured, macro u with a 3-line title) and grow it until everything
+    lies inside it (a safety net: before issue 21 an equal-aspect axes that filled the width
+    pushed the title out of the macro arrow pictures)."""
     placed = None
     for _ in range(6):
         fig.canvas.draw()
