@@ -867,10 +867,11 @@ def _cli_case(rng: random.Random, cls: str):
 
 def _cli_render(rng: random.Random):
     """``plantgrowth render`` asked for what it cannot do, checked before any run is read: a
-    missing or non-run DIR, a picture that exists (no --force), is not a .png or lies inside
-    DIR, a malformed --time or --dpi, no --field."""
+    missing or non-run DIR, a picture that exists (no --force), is not a .png, .pdf or .svg (a
+    .gif without --time all, or --time all into a picture) or lies inside DIR, a malformed
+    --time or --dpi, --vmin/--vmax not finite or not in order, no --field."""
     what = rng.choice(["no_dir", "not_a_run", "exists", "suffix", "inside", "time", "dpi",
-                       "no_field"])  # fmt: skip
+                       "no_field", "limits", "animation"])  # fmt: skip
     field = rng.choice(["trG", "G", "u", "growth_direction", _name(rng)])
     base = ["render", "{dir}/run", "--field", field]
     if what == "no_dir":
@@ -882,7 +883,7 @@ def _cli_render(rng: random.Random):
         files = (*run, ("pic.png", b"\x89PNG not really"))
         return files, [*base, "-o", "{dir}/pic.png"], ("-o", "exists", "--force")
     if what == "suffix":
-        name = rng.choice(["pic.jpg", "pic", "pic.png.txt", "pic.PDF"])
+        name = rng.choice(["pic.jpg", "pic", "pic.png.txt", "pic.GIF", "pic.eps"])
         return run, [*base, "-o", f"{{dir}}/{name}"], ("-o", ".png")
     if what == "inside":
         return run, [*base, "-o", "{dir}/run/pic.png"], ("-o", "inside the run directory")
@@ -892,6 +893,15 @@ def _cli_render(rng: random.Random):
     if what == "dpi":
         value = rng.choice(["0", "-5", "100000", "1.5", "high"])
         return run, [*base, "--dpi", value, "-o", "{dir}/pic.png"], ("--dpi",)
+    if what == "limits":
+        low, high = rng.choice([("nan", None), (None, "inf"), ("-inf", "1"), ("1", "1"),
+                                ("2", "-3"), (None, "nan")])  # fmt: skip
+        limits = [*(["--vmin", low] if low else []), *(["--vmax", high] if high else [])]
+        bad = "--vmin" if low in ("nan", "-inf", "1", "2") else "--vmax"
+        return run, [*base, *limits, "-o", "{dir}/pic.png"], (bad,)
+    if what == "animation":
+        name = rng.choice(["pic.png", "pic.svg", "pic"])
+        return run, [*base, "--time", "all", "-o", f"{{dir}}/{name}"], ("-o", ".gif")
     return run, ["render", "{dir}/run", "-o", "{dir}/pic.png"], ("--field",)
 
 

@@ -43,10 +43,11 @@ def render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         from plantgrowth.results.render import render
 
         try:
-            if not 10 <= args.dpi <= 1200:
+            if args.dpi is not None and not 10 <= args.dpi <= 1200:
                 raise InputError(f"--dpi = {args.dpi} is out of range: an integer in [10, 1200]")
             written = render(args.directory, args.field, args.output, args.time,
-                             args.component, args.force, dpi=args.dpi)  # fmt: skip
+                             args.component, args.force, dpi=args.dpi, vmin=args.vmin,
+                             vmax=args.vmax)  # fmt: skip
             outcome = ("done", f"wrote {written}")
         except USER_ERRORS as err:
             outcome = ("error", str(err))

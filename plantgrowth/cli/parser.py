@@ -127,14 +127,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _time(text: str) -> float | str:
+    """--time: a number, or "all" (an animation over the written times)."""
+    if text == "all":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or all: {text!r}") from None
+
+
 def _add_render_parser(sub) -> None:
     render = sub.add_parser(
         "render",
-        help="draw a field of a run into a PNG (headless, matplotlib)",
+        help="draw a field of a run into a PNG, PDF or SVG, or a GIF over time (headless)",
         description="Draw one written field of a run (finished or still running) on the "
         "deformed tissue x + u(t), with the initial outline dashed and, for micro runs, the "
-        "cells' outlines: scalars and tensor components as colours, vectors as arrows "
-        "(directions as bars). Reads DIR, never writes into it; under mpirun only rank 0 draws.",
+        "cells' outlines: scalars and tensor components as colours, vectors as arrows with a "
+        "scale key (directions as bars). Reads DIR, never writes into it; under mpirun only "
+        "rank 0 draws.",
     )
     render.add_argument("directory", type=Path, metavar="DIR", help="a run's output directory")
     render.add_argument(
@@ -143,20 +154,27 @@ def _add_render_parser(sub) -> None:
         "growth_direction, stress_direction, cell_id (an unknown name lists the run's fields)",
     )  # fmt: skip
     render.add_argument(
-        "--time", type=float, default=None, metavar="T",
-        help="draw the written time nearest T (default: the last written time)",
+        "--time", type=_time, default=None, metavar="T",
+        help="draw the written time nearest T (default: the last written time); all: every "
+        "written time, one frame each, into a .gif animation",
     )  # fmt: skip
     render.add_argument(
         "--component", default=None, metavar="K",
         help="tensors (required): 11, 12, 21, 22, tr or det; vectors: 1, 2 or norm as colours "
         "(default: arrows); scalars: none",
     )  # fmt: skip
-    render.add_argument("-o", "--output", type=Path, required=True, metavar="FILE.png",
-                        help="the picture to write (outside DIR)")  # fmt: skip
+    for option, end, extreme in (("--vmin", "low", "smallest"), ("--vmax", "high", "largest")):
+        render.add_argument(option, type=float, default=None, metavar="V",
+                            help=f"the colour range's {end} end (default: the field's "
+                            f"{extreme} value); one range makes runs or times compare")  # fmt: skip
+    render.add_argument("-o", "--output", type=Path, required=True, metavar="FILE",
+                        help="the picture to write (outside DIR): .png, .pdf or .svg; .gif with "
+                        "--time all")  # fmt: skip
     render.add_argument("--force", action="store_true",
-                        help="replace FILE.png if it exists (without it an existing file is "
+                        help="replace FILE if it exists (without it an existing file is "
                         "refused)")  # fmt: skip
-    render.add_argument("--dpi", type=int, default=150, help="resolution (default 150)")
+    render.add_argument("--dpi", type=int, default=None,
+                        help="resolution (default 150; 80 for a .gif)")  # fmt: skip
     render.set_defaults(handler=commands.render_command)
 
 

@@ -1,0 +1,57 @@
+"""The messages of ``plantgrowth render`` for a field a run did not write and for a wrong
+``--component``: each names what the run has and how to get what was asked for.
+
+Example: ``--field trG`` on a run that wrote G but not trG::
+
+    --field = 'trG' is not written in results/a: it wrote G, u; trG is tr G: give --field G
+    --component tr; a field is written when the scene's [output] fields lists it: add it there
+    and run the scene again (docs/outputs.md lists the fields)
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+
+from plantgrowth.results.reader import ResultSeries
+
+DERIVED = {"trG": ("G", "tr")}
+"""A field that is a component of another written field: name -> (field, component)."""
+SPLIT = {"E_hom": re.compile(r"E\d{4}")}
+"""A field written as several scalar fields (its components): name -> their names' pattern."""
+
+
+def missing_field(series: ResultSeries, name: str) -> str:
+    """``--field = NAME`` is not written: the written fields, then the closest way to it."""
+    names = series.names
+    text = f"--field = {name!r} is not written in {series.directory}: it wrote {', '.join(names)}"
+    if name in SPLIT and (parts := [n for n in names if SPLIT[name].fullmatch(n)]):
+        return f"{text}; {name} is written as its components: give --field {' or '.join(parts)}"
+    if name in DERIVED and DERIVED[name][0] in names:
+        source, component = DERIVED[name]
+        return f"{text}; {name} is a component of {source}: give --field {source} --component {component}"
+    close = difflib.get_close_matches(name, names, n=3, cutoff=0.6)
+    if close:
+        return f"{text}; did you mean {' or '.join(close)}?"
+    return (
+        f"{text}; a field is written when the scene's [output] fields lists it: add it there "
+        "and run the scene again (docs/outputs.md lists the fields)"
+    )
+
+
+def bad_component(name: str, kind: str, component: str | None, valid: tuple[str, ...]) -> str:
+    """A missing, unknown or needless ``--component`` of the ``kind`` (tensor, vector, scalar)
+    field ``name``, with the components it has."""
+    if kind == "scalar":
+        return (
+            f"--component = {component!r}: {name} is a scalar field, it has none: drop --component"
+        )
+    if component is None:
+        return (
+            f"--component is required for the tensor field {name}: give one of {', '.join(valid)}"
+        )
+    arrows = " (or none, for arrows)" if kind == "vector" else ""
+    return (
+        f"--component = {component!r} is invalid for the {kind} field {name}: one of "
+        f"{', '.join(valid)}{arrows}"
+    )
