@@ -46,7 +46,8 @@ def render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
             if not 10 <= args.dpi <= 1200:
                 raise InputError(f"--dpi = {args.dpi} is out of range: an integer in [10, 1200]")
             written = render(args.directory, args.field, args.output, args.time,
-                             args.component, args.force, dpi=args.dpi)  # fmt: skip
+                             args.component, args.force, dpi=args.dpi,
+                             regions=args.regions)  # fmt: skip
             outcome = ("done", f"wrote {written}")
         except USER_ERRORS as err:
             outcome = ("error", str(err))

@@ -157,6 +157,9 @@ def _add_render_parser(sub) -> None:
                         help="replace FILE.png if it exists (without it an existing file is "
                         "refused)")  # fmt: skip
     render.add_argument("--dpi", type=int, default=150, help="resolution (default 150)")
+    render.add_argument("--regions", action="store_true",
+                        help="outline the scene's [regions] (the growth units whose reference "
+                        "midpoint satisfies each condition)")  # fmt: skip
     render.set_defaults(handler=commands.render_command)
 
 

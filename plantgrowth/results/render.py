@@ -21,6 +21,7 @@ from matplotlib.tri import Triangulation
 
 from plantgrowth.base.errors import InputError
 from plantgrowth.results.reader import COMPONENTS, ResultSeries, boundary_outline, read_series
+from plantgrowth.results.region_outlines import region_outlines
 
 VECTOR_COMPONENTS = ("1", "2", "norm")
 MAX_ARROWS = 600  # macro vector fields: arrows thinned to about this many
@@ -162,10 +163,24 @@ def _colour_bar(fig, ax, mappable, values: np.ndarray, label: str) -> None:
     fig.colorbar(mappable, ax=ax, shrink=0.9, format="%.5g").set_label(label)
 
 
+def _draw_regions(ax, series: ResultSeries, t: float) -> None:
+    """Each region's outline in its own colour, named in the legend."""
+    try:
+        outlines = region_outlines(series, t)
+    except InputError as err:
+        raise RenderError(str(err)) from None
+    for i, (name, segments) in enumerate(outlines.items()):
+        colour = f"C{(i + 1) % 10}"  # C0 is the colour map's neighbour: start at C1
+        lines = LineCollection(segments, colors=colour, linewidths=2.0, label=f"region {name}")
+        ax.add_collection(lines)
+
+
 def draw(
-    series: ResultSeries, name: str, t: float, component: str | None, title: str | None = None
-) -> Figure:
-    """The figure of one field at one written time (see the module docstring)."""
+    series: ResultSeries, name: str, t: float, component: str | None, title: str | None = None,
+    regions: bool = False,
+) -> Figure:  # fmt: skip
+    """The figure of one field at one written time (see the module docstring); with
+    ``regions``, the outlines of the scene's regions (plantgrowth/results/region_outlines.py)."""
     values, on_nodes = field_values(series, name, t, component)
     x0 = series.points
     x = x0 + series.displacement(t) if "u" in series.names else x0
@@ -206,6 +221,8 @@ def draw(
     else:
         loop = boundary_outline(x0, series.triangles)[0]
         ax.plot(*x0[np.append(loop, loop[0])].T, "k--", lw=1.0, label="initial outline (t = 0)")
+    if regions:
+        _draw_regions(ax, series, t)
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("$x_1$")
@@ -218,6 +235,7 @@ def draw(
 def render(
     directory: Path, name: str, output: Path, time: float | None = None,
     component: str | None = None, force: bool = False, title: str | None = None, dpi: int = 150,
+    regions: bool = False,
 ) -> Path:  # fmt: skip
     """Draw ``name`` of the run in ``directory`` at the written time nearest ``time`` (default
     the last) into the PNG ``output``; returns the time drawn's file. RenderError on bad input."""
@@ -225,7 +243,7 @@ def render(
     check_output(output, directory, force)
     series = open_run(directory)
     t = pick_time(series, time)
-    fig = draw(series, name, t, component, title)
+    fig = draw(series, name, t, component, title, regions)
     tmp = output.with_name(f".{output.name}.tmp")
     try:
         fig.savefig(tmp, dpi=dpi, format="png")
