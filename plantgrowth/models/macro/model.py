@@ -305,7 +305,8 @@ class MacroModel:
             "u1_max": u1_max,
             "u2_max": u2_max,
             "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
-        } | self.regions.measures(current, G[:n])
+            **self.regions.measures(current, G[:n]),
+        }
 
 
 def macro_model(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroModel:

@@ -360,4 +360,5 @@ class MicroModel:
             "u1_max": u1_max,
             "u2_max": u2_max,
             "det_Fg_min": float(np.linalg.det(Fg).min()),
-        } | self.regions.measures(self.outlines.area, G)
+            **self.regions.measures(self.outlines.area, G),
+        }
