@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import csv
 import subprocess
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,7 @@ from plantgrowth.models.regions import STATISTICS
 from plantgrowth.results.reader import boundary_outline, read_series
 from plantgrowth.results.region_outlines import region_outlines
 from plantgrowth.scene import parse_scene
+from plantgrowth.studies.sweep_file import NUMBERS, load_sweep
 
 DISC = "(x1 - 3.5)**2 + (x2 - 1.5)**2 < 1"
 SCENE = """\
@@ -284,3 +286,21 @@ def test_render_regions_outlines_the_regions_units(tmp_path_factory, capsys):
     if RANK0:
         assert "--regions" in err and "no [regions]" in err
     assert not (plain.parent / "none.png").exists()
+
+
+def test_the_shipped_soft_disc_sweep_varies_the_disc_by_name():
+    path = Path(__file__).parents[1] / "scenes" / "sweeps" / "soft_disc_E.toml"
+    sweep = load_sweep(path)
+    assert [r.scene.material.E(4.0, 2.0) for r in sweep.runs] == [0.3, 0.5, 0.7, 1.0]
+    assert all(r.scene.material.E(0.5, 0.5) == 1.0 for r in sweep.runs)
+    assert [f"disc.{s}" for s in STATISTICS] == sweep.numbers()[len(NUMBERS) :]
+    assert [sweep.cells(r)["parameters.E_in"] for r in sweep.runs] == ["0.3", "0.5", "0.7", "1.0"]
+
+
+def test_parameters_and_regions_round_trip_through_the_resolved_scene():
+    scene = parse_scene(tomllib.loads(scene_text()))
+    again = parse_scene(tomllib.loads(scene.to_toml()))
+    assert again == scene
+    assert again.parameters == {"E_in": 0.5, "pull": 0.0002}
+    assert list(again.regions) == ["disc", "everything"]
+    assert "parameters" not in parse_scene({"growth": {"law": "none"}}).to_dict()
