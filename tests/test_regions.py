@@ -27,6 +27,7 @@ from cli_helpers import ENV, PLANTGROWTH, RANK0, call, shared_dir, write
 from mpi4py import MPI
 
 from plantgrowth.base.errors import SceneError
+from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models.regions import STATISTICS
 from plantgrowth.results.reader import boundary_outline, read_series
 from plantgrowth.results.region_outlines import region_outlines
@@ -304,3 +305,24 @@ def test_parameters_and_regions_round_trip_through_the_resolved_scene():
     assert again.parameters == {"E_in": 0.5, "pull": 0.0002}
     assert list(again.regions) == ["disc", "everything"]
     assert "parameters" not in parse_scene({"growth": {"law": "none"}}).to_dict()
+
+
+def test_micro_region_columns_equal_the_cells_table(tmp_path_factory, capsys):
+    """Micro: the cells whose centre (TissueLayout.centres) lies in the region; area: the sum of
+    cells.csv's deformed areas; rates: cells.csv's tr G weighted by its reference areas
+    (area_ref, the hexagons cut at x2 = 0). Same numbers summed in another order: 1e-12."""
+    out = run(tmp_path_factory, "micro_cells", scene_text("micro"), capsys)
+    if not RANK0:
+        return
+    scene = parse_scene(tomllib.loads(scene_text("micro")))
+    centres = TissueLayout(scene.cell.at(0.0, 0.0), scene.micro_nx).centres
+    inside = np.flatnonzero((centres[:, 0] - 3.5) ** 2 + (centres[:, 1] - 1.5) ** 2 < 1)
+    assert 0 < len(inside) < len(centres)
+    cells = summary(out / "cells.csv")
+    for row in summary(out / "summary.csv"):
+        mine = [c for c in cells if c["step"] == row["step"] and int(c["cell"]) in inside]
+        assert len(mine) == len(inside)
+        weights = np.array([c["area_ref"] for c in mine])
+        trG = weights @ [c["trG"] for c in mine] / weights.sum()
+        assert row["disc.area"] == pytest.approx(sum(c["area"] for c in mine), rel=1e-12)
+        assert row["disc.trG"] == pytest.approx(trG, rel=1e-12)
