@@ -4,9 +4,11 @@
 random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, sizes <= 0, nu out of
 (-1, 0.5), walls too thick for the cell, bad angles and time steps, empty/binary/invalid TOML, huge
 numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
-the tissue, bad micro scenes), bad command lines and output paths
-that cannot be written. Every case must end with exit code 2 and a one-line
-``plantgrowth: error: ...`` naming the field (``Case.expect``), before anything is written.
+the tissue, bad micro scenes, bad regions (malformed, empty or undefined on the mesh) and named
+parameters (undefined, shadowing x1, x2, s, pi or a function), zip sweeps whose lists differ in
+length), bad command lines and output paths that cannot be written. Every case must end with
+exit code 2 and a one-line ``plantgrowth: error: ...`` naming the field (``Case.expect``), before
+anything is written.
 
 A case is materialized in its own empty directory: ``files`` are written there and ``{dir}`` in
 ``argv`` and ``expect`` stands for that directory. Cases with ``isolate = True`` could run for
@@ -16,6 +18,7 @@ time limit, never in-process.
 
 from __future__ import annotations
 
+import math
 import os
 import random
 import signal
@@ -683,6 +686,73 @@ def _bad_mesh(rng: random.Random, scene: dict):
     return scene, ("tissue.mesh: the micro model",), valid
 
 
+RESERVED_NAMES = ("x1", "x2", "s", "pi", "exp", "log", "sqrt", "sin", "cos", "tanh", "abs",
+                  "min", "max", "where")  # fmt: skip
+BAD_NAMES = ("2x", "a-b", "-x", "9", "x" * 65)  # TOML bare keys, not names an expression reads
+
+
+def _bad_region(rng: random.Random, scene: dict):
+    """``[regions]``: malformed conditions, not a {expr} table, a bad name, a condition that is 0
+    everywhere, or one that is empty or undefined (NaN) at every growth unit of the mesh."""
+    what = rng.choice(["syntax", "syntax", "not_table", "extra_key", "name", "zero", "empty",
+                       "empty", "nan", "not_string"])  # fmt: skip
+    name = rng.choice(["disc", "band", "r1", "_inner"])
+    if what in ("empty", "nan"):  # found on the mesh: the scene must reach its place checks
+        scene.pop("loads", None)
+        text = "x1 > 1e7" if what == "empty" else "log(x1 - 1e7)"
+        scene["regions"] = {name: {"expr": text}}
+        fragment = "the region is empty" if what == "empty" else "expr = nan at x1 ="
+        return scene, (f"regions.{name}", fragment)
+    value: object = {
+        "syntax": {"expr": rng.choice(BAD_SYNTAX)},
+        "not_table": rng.choice(["x1 < 1", 1.0, True, [1]]),
+        "extra_key": {"expr": "x1 < 1", rng.choice(["from", "to", "where"]): 1},
+        "zero": {"expr": rng.choice(["0", "2 < 1", "0 * pi", "1 - 1"])},
+        "not_string": {"expr": rng.choice([1.5, True, [1]])},
+        "name": {"expr": "x1 < 1"},
+    }[what]
+    if what == "name":
+        name = rng.choice(BAD_NAMES)
+    scene["regions"] = {name: value}
+    return scene, f"regions.{name}"
+
+
+def _bad_parameter(rng: random.Random, scene: dict):
+    """``[parameters]``: a name an expression uses that no parameter defines (in a field, a load
+    or a region), a parameter shadowing x1, x2, s, pi or a function, a bad name or value."""
+    what = rng.choice(["undefined", "undefined", "undefined_load", "undefined_region",
+                       "shadow", "shadow", "name", "value", "nonfinite", "not_table"])  # fmt: skip
+    scene["parameters"] = {"E_in": rng.uniform(0.2, 0.9)}
+    unknown = rng.choice(["E_out", "e_in", "Ein", _name(rng, ("E_in",)).replace("-", "_")])
+    if what == "undefined":
+        table, key = rng.choice(_pairs(FIELD_KEYS))
+        _set(scene, table, key, {"expr": f"where(x1 < 1, E_in, {unknown})"})
+        return scene, (f"{table}.{key}.expr", f"unknown name '{unknown}'")
+    if what == "undefined_load":
+        scene["model"] = "macro"
+        scene["loads"] = {"left": [{"expr": f"-{unknown} * s"}, 0.0]}
+        return scene, ("loads.left[0].expr", f"unknown name '{unknown}'")
+    if what == "undefined_region":
+        scene["regions"] = {"disc": {"expr": f"x1 < {unknown}"}}
+        return scene, ("regions.disc.expr", f"unknown name '{unknown}'")
+    if what == "shadow":
+        name = rng.choice(RESERVED_NAMES)
+        scene["parameters"][name] = 1.0
+        return scene, (f"parameters.{name}", "reserved")
+    if what == "name":
+        name = rng.choice(BAD_NAMES)
+        scene["parameters"][name] = 1.0
+        return scene, f"parameters.{name}"
+    if what == "value":
+        scene["parameters"]["E_in"] = rng.choice(["0.3", True, [0.3], {"expr": "1"}])
+        return scene, "parameters.E_in"
+    if what == "nonfinite":
+        scene["parameters"]["E_in"] = rng.choice([math.nan, math.inf, -math.inf, 1e13])
+        return scene, "parameters.E_in ="
+    scene["parameters"] = rng.choice([1.0, "E_in = 1", [1.0]])
+    return scene, "parameters: expected a table"
+
+
 SCENE_MAKERS = {
     "wrong_type": _wrong_type,
     "missing_required": _missing_required,
@@ -702,6 +772,8 @@ SCENE_MAKERS = {
     "bad_choice": _bad_choice,
     "bad_outline": _bad_outline,
     "bad_mesh": _bad_mesh,
+    "bad_region": _bad_region,
+    "bad_parameter": _bad_parameter,
 }
 
 TOML_ERRORS = [
@@ -841,6 +913,8 @@ def _cli_case(rng: random.Random, cls: str):
         )
     if cls == "cli_render":
         return _cli_render(rng)
+    if cls == "cli_sweep_zip":
+        return _cli_sweep_zip(rng)
     # cli_parse: unknown sub-commands and flags, missing or malformed option values
     what = rng.choice(["command", "flag", "value", "int", "none", "positional"])
     if what == "command":
@@ -863,6 +937,28 @@ def _cli_case(rng: random.Random, cls: str):
         return (), [], ("command",)
     command = rng.choice(["run", "validate", "compare"])
     return (), [command], ("scene",)
+
+
+def _cli_sweep_zip(rng: random.Random):
+    """A ``mode = "zip"`` sweep whose lists differ in length, or repeat a run, or vary a
+    parameter the base scene does not define."""
+    what = rng.choice(["lengths", "lengths", "same_runs", "undefined_parameter"])
+    n = rng.randint(1, 4)
+    first = [round(0.1 * (i + 1), 3) for i in range(n)]
+    second = [float(i + 1) for i in range(n + rng.choice([-1, 1, 2]) if n > 1 else n + 1)]
+    key = "parameters.E_in"
+    if what == "same_runs":
+        first, second = [0.2, 0.3, 0.2], [1.0, 2.0, 1.0]
+    if what == "undefined_parameter":
+        key, second = "parameters.E_out", first
+    sweep = (f'base = "base.toml"\nmode = "zip"\n[vary]\n"{key}" = {first}\n'
+             f'"growth.eta" = {second}\n')  # fmt: skip
+    base = TINY + "[parameters]\nE_in = 0.5\n"
+    files = (("base.toml", base), ("sweep.toml", sweep))
+    argv = ["sweep", "{dir}/sweep.toml", "-o", "{dir}/out", *rng.choice([[], ["--dry-run"]])]
+    expect = {"lengths": ("vary", "zip", "equal lengths"), "same_runs": ("vary", "the same"),
+              "undefined_parameter": ("'parameters.E_out' is not a scene key",)}[what]  # fmt: skip
+    return files, argv, expect
 
 
 def _cli_render(rng: random.Random):
@@ -948,12 +1044,13 @@ CLASSES = {  # class -> relative weight
     "cli_compare": 1.5,
     "cli_run": 2.0,
     "cli_render": 2.0,
+    "cli_sweep_zip": 1.5,
     "cli_parse": 3.0,
     "output_dir": 2.0,
     "unbounded_size": 0.25,
 }
 FILE_CLASSES = ("empty_file", "binary_garbage", "toml_syntax")
-CLI_CLASSES = ("cli_cell", "cli_compare", "cli_run", "cli_render", "cli_parse")
+CLI_CLASSES = ("cli_cell", "cli_compare", "cli_run", "cli_render", "cli_sweep_zip", "cli_parse")
 
 
 def _scene_argv(rng: random.Random, files: list) -> list[str]:

@@ -47,7 +47,7 @@ def render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
                 raise InputError(f"--dpi = {args.dpi} is out of range: an integer in [10, 1200]")
             written = render(args.directory, args.field, args.output, args.time,
                              args.component, args.force, dpi=args.dpi, vmin=args.vmin,
-                             vmax=args.vmax)  # fmt: skip
+                             vmax=args.vmax, regions=args.regions)  # fmt: skip
             outcome = ("done", f"wrote {written}")
         except USER_ERRORS as err:
             outcome = ("error", str(err))

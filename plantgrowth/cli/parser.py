@@ -175,6 +175,9 @@ def _add_render_parser(sub) -> None:
                         "refused)")  # fmt: skip
     render.add_argument("--dpi", type=int, default=None,
                         help="resolution (default 150; 80 for a .gif)")  # fmt: skip
+    render.add_argument("--regions", action="store_true",
+                        help="outline the scene's [regions] (the growth units whose reference "
+                        "midpoint satisfies each condition)")  # fmt: skip
     render.set_defaults(handler=commands.render_command)
 
 
@@ -182,8 +185,9 @@ def _add_sweep_parser(sub) -> None:
     sweep = sub.add_parser(
         "sweep",
         help="run a scene for many parameter values (also under mpirun and as a job array)",
-        description='Run every combination (mode = "grid") or every value of each key alone '
-        '(mode = "one-at-a-time") of the [vary] table of a sweep file on its base scene: '
+        description='Run every combination (mode = "grid"), every value of each key alone '
+        '(mode = "one-at-a-time"), or the i-th values of all keys together (mode = "zip") of '
+        "the [vary] table of a sweep file on its base scene: "
         "DIR/run_NNNN/ holds each run (as plantgrowth run writes it), DIR/sweep.csv one row per "
         "run, DIR/sweep.toml the resolved sweep. Everything is checked before anything runs. "
         "Started again, a sweep skips its finished runs, resumes interrupted ones and retries "

@@ -29,6 +29,7 @@ from matplotlib.tri import Triangulation
 from plantgrowth.base.errors import InputError
 from plantgrowth.results.field_hints import bad_component, missing_field
 from plantgrowth.results.reader import COMPONENTS, ResultSeries, boundary_outline, read_series
+from plantgrowth.results.region_outlines import region_outlines
 
 VECTOR_COMPONENTS = ("1", "2", "norm")
 MAX_ARROWS = 600  # macro vector fields: arrows thinned to about this many
@@ -323,12 +324,25 @@ def _colour_bar(fig, ax, mappable, colours: Colours, label: str) -> None:
     bar.set_label(label + colours.note)
 
 
+def _draw_regions(ax, series: ResultSeries, t: float) -> None:
+    """Each region's outline in its own colour, named in the legend."""
+    try:
+        outlines = region_outlines(series, t)
+    except InputError as err:
+        raise RenderError(str(err)) from None
+    for i, (name, segments) in enumerate(outlines.items()):
+        colour = f"C{(i + 1) % 10}"  # C0 is the colour map's neighbour: start at C1
+        lines = LineCollection(segments, colors=colour, linewidths=2.0, label=f"region {name}")
+        ax.add_collection(lines)
+
+
 def draw(
     series: ResultSeries, name: str, t: float, component: str | None, title: str | None = None,
-    view: View | None = None, fig: Figure | None = None,
+    view: View | None = None, fig: Figure | None = None, regions: bool = False,
 ) -> Figure:  # fmt: skip
     """The figure of one field at one written time (see the module docstring), in ``view``
-    (default: this time's own) and into ``fig`` (cleared; default: a new figure sized to fit)."""
+    (default: this time's own) and into ``fig`` (cleared; default: a new figure sized to fit);
+    with ``regions``, the outlines of the scene's regions (plantgrowth/results/region_outlines.py)."""
     view = view or plan_view(series, name, component, [t])
     fitted = fig is None
     fig = fig or new_figure(view)
@@ -370,6 +384,8 @@ def draw(
     else:
         loop = boundary_outline(x0, series.triangles)[0]
         ax.plot(*x0[np.append(loop, loop[0])].T, "k--", lw=1.0, label="initial outline (t = 0)")
+    if regions:
+        _draw_regions(ax, series, t)
     ax.set_aspect("equal")
     ax.set_xlim(*view.box[:2])
     ax.set_ylim(*view.box[2:])
@@ -457,6 +473,7 @@ def render(
     directory: Path, name: str, output: Path, time: float | str | None = None,
     component: str | None = None, force: bool = False, title: str | None = None,
     dpi: int | None = None, vmin: float | None = None, vmax: float | None = None,
+    regions: bool = False,
 ) -> Path:  # fmt: skip
     """Draw ``name`` of the run in ``directory`` at the written time nearest ``time`` (default
     the last) into the picture ``output`` (.png, .pdf, .svg), or at every written time
@@ -475,9 +492,9 @@ def render(
     try:
         if animation:
             write_animation(series, name, component, times, view, title, tmp,
-                            dpi or ANIMATION_DPI)  # fmt: skip
+                            dpi or ANIMATION_DPI, regions)  # fmt: skip
         else:
-            fig = draw(series, name, times[0], component, title, view)
+            fig = draw(series, name, times[0], component, title, view, regions=regions)
             fig.savefig(tmp, dpi=dpi or 150, format=output.suffix.lower()[1:])
         os.replace(tmp, output)
     finally:

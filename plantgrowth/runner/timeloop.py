@@ -19,6 +19,7 @@ from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.models import growth
+from plantgrowth.models.regions import region_columns
 from plantgrowth.models.step import GrowthModel
 from plantgrowth.runner.output import (
     FieldSeries,
@@ -50,7 +51,8 @@ force, in the configuration the forms apply them (plantgrowth.models.macro.edge_
 def summary_columns(scene: Scene) -> list[str]:
     """The columns of a scene's summary.csv."""
     newton = NEWTON_COLUMNS if scene.kinematics == "finite" else []
-    return SUMMARY_COLUMNS + newton + (LOAD_COLUMNS if scene.loads else [])
+    loads = LOAD_COLUMNS if scene.loads else []
+    return SUMMARY_COLUMNS + newton + loads + region_columns(scene.regions)
 
 
 class Interrupted(Exception):

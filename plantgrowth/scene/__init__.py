@@ -83,6 +83,14 @@ inclined wall length l2 = 1)::
     on_instability = "stop"    # where the material law loses strong ellipticity (the tissue is
                                # compressed beyond where its walls would buckle): "stop" (a named
                                # error, every completed step kept) or "warn" (once, and go on)
+    [parameters]               # named numbers (none by default) that every expression may use:
+    E_in = 0.3                 # a name of letters, digits and _ (not x1, x2, s, pi or a
+                               # function), a finite number of magnitude <= 1e12; replaced by
+                               # its value when an expression is read (scene/parameters.py)
+    [regions]                  # named conditions on the reference (x1, x2) (none by default),
+    disc = {expr = "(x1 - 3)**2 + (x2 - 1.5)**2 < 1"}  # true where non-zero; summary.csv gets
+                               # <name>.area, .trG, .growth_rate_11, _22, _12 per step; a region
+                               # holding no growth unit of the mesh is an error (scene/regions.py)
 
 The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
 holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is

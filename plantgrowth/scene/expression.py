@@ -12,7 +12,9 @@ attribute access, indexing or call of anything but the functions below. Grammar 
     atom    := number | name | function "(" expr ("," expr)* ")" | "(" expr ")"
 
 As in Python, ``-2**2 = -4`` and ``2**-1 = 0.5``. Numbers: ``3``, ``0.5``, ``.5``, ``1e-3``.
-Names: the variables the caller allows (``x1``, ``x2`` for fields, ``s`` for loads) and ``pi``.
+Names: the variables the caller allows (``x1``, ``x2`` for fields, ``s`` for loads), ``pi`` and
+the scene's named parameters (``[parameters]``, each replaced by its number when parsed, so a
+parameter gives the same tree as its literal value).
 Functions: ``exp log sqrt sin cos tanh abs`` (one argument), ``min max`` (two or more) and
 ``where(cond, a, b)`` (a where cond is non-zero, else b). Comparisons are allowed anywhere and
 give 0 or 1, so ``where(x1 > 3, 0.6, 0.3)`` and ``0.3 + 0.3 * (x1 > 3)`` are the same field.
@@ -29,7 +31,7 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -96,8 +98,10 @@ def _tokens(key: str, text: str) -> Iterator[_Token]:
 class _Parser:
     """Recursive descent over the tokens (one method per grammar rule of the module doc)."""
 
-    def __init__(self, key: str, text: str, names: tuple[str, ...]) -> None:
-        self.key, self.text, self.names = key, text, names
+    def __init__(
+        self, key: str, text: str, names: tuple[str, ...], constants: Mapping[str, float]
+    ) -> None:
+        self.key, self.text, self.names, self.constants = key, text, names, constants
         self.tokens = _tokens(key, text)
         self.token = next(self.tokens)
         self.depth = 0
@@ -173,12 +177,17 @@ class _Parser:
             self.advance()
             return ("num", float(token.text))
         if token.kind == "name":
-            if token.text not in (*self.names, "pi", *FUNCTIONS):  # before reading on
-                valid = ", ".join((*self.names, "pi", *FUNCTIONS))
-                raise self.error(f"unknown name {token.text!r}", token, f" (valid names: {valid})")
+            known = (*self.names, "pi", *FUNCTIONS, *self.constants)
+            if token.text not in known:  # before reading on
+                hint = f" (valid names: {', '.join(known)})"
+                if not self.constants:
+                    hint += "; a named parameter is defined in [parameters]"
+                raise self.error(f"unknown name {token.text!r}", token, hint)
             self.advance()
             if token.text in FUNCTIONS:
                 return self.call(token)
+            if token.text in self.constants:
+                return ("num", float(self.constants[token.text]))
             return ("num", math.pi) if token.text == "pi" else ("var", token.text)
         if self.take("("):
             tree = self.expr()
@@ -350,8 +359,11 @@ class Expression:
         return Expression(f"d({self.text})/d{name}", self.names, tree)
 
 
-def parse_expression(key: str, text: object, names: tuple[str, ...]) -> Expression:
-    """Parse ``text`` allowing the variables ``names``; ExpressionError naming ``key`` (e.g.
+def parse_expression(
+    key: str, text: object, names: tuple[str, ...], constants: Mapping[str, float] | None = None
+) -> Expression:
+    """Parse ``text`` allowing the variables ``names`` and the named ``constants`` (the scene's
+    parameters: each becomes its number in the tree); ExpressionError naming ``key`` (e.g.
     ``material.E.expr: unknown name 'y' at position 5 in 'x1 + y'``) if it is malformed."""
     if not isinstance(text, str):
         raise ExpressionError(f"{key}: expected a string, got {text!r:.60}")
@@ -360,5 +372,5 @@ def parse_expression(key: str, text: object, names: tuple[str, ...]) -> Expressi
     if not text.strip():
         raise ExpressionError(f"{key}: the expression is empty")
     with np.errstate(all="ignore"):
-        tree = _fold(_Parser(key, text, names).parse())
+        tree = _fold(_Parser(key, text, names, constants or {}).parse())
     return Expression(text, names, tree)

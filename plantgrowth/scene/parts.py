@@ -354,9 +354,11 @@ class Numerics:
         choice("numerics.on_instability", self.on_instability, INSTABILITY_ACTIONS)
 
 
-def load_component(key: str, x: object, length: float, along: bool) -> edge_loads.Component:
-    """A number, or (on an edge of the rectangle, ``along``) {expr = "..."} of s
-    (plantgrowth/scene/loads.py), checked along the edge."""
+def load_component(
+    key: str, x: object, length: float, along: bool, constants: dict[str, float]
+) -> edge_loads.Component:
+    """A number, or (on an edge of the rectangle, ``along``) {expr = "..."} of s and the named
+    parameters ``constants`` (plantgrowth/scene/loads.py), checked along the edge."""
     if isinstance(x, dict):
         if not along:
             raise SceneError(
@@ -366,16 +368,19 @@ def load_component(key: str, x: object, length: float, along: bool) -> edge_load
         check_keys(x, f"{key}.", ("expr",))
         if "expr" not in x:
             raise SceneError(f'{key}: a load component is a number or {{expr = "..."}} of s')
-        x = parse_expression(f"{key}.expr", x["expr"], edge_loads.VARIABLES)
+        x = parse_expression(f"{key}.expr", x["expr"], edge_loads.VARIABLES, constants)
     if not isinstance(x, Expression):
         return in_range(key, x, -BIG, BIG, False, False)
     edge_loads.check_component(key, x, length, BIG)
     return x
 
 
-def edge_load(edge: str, raw: object, length: float) -> edge_loads.Load:
+def edge_load(
+    edge: str, raw: object, length: float, constants: dict[str, float]
+) -> edge_loads.Load:
     """``loads.<edge>``: a traction ``[f1, f2]`` (each a number or, on the rectangle's edges,
-    ``{expr = "..."}`` of s) or a total force ``{force = [F1, F2]}`` (scene/loads.py)."""
+    ``{expr = "..."}`` of s and the named parameters ``constants``) or a total force
+    ``{force = [F1, F2]}`` (scene/loads.py)."""
     key = f"loads.{edge}"
     if isinstance(raw, edge_loads.EdgeForce):  # already checked (a scene rebuilt by replace)
         return raw
@@ -392,7 +397,8 @@ def edge_load(edge: str, raw: object, length: float) -> edge_loads.Load:
         )  # fmt: skip
     along = edge in edge_loads.ALONG  # s is defined on the rectangle's edges only
     return tuple(
-        load_component(f"{key}[{i}]", x, length, along) for i, x in enumerate(array(key, raw, 2))
+        load_component(f"{key}[{i}]", x, length, along, constants)
+        for i, x in enumerate(array(key, raw, 2))
     )
 
 

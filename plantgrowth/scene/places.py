@@ -33,10 +33,12 @@ DET_RANGE = (0.0, np.inf, True, True)
 
 
 def needs_place_checks(scene: Scene) -> bool:
-    """True if some field is a non-constant expression or Fg0 varies (det Fg0 is not linear)."""
+    """True if some field is a non-constant expression, Fg0 varies (det Fg0 is not linear) or
+    the scene has regions (which must hold a growth unit)."""
     fields = scene.parameter_fields().values()
     varying_Fg0 = any(not f.is_constant for f in scene.growth.Fg0_fields().values())
-    return varying_Fg0 or any(isinstance(f, ExprField) and not f.is_constant for f in fields)
+    expressions = any(isinstance(f, ExprField) and not f.is_constant for f in fields)
+    return varying_Fg0 or expressions or bool(scene.regions)
 
 
 def _first_bad(values: np.ndarray, points: np.ndarray, interval: tuple) -> int | None:
@@ -108,6 +110,7 @@ def check_macro_places(scene: Scene, nodes: np.ndarray, midpoints: np.ndarray, c
     check_ranges(scene, nodes, "coarse node", MPI.COMM_SELF, numbered=True, growth=False)
     check_geometry(scene, nodes)
     check_ranges(scene, midpoints, "fine cell midpoint", comm)
+    check_regions(scene, midpoints, "fine cell midpoint", comm)
 
 
 def check_micro_places(scene: Scene, nx: int) -> None:
@@ -115,3 +118,34 @@ def check_micro_places(scene: Scene, nx: int) -> None:
     layout = TissueLayout(scene.cell.at(0.0, 0.0), nx)
     tissue_scene = scene.over_extent(*layout.bounding_box)
     check_ranges(tissue_scene, layout.centres, "cell", MPI.COMM_SELF, numbered=True)
+    check_regions(scene, layout.centres, "cell centre", MPI.COMM_SELF)
+
+
+def check_regions(scene: Scene, points: np.ndarray, what: str, comm: MPI.Comm) -> None:
+    """Collective: SceneError on every rank unless each region's condition is finite at every
+    growth unit's reference midpoint (``points``, this rank's share, named ``what``) and
+    non-zero at one at least (plantgrowth/scene/regions.py)."""
+    for name, region in scene.regions.items():
+        values = region.values(points)
+        found = None
+        if not np.all(np.isfinite(values)):
+            bad = np.flatnonzero(~np.isfinite(values))
+            i = bad[np.lexsort((points[bad, 1], points[bad, 0]))[0]]
+            found = (float(points[i, 0]), float(points[i, 1]), float(values[i]))
+        candidates = [c for c in comm.allgather(found) if c is not None]
+        key = f"regions.{name}"
+        if candidates:
+            x1, x2, value = min(candidates)
+            raise SceneError(
+                f"{key}.expr = {value:g} {_place(np.array([x1, x2]), what)}: a region's "
+                "condition must be finite wherever the run evaluates it"
+            )
+        count = comm.allreduce(int(np.count_nonzero(values != 0.0)), op=MPI.SUM)
+        if count == 0:
+            total = comm.allreduce(len(points), op=MPI.SUM)
+            raise SceneError(
+                f"{key}: the region is empty on the mesh: its condition "
+                f"{region.expression.text!r} is 0 at all {total} {what}s of the tissue (a "
+                "growth unit belongs to a region when the condition holds at its reference "
+                "midpoint); widen it or remove it"
+            )

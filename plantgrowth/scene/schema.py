@@ -30,6 +30,7 @@ from plantgrowth.scene.limits import (
     REFERENCE_WIDTH,
 )
 from plantgrowth.scene.load_balance import unbalanced_load
+from plantgrowth.scene.parameters import parse_parameters
 from plantgrowth.scene.parts import (
     Accuracy,
     CellGeometry,
@@ -44,6 +45,7 @@ from plantgrowth.scene.parts import (
     edge_load,
 )
 from plantgrowth.scene.presets import DEFAULT_PRESET, PRESETS
+from plantgrowth.scene.regions import Region, parse_regions
 from plantgrowth.scene.shapes import mesh_shape, outline_points, outline_shape
 from plantgrowth.scene.toml_text import dict_to_toml
 from plantgrowth.scene.values import (
@@ -77,6 +79,8 @@ class Scene:
     solver: Solver = Solver()
     numerics: Numerics = Numerics()
     kinematics: str = "linear"
+    parameters: dict[str, float] = field(default_factory=dict)  # named numbers of expressions
+    regions: dict[str, Region] = field(default_factory=dict)  # reported in summary.csv
 
     def __post_init__(self) -> None:
         choice("model", self.model, MODELS)
@@ -91,7 +95,7 @@ class Scene:
         lengths = self.tissue.edge_lengths()
         for edge, f in self.loads.items():
             check_edge(edge, self.tissue.shape)
-            load = edge_load(edge, f, lengths[edge][0])
+            load = edge_load(edge, f, lengths[edge][0], self.parameters)
             if load not in ((0.0, 0.0), edge_loads.EdgeForce((0.0, 0.0))):  # non-zero loads only
                 loads[edge] = load
         set_fields(self, loads=loads)
@@ -208,6 +212,10 @@ class Scene:
         out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
         out["solver"] = {f.name: getattr(self.solver, f.name) for f in fields(self.solver)}
         out["numerics"] = {"on_instability": self.numerics.on_instability}
+        if self.parameters:  # written only when given, so older runs' scene.toml compare equal
+            out["parameters"] = dict(self.parameters)
+        if self.regions:
+            out["regions"] = {name: r.to_toml() for name, r in self.regions.items()}
         return out
 
     def dotted(self) -> dict[str, Any]:
@@ -276,14 +284,17 @@ def _mesh_path(value: object, directory: Path) -> str:
     return os.path.abspath(directory / value)
 
 
-def _field(key: str, raw: object, width: float, height: float) -> AnyField:
-    """A field value: a number, {from = a, to = b[, along = "x1" | "x2"]} or {expr = "..."}."""
+def _field(
+    key: str, raw: object, width: float, height: float, constants: dict[str, float]
+) -> AnyField:
+    """A field value: a number, {from = a, to = b[, along = "x1" | "x2"]} or {expr = "..."} (of
+    x1, x2 and the named parameters ``constants``)."""
     if isinstance(raw, dict):
         check_keys(raw, f"{key}.", ("from", "to", "along", "expr"))
         if "expr" in raw:
             if len(raw) != 1:
                 raise SceneError(f'{key}: an expression field is {{expr = "..."}} alone')
-            return ExprField(parse_expression(f"{key}.expr", raw["expr"], AXES))
+            return ExprField(parse_expression(f"{key}.expr", raw["expr"], AXES, constants))
         if "from" not in raw or "to" not in raw:
             raise SceneError(f"{key}: a linear field needs both ends, {{from = a, to = b}}")
         along = choice(f"{key}.along", raw.get("along", "x1"), AXES)
@@ -349,7 +360,8 @@ def parse_scene(
 def _parse(data: dict, directory: Path) -> Scene:
     if not isinstance(data, dict):
         raise SceneError(f"scene: expected a table of tables, got {show(data)}")
-    check_keys(data, "", ("model", *TABLES, "kinematics"))
+    check_keys(data, "", ("model", *TABLES, "kinematics", "parameters", "regions"))
+    constants = parse_parameters(data.get("parameters", {}))
     tables = {name: _table(data, name) for name in TABLES}
     if "mesh" in tables["tissue"]:
         tables["tissue"] = tables["tissue"] | {
@@ -359,7 +371,9 @@ def _parse(data: dict, directory: Path) -> Scene:
     tissue = Tissue(**t["tissue"])
     f = {
         section: {
-            k: _field(f"{section}.{k}", t[section].get(k, d), tissue.width, tissue.height)
+            k: _field(
+                f"{section}.{k}", t[section].get(k, d), tissue.width, tissue.height, constants
+            )
             for k, d in kd.items()
         }
         for section, kd in _FIELD_DEFAULTS.items()
@@ -369,7 +383,7 @@ def _parse(data: dict, directory: Path) -> Scene:
     if isinstance(Fg0 := t["growth"].get("Fg0"), list):  # tables in it are fields
         f["growth"]["Fg0"] = [
             [
-                _field(f"growth.Fg0[{i}][{j}]", x, tissue.width, tissue.height)
+                _field(f"growth.Fg0[{i}][{j}]", x, tissue.width, tissue.height, constants)
                 if isinstance(x, dict)
                 else x
                 for j, x in enumerate(row)
@@ -394,6 +408,8 @@ def _parse(data: dict, directory: Path) -> Scene:
         solver=Solver(**t["solver"]),
         numerics=Numerics(**t["numerics"]),
         kinematics=data.get("kinematics", "linear"),
+        parameters=constants,
+        regions=parse_regions(data.get("regions", {}), constants),
     )
 
 

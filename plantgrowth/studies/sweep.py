@@ -4,7 +4,9 @@ A sweep file::
 
     base = "../reference_strain.toml"   # the base scene: relative to the sweep file, or absolute
     mode = "grid"                        # "grid": every combination, the first key slowest;
-                                         # "one-at-a-time": each list alone, the others at base
+                                         # "one-at-a-time": each list alone, the others at base;
+                                         # "zip": run i takes the i-th value of every list
+                                         # (lists of equal length: keys varied together)
     [vary]                               # dotted scene keys, each a non-empty list of values:
     "material.nu" = [0.1, 0.2, 0.3]      # anything the scene accepts for the key (numbers,
     "growth.eta" = [1.0, {from = 0.5, to = 2.0}]  # strings, {from, to} fields, arrays)
@@ -18,9 +20,10 @@ Output directory::
     sweep.toml         the sweep as resolved (absolute base path, mode, vary)
     sweep.csv          one row per run: run, the varied values (columns named by their keys),
                        status (done | failed | interrupted | pending), t, area, growth_rate_11,
-                       growth_rate_22, growth_rate_area at the last completed step, seconds,
-                       error; ``micro_*`` columns too if a run has model = "both" (the main
-                       columns are then its macro side)
+                       growth_rate_22, growth_rate_area and the regions' columns
+                       (``<name>.area``, ...) at the last completed step, seconds, error;
+                       ``micro_*`` columns too if a run has model = "both" (the main columns
+                       are then its macro side)
     run_NNNN/          one run as ``plantgrowth run`` writes it, and result.json (its row)
     .plantgrowth.lock  held while a sweep runs (shared by the elements of a job array)
     .sweep.lock        serialises the rewrites of sweep.toml and sweep.csv
@@ -53,6 +56,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from plantgrowth.base.errors import InputError, RunError
+from plantgrowth.models.regions import region_columns
 from plantgrowth.runner.output import atomic_write_text, last_summary_step
 from plantgrowth.runner.timeloop import Interrupted
 from plantgrowth.scene import Scene
@@ -93,11 +97,13 @@ def _finished(run_dir: Path, scene: Scene) -> bool:
 
 
 def _result(run_dir: Path, scene: Scene, status: str, error: str, seconds: float | None) -> dict:
-    """A run's row: status, the last completed step's numbers, seconds, error."""
+    """A run's row: status, the last completed step's numbers (and its regions'), seconds,
+    error."""
     out = {"status": status, "seconds": "" if seconds is None else f"{seconds:.3f}", "error": error}
+    numbers = [*NUMBERS, *region_columns(scene.regions)]
     for prefix, side in _sides(scene.model).items():
         row = _last_row(run_dir / side / "summary.csv")
-        out.update({prefix + k: row.get(k) or "" for k in NUMBERS})
+        out.update({prefix + k: row.get(k) or "" for k in numbers})
     return out
 
 

@@ -13,12 +13,13 @@ from pathlib import Path
 from typing import Any
 
 from plantgrowth.base.errors import InputError
+from plantgrowth.models.regions import region_columns
 from plantgrowth.scene import Scene, load_scene, parse_scene
 from plantgrowth.scene.limits import EDGES
 from plantgrowth.scene.schema import with_values
 from plantgrowth.scene.toml_text import dict_to_toml
 
-MODES = ("grid", "one-at-a-time")
+MODES = ("grid", "one-at-a-time", "zip")
 SWEEP_KEYS = ("base", "mode", "vary")
 MAX_RUNS = 100_000
 NUMBERS = ("t", "area", "growth_rate_11", "growth_rate_22", "growth_rate_area")
@@ -81,9 +82,16 @@ class Sweep:
             k: cell(run.values[k]) if k in run.values else self.base_cells[k] for k in self.vary
         }
 
+    def numbers(self) -> list[str]:
+        """The summary.csv columns a row takes from each run's last step: NUMBERS and the
+        regions' columns of any run (in run order)."""
+        regions = (c for run in self.runs for c in region_columns(run.scene.regions))
+        return [*NUMBERS, *dict.fromkeys(regions)]
+
     def columns(self) -> list[str]:
-        micro = [f"micro_{n}" for n in NUMBERS] if self._has_both() else []
-        return ["run", *self.vary, "status", *NUMBERS, *micro, "seconds", "error"]
+        numbers = self.numbers()
+        micro = [f"micro_{n}" for n in numbers] if self._has_both() else []
+        return ["run", *self.vary, "status", *numbers, *micro, "seconds", "error"]
 
     def _has_both(self) -> bool:
         return any(run.scene.model == "both" for run in self.runs)
@@ -196,14 +204,32 @@ def _vary(data: dict, keys: set[str], mode: str, path: Path) -> dict[str, list]:
         if not isinstance(values, list) or not values:
             raise _fail(path, f"vary.'{key}': expected a non-empty list of values, got {values!r}")
         for i, value in enumerate(values):
-            if value in values[:i]:
+            if value in values[:i] and mode != "zip":  # zip: the runs' tuples must differ
                 raise _fail(path, f"vary.'{key}' lists {cell(value)} twice")
         vary[key] = values
     sizes = [len(values) for values in vary.values()]
-    count = math.prod(sizes) if mode == "grid" else sum(sizes)
+    if mode == "zip":
+        _check_zip(vary, path)
+    count = {"grid": math.prod(sizes), "one-at-a-time": sum(sizes), "zip": sizes[0]}[mode]
     if count > MAX_RUNS:
         raise _fail(path, f"vary: the sweep has {count} runs (at most {MAX_RUNS})")
     return vary
+
+
+def _check_zip(vary: dict[str, list], path: Path) -> None:
+    """``mode = "zip"``: run i takes the i-th value of every list, so the lists must be of one
+    length and no two runs alike."""
+    sizes = {key: len(values) for key, values in vary.items()}
+    if len(set(sizes.values())) > 1:
+        shown = ", ".join(f"'{k}' has {n}" for k, n in sizes.items())
+        raise _fail(
+            path, f'vary: mode = "zip" takes the i-th value of every list, so the lists must '
+            f"have equal lengths: {shown}"
+        )  # fmt: skip
+    runs = list(zip(*vary.values(), strict=True))
+    for i, values in enumerate(runs):
+        if values in runs[:i]:
+            raise _fail(path, f"vary: runs {runs.index(values)} and {i} of the zip are the same")
 
 
 def _suggest(key: str, keys: set[str]) -> str:
@@ -215,10 +241,9 @@ def _suggest(key: str, keys: set[str]) -> str:
 
 def _combinations(vary: dict[str, list], mode: str) -> list[dict[str, Any]]:
     """The varied values of each run, in run order."""
-    if mode == "grid":
-        return [
-            dict(zip(vary, values, strict=True)) for values in itertools.product(*vary.values())
-        ]
+    if mode in ("grid", "zip"):
+        combined = itertools.product if mode == "grid" else zip
+        return [dict(zip(vary, values, strict=True)) for values in combined(*vary.values())]
     return [{key: value} for key, values in vary.items() for value in values]
 
 

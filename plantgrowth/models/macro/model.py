@@ -31,6 +31,7 @@ from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.models.macro.resolution import field_sampling
+from plantgrowth.models.regions import RegionStatistics
 from plantgrowth.models.step import (
     SideMesh,
     StepResult,
@@ -141,6 +142,9 @@ class MacroModel:
             log.info("skipped: %s", line)
         msh, n = problem.mesh, problem.n_owned
         vertices = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 3)[:n], :2]
+        self.regions = RegionStatistics(
+            scene.regions, problem.midpoints[:n, :2], problem.areas, comm
+        )
         self.sampling = field_sampling(
             scene, vertices, problem.areas, self._W_active[:n], nodes, self.per_cell, comm
         )
@@ -283,11 +287,12 @@ class MacroModel:
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
         """Current area ``int det(I + grad u)``, reference-area means of G11, G22, tr G,
-        max |u_i| and min det Fg."""
+        max |u_i|, min det Fg and the regions' statistics (plantgrowth/models/regions.py)."""
         problem, comm = self.problem, self.comm
         n = problem.n_owned
         areas = problem.areas
-        area = np.sum(areas * det2(np.eye(2) + problem.grad_u()[:n]))
+        current = areas * det2(np.eye(2) + problem.grad_u()[:n])
+        area = np.sum(current)
         means = np.array([np.sum(areas * G[:n, 0, 0]), np.sum(areas * G[:n, 1, 1])])
         means = comm.allreduce(means, op=MPI.SUM) / problem.total_area
         u1_max, u2_max = max_abs_components(problem.u, comm)
@@ -300,6 +305,7 @@ class MacroModel:
             "u1_max": u1_max,
             "u2_max": u2_max,
             "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
+            **self.regions.measures(current, G[:n]),
         }
 
 

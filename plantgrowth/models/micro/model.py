@@ -34,6 +34,7 @@ from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
 from plantgrowth.models.micro.outlines import CellOutlines
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
+from plantgrowth.models.regions import RegionStatistics
 from plantgrowth.models.step import StepResult, clamped_fraction, largest_strain, max_abs_components
 from plantgrowth.scene import Scene
 
@@ -146,6 +147,9 @@ class MicroModel:
             for form, space in ((cell_measures.deformed_area_form, Q0),
                                 (cell_measures.deformed_moment_form, self._vector_dg0))
         ]  # fmt: skip
+        self.regions = RegionStatistics(
+            scene.regions, layout.centres, self.hexagon_area, MPI.COMM_SELF
+        )  # every rank holds every cell
         self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
         self.cell_table = self.outlines  # cells.csv
         self._E, self._nu = E, nu
@@ -342,7 +346,8 @@ class MicroModel:
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
         """Area enclosed by the deformed outer boundary; means of G weighted by the cells'
-        reference (hexagon) areas; max |u_i|; min det Fg."""
+        reference (hexagon) areas; max |u_i|; min det Fg; the regions' statistics (their areas:
+        cells.csv's deformed cell areas)."""
         weights = self.hexagon_area / self.hexagon_area.sum()
         g11, g22 = float(weights @ G[:, 0, 0]), float(weights @ G[:, 1, 1])
         u1_max, u2_max = max_abs_components(self.u, self.comm)
@@ -355,4 +360,5 @@ class MicroModel:
             "u1_max": u1_max,
             "u2_max": u2_max,
             "det_Fg_min": float(np.linalg.det(Fg).min()),
+            **self.regions.measures(self.outlines.area, G),
         }
