@@ -5,10 +5,11 @@ once per strain band (plantgrowth/models/elastic_strain.py, plantgrowth/runner/s
 Macro: a pulled homogeneous tissue (the pull of docs/usage.md, 3.5 times harder, so that the
 strain starts in the first band), linear and finite kinematics; the written tensor is checked
 against the strain computed here from the written u and Fg alone (P1 gradients per triangle).
-Micro: under the strain law with tau = 0 and eta = 1 the growth rate G is each cell's
-wall-averaged elastic strain (its positive part, positive definite here), computed by the
-growth law's own assembly: the written tensor must equal it. In-process runs through ``main``
-(serial and under mpirun: the same values and places). Runs: h = 0.5, H = 1, cell_resolution 1.
+Micro (linear and finite): under the strain law with tau = 0 and eta = 1 the growth rate G is
+each cell's wall-averaged elastic strain (eps_el or Ee; its positive part, positive definite
+here), computed by the growth law's own assembly: the written tensor must equal it.
+In-process runs through ``main`` (serial and under mpirun: the same values and places), and
+serial against ``mpirun -n 2`` as processes. Runs: h = 0.5, H = 1, cell_resolution 1.
 """
 
 from __future__ import annotations
@@ -60,6 +61,7 @@ precision = "float64"
 """
 MICRO = """\
 model = "micro"
+kinematics = "{kinematics}"
 [growth]
 law = "strain"
 tau = 0.0
@@ -248,12 +250,13 @@ def test_mpirun_reports_the_serial_peak_at_the_same_place(tmp_path_factory, caps
 # --- micro run -----------------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_micro_fields_and_columns_are_the_wall_averaged_strain_of_each_cell(
-    tmp_path_factory, capsys
+    tmp_path_factory, capsys, kinematics
 ):
-    directory = shared_dir(tmp_path_factory, "micro")
+    directory = shared_dir(tmp_path_factory, f"micro_{kinematics}")
     scene = directory / "scene.toml"
-    write(scene, MICRO)
+    write(scene, MICRO.format(kinematics=kinematics))
     code, _, err = call(["run", scene, "-o", directory / "out"], capsys)
     assert code == 0, err
     results = read_results(directory / "out")
