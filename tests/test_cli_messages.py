@@ -84,6 +84,18 @@ def test_quiet_keeps_only_the_final_line_which_names_area_and_growth_rate(
     assert "step 2/2" in log and lines[-1] in log
 
 
+def test_a_run_of_both_models_ends_with_one_result_line_per_model(tmp_path_factory, capsys):
+    both = SMALL | {"model": "both", "time": {"t_max": 1}, "micro": {"nx": 4, "resolution": 1}}
+    code, out, err, outdir = _run(tmp_path_factory, capsys, "both", both, after=["-q"])
+    assert code == 0, err
+    if RANK0:
+        lines = out.splitlines()
+        assert [line.split(":")[0] for line in lines] == ["macro result", "micro result"], out
+        for side, line in zip(("macro", "micro"), lines, strict=True):
+            area = read_results(outdir / side).summary["area"][-1]
+            assert f"area {area:.6g} (" in line
+
+
 @pytest.mark.parametrize(
     "model, key, value", [("micro", "width", 8.0), ("micro", "height", 4.0), ("both", "width", 8.0)]
 )
