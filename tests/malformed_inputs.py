@@ -159,7 +159,8 @@ def base_scene(rng: random.Random, micro: bool = False) -> dict:
     dt = rng.choice([0.5, 1.0, 2.0])
     scene: dict = {"model": rng.choice(["micro", "both"]) if micro else "macro"}
     options = {
-        "tissue": {"width": width, "height": height, "h": h, "H": rng.uniform(h, 2.0)},
+        "tissue": {"h": h, "H": rng.uniform(h, 2.0)}
+        | ({} if micro else {"width": width, "height": height}),  # micro: its own tissue
         "cell": {"l1": l1, "l2": l2, "theta": theta, "w": w},
         "material": {"E": rng.uniform(0.1, 10.0), "nu": rng.uniform(-0.5, 0.45)},
         "pressure": {"P1": rng.uniform(0.0, 0.01)},
@@ -531,7 +532,11 @@ def _bad_expression(rng: random.Random, scene: dict):
 
 def _micro_scene(rng: random.Random, scene: dict):
     scene = base_scene(rng, micro=True)
-    what = rng.choice(["field", "field", "loads", "nx_odd", "nx_range", "resolution"])
+    what = rng.choice(["field", "field", "loads", "nx_odd", "nx_range", "resolution", "size"])
+    if what == "size":  # the micro tissue is micro.nx cells wide: width and height are not used
+        key = rng.choice(["width", "height"])
+        scene.setdefault("tissue", {})[key] = rng.uniform(1.0, 10.0)
+        return scene, f"tissue.{key}"
     if what == "field":
         key = rng.choice(["l1", "l2", "theta", "w"])
         scene["cell"] = {"l1": 1.0, "l2": 1.0, "theta": 30.0, "w": 0.05}
@@ -868,7 +873,7 @@ def _cli_case(rng: random.Random, cls: str):
         return (), argv, expect
     if cls == "cli_compare":
         what = rng.choice(["nx_odd", "nx_odd", "nx_small", "nx_text", "nx_missing", "loads",
-                           "resolution"])  # fmt: skip
+                           "resolution", "size"])  # fmt: skip
         files = (("compare.toml", COMPARE),)
         base = ["compare", "{dir}/compare.toml", "--first-step-only", "-o", "{dir}/cmp"]
         if what == "nx_odd":
@@ -885,6 +890,10 @@ def _cli_case(rng: random.Random, cls: str):
         if what == "loads":
             scene = COMPARE + "[loads]\nright = [0.001, 0.0]\n"
             return (("compare.toml", scene),), [*base, "--nx", "4"], ("loads",)
+        if what == "size":  # compare builds --nx cells per row: a width would be ignored
+            key = rng.choice(["width", "height"])
+            scene = COMPARE.replace("[tissue]\n", f"[tissue]\n{key} = {rng.uniform(1, 9)}\n")
+            return (("compare.toml", scene),), [*base, "--nx", "4"], (f"tissue.{key}",)
         return (
             files,
             [*base, "--nx", "4", "--resolution", str(rng.choice([0, -1]))],

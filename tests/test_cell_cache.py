@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from plantgrowth.scene.toml_text import dict_to_toml
-from plantgrowth.unitcell.homogenization import CHECK_EVERY
+from plantgrowth.unitcell.homogenization import CHECK_EVERY, CHECK_LINE
 
 pytestmark = pytest.mark.skip_in_parallel
 
@@ -53,7 +53,7 @@ def lattice_solves(outdir: Path) -> list[int]:
         solves = [int(float(row["n_cell_solves"])) for row in csv.DictReader(f)]
     log = (outdir / "run.log").read_text()
     for step in range(0, len(solves), CHECK_EVERY):  # exp integrator: one call per step
-        solves[step] -= f"cell surrogate check {step // CHECK_EVERY + 1}:" in log
+        solves[step] -= f"{CHECK_LINE} {step // CHECK_EVERY + 1}:" in log
     return solves
 
 

@@ -299,7 +299,9 @@ def test_resume_appends_to_run_log(tmp_path_factory, capsys):
         added = text[len(before) :]
         assert "resuming after step 2 (t = 2)" in added
         assert "step 3/3" in added
-        assert added.rstrip().splitlines()[-1].endswith(f"done: {outdir}")
+        # the run ends with "done" and the final result line (issue 21, item 8)
+        last_two = added.rstrip().splitlines()[-2:]
+        assert last_two[0].endswith(f"done: {outdir}") and " result: t = 3: area " in last_two[1]
 
 
 def test_a_finished_run_is_extended_by_a_larger_t_max(tmp_path_factory, capsys):

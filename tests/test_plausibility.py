@@ -106,9 +106,11 @@ WARNINGS = {  # name -> (scene, the warnings' key phrases in order of appearance
     "tiny_pressure": ('[pressure]\nP1 = 1e-9\n[growth]\nlaw = "stress"\n',
                       ["pressure.P1 / material.E = 1e-09"]),
     "reference": ('[growth]\nlaw = "stress"\n', []),
+    # 10x turgor: the walls' mean elastic strain is 0.059, below the first strain band (20%:
+    # plantgrowth.runner.step_warnings.STRAIN_BANDS; it warned above the old 5%); the strain
+    # warnings: tests/test_elastic_strain.py
     "micro_pressure": ('model = "micro"\n[pressure]\nP1 = 0.01\n[growth]\nlaw = "strain"\n'
-                       "[micro]\nnx = 2\nresolution = 1\n" + GO_ON,
-                       ["largest elastic strain", "loss of ellipticity"]),
+                       "[micro]\nnx = 2\nresolution = 1\n" + GO_ON, ["loss of ellipticity"]),
     "micro_clamp": ('model = "micro"\n[growth]\nlaw = "stress"\nclamp = 1e-4\n'
                     "[micro]\nnx = 2\nresolution = 1\n", ["clamp growth.clamp = M is active"]),
     "micro_reference": ('model = "micro"\n[growth]\nlaw = "stress"\n'

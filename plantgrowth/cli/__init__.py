@@ -20,7 +20,7 @@ import sys
 from mpi4py import MPI
 
 from plantgrowth.base.errors import USER_ERRORS, InputError
-from plantgrowth.cli.console import configure_logging, discard_stdout, quiet_broken_pipe
+from plantgrowth.cli.console import QUIET, configure_logging, discard_stdout, quiet_broken_pipe
 from plantgrowth.cli.parser import build_parser
 
 __all__ = ["build_parser", "main"]
@@ -40,6 +40,7 @@ def main(argv: list[str] | None = None) -> int:
                 "no command given: choose one of cell, run, compare, validate, sweep, render"
             )
         args = parser.parse_args(argv)
+        QUIET.on = getattr(args, "quiet", False)
         quiet_broken_pipe()
         code = args.handler(args, comm)
         sys.stdout.flush()

@@ -92,6 +92,7 @@ def compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         if args.resolution is not None:
             wall_mesh_size(layout, args.resolution, "--resolution")
     domains = {nx: checked_domain(scene, comm, nx) for nx in args.nx}  # before anything is written
+    scene.check_cellular_extent("plantgrowth compare", args.nx[0])
     outdir = args.output or Path("results") / f"compare_{args.scene.stem}"
     with run_directory(outdir, scene, comm, overwrite=args.overwrite):
         log.info("plantgrowth compare %s -> %s on %d rank(s)", args.scene, outdir, comm.size)

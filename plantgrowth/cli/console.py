@@ -24,6 +24,19 @@ class _Below(logging.Filter):
         return record.levelno < self.level
 
 
+class _Quiet(logging.Filter):
+    """With ``on`` (``--quiet``), drops the progress records but the final result line (logged
+    with ``extra={"result": True}``)."""
+
+    on = False
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not self.on or getattr(record, "result", False)
+
+
+QUIET = _Quiet()
+
+
 class _Console(logging.StreamHandler):
     """A console handler that goes quiet when its reader is gone (``plantgrowth ... | head``)."""
 
@@ -61,6 +74,8 @@ def configure_logging(comm: MPI.Comm) -> None:
     console = _Console(sys.stdout)  # the stdout of this call
     console.setFormatter(logging.Formatter("%(message)s"))
     console.addFilter(_Below(logging.WARNING))
+    QUIET.on = False
+    console.addFilter(QUIET)
     warnings = _Console(sys.stderr)
     warnings.setFormatter(logging.Formatter("plantgrowth: %(message)s"))
     warnings.setLevel(logging.WARNING)

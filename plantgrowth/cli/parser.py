@@ -29,12 +29,36 @@ def _floats(text: str) -> list[float]:
         raise argparse.ArgumentTypeError(f"expected numbers a,b,...: {text!r}") from None
 
 
+def _version() -> str:
+    """The installed package's version (pyproject.toml)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("plantgrowth")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "(not installed)"
+
+
+_QUIET = _Parser(add_help=False)
+_QUIET.add_argument(
+    "-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+    help="no progress lines on stdout: only warnings, errors and the final result line "
+    "(run.log still has everything)",
+)  # fmt: skip
+"""-q/--quiet, accepted before and after the command (``default=SUPPRESS``: a sub-command's
+absent flag does not reset the one given before it)."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The CLI's argument parser (sub-commands)."""
-    parser = _Parser(prog="plantgrowth", description="Multiscale plant tissue growth.")
+    parser = _Parser(
+        prog="plantgrowth", description="Multiscale plant tissue growth.", parents=[_QUIET]
+    )
+    parser.add_argument("--version", action="version", version=f"plantgrowth {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     cell = sub.add_parser(
         "cell",
+        parents=[_QUIET],
         help="solve the unit-cell problems and print the homogenized tensors",
         description="Homogenized properties of one honeycomb cell (docs/model.md sections 2-3). "
         "Defaults: the reference cell of docs/model.md section 9 with Fg = I.",
@@ -62,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser(
         "run",
+        parents=[_QUIET],
         help="run a scene (also under mpirun)",
         description="Run the simulation a scene describes; writes DIR/fields.xdmf (+ .h5; "
         "macro runs also DIR/coarse.xdmf: E_hom at the coarse nodes), DIR/state.h5 (for "
@@ -85,6 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     compare = sub.add_parser(
         "compare",
+        parents=[_QUIET],
         help="compare the micro and macro models for several Nx",
         description="Runs, for each Nx, the macro model on the region the micro tissue covers "
         "and the micro model; writes DIR/compare.csv (nx, delta, the relative errors err_u1, "
@@ -116,6 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     validate = sub.add_parser(
         "validate",
+        parents=[_QUIET],
         help="check a scene without running it",
         description="Load and check a scene file (keys, types, ranges, geometry, loads) and "
         "print a one-line summary; warnings about implausible parameters go to stderr.",
@@ -140,6 +167,7 @@ def _time(text: str) -> float | str:
 def _add_render_parser(sub) -> None:
     render = sub.add_parser(
         "render",
+        parents=[_QUIET],
         help="draw a field of a run into a PNG, PDF or SVG, or a GIF over time (headless)",
         description="Draw one written field of a run (finished or still running) on the "
         "deformed tissue x + u(t), with the initial outline dashed and, for micro runs, the "
@@ -184,6 +212,7 @@ def _add_render_parser(sub) -> None:
 def _add_sweep_parser(sub) -> None:
     sweep = sub.add_parser(
         "sweep",
+        parents=[_QUIET],
         help="run a scene for many parameter values (also under mpirun and as a job array)",
         description='Run every combination (mode = "grid"), every value of each key alone '
         '(mode = "one-at-a-time"), or the i-th values of all keys together (mode = "zip") of '

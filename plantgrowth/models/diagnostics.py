@@ -18,6 +18,12 @@ RESIDUAL_BOUND = 1e-8
 1e-10 (macro_problem.MACRO_RTOL)."""
 
 EULER_HINT = "likely cause: a time step too large for explicit Euler (use integrator = 'exp')"
+RATE_HINT = (
+    "or, where growth rates differ strongly across the tissue (a contrast in eta, tau or E), a "
+    'time step too long for them: try a smaller time.dt or time.integrator = "adaptive"'
+)
+"""Named with every failure that strong growth contrast causes (issue 21, item 8: a 100x eta
+contrast inverts elements from step 3 at dt = 1 with the exp integrator)."""
 ON_THIS_RANK = " on this rank"
 """Where a count is local; :func:`stop_if` names the rank under MPI and drops it in serial."""
 
@@ -58,7 +64,7 @@ def inversion_problems(deformation_det: np.ndarray, points: np.ndarray) -> list[
     return [
         f"{_where(bad, points, 'element inverted in the grown configuration')}; likely cause: "
         "displacements too large for the linearised elastic model (pressure, loads or growth "
-        "contrast too strong)"
+        f"contrast too strong), {RATE_HINT}"
     ]
 
 

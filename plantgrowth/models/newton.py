@@ -186,7 +186,7 @@ class NewtonSolver:
         raise RunError(
             f"Newton did not converge: residual {r / tol:.3g} times the tolerance after {k} "
             f"iterations, largest at x = {self._largest_residual_place()}; likely cause: loads "
-            "or growth contrast too strong for the elastic tissue"
+            f"or growth contrast too strong for the elastic tissue, {diagnostics.RATE_HINT}"
         )
 
     def _solve_linear(self, x: PETSc.Vec) -> tuple[int, float]:
@@ -267,13 +267,14 @@ class NewtonSolver:
             raise RunError(
                 f"Newton iteration {k + 1}: inverted element (det F = {det_min:.3g} <= 0) at x = "
                 f"({where[0]:.4g}, {where[1]:.4g}) even after {LINE_SEARCH_HALVINGS} step "
-                "halvings; likely cause: loads or growth contrast too strong for the tissue"
+                "halvings; likely cause: loads or growth contrast too strong for the tissue, "
+                + diagnostics.RATE_HINT
             )
         raise RunError(
             f"Newton did not converge: the line search found no decrease of the residual "
             f"({r / tol:.3g} times the tolerance) at iteration {k + 1}, largest at x = "
             f"{self._largest_residual_place()}; likely cause: loads or growth contrast too "
-            "strong for the elastic tissue"
+            f"strong for the elastic tissue, {diagnostics.RATE_HINT}"
         )
 
     def _largest_residual_place(self) -> str:

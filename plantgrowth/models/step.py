@@ -10,6 +10,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from plantgrowth.models.elastic_strain import StrainPeak, principal_magnitude
 from plantgrowth.models.stability import Ellipticity
 
 
@@ -85,7 +86,7 @@ class StepResult:
     residual: float  # true relative residual of the linear solve
     n_cell_solves: int = 0
     seconds: dict[str, float] = field(default_factory=dict)  # seconds_cells, _solve, _growth
-    max_elastic_strain: float | None = None  # largest principal |eps_el| over the tissue
+    elastic_strain: StrainPeak | None = None  # largest principal |eps_el| (or |Ee|) and where
     clamped_fraction: float | None = None  # area fraction where some |G_ij| reaches the clamp M
     newton_iterations: int = 0  # finite kinematics: Newton iterations of the step's solve
     newton_residual: float = 0.0  # finite kinematics: its final relative residual
@@ -139,7 +140,7 @@ def max_abs_components(u: fem.Function, comm: MPI.Comm) -> tuple[float, float]:
 
 def largest_strain(eps: np.ndarray, comm: MPI.Comm) -> float:
     """Largest principal magnitude of symmetric (n, 2, 2) strains over all ranks."""
-    local = float(np.abs(np.linalg.eigvalsh(eps)).max(initial=0.0))
+    local = float(principal_magnitude(eps).max(initial=0.0))
     return comm.allreduce(local, op=MPI.MAX)
 
 

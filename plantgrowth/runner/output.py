@@ -411,6 +411,7 @@ class SummaryWriter:
         self.path = path
         self.columns = columns
         self.comm = comm
+        self.kept: list[dict[str, str]] = []  # rank 0: the rows kept from before a resume
         if comm.rank == 0:
             kept = []
             if keep_until is not None and path.exists():
@@ -422,6 +423,12 @@ class SummaryWriter:
                 + "".join(",".join(r[c] for c in columns) + "\n" for r in kept)
             )
             atomic_write_text(path, text)
+            self.kept = kept
+
+    def kept_max(self, column: str) -> float:
+        """Collective: the largest value of a column in the rows kept (0 without rows)."""
+        largest = max((float(row[column]) for row in self.kept), default=0.0)
+        return self.comm.bcast(largest, root=0)
 
     def write(self, row: dict[str, float]) -> None:
         self.write_rows([row])

@@ -7,6 +7,7 @@ before anything is written: a bad scene leaves no file behind.
 
 from __future__ import annotations
 
+import csv
 import logging
 import time
 from collections.abc import Iterator
@@ -145,3 +146,19 @@ def run_scene(
             log.info("%s", stop)
             raise
         log.info("done: %s", outdir)
+        for side, directory in runs[scene.model]:
+            if comm.rank == 0:
+                name = f"{side} " if directory != outdir else ""
+                log.info("%sresult: %s", name, result_line(directory), extra={"result": True})
+
+
+def result_line(directory: Path) -> str:
+    """The final line of a run: its last time, area and mean growth rate (summary.csv)."""
+    with open(directory / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    first, last = ({k: float(v) for k, v in row.items()} for row in (rows[0], rows[-1]))
+    return (
+        f"t = {last['t']:g}: area {last['area']:.6g} ({last['area'] / first['area']:.4g} times "
+        f"its value at t = 0), mean growth rate tr G {last['growth_rate_area']:.6g} per unit "
+        "time (summary.csv has every step)"
+    )

@@ -37,7 +37,8 @@ SUMMARY_COLUMNS = [
     "step", "t", "area", "growth_rate_11", "growth_rate_22", "growth_rate_area",
     "u1_max", "u2_max", "det_Fg_min", "n_cell_solves", "residual",
     "substeps", "seconds", "seconds_cells", "seconds_solve", "seconds_growth", "seconds_io",
-    "nonelliptic_area_fraction",
+    "nonelliptic_area_fraction", "elastic_strain_max", "elastic_strain_max_x1",
+    "elastic_strain_max_x2",
 ]  # fmt: skip
 NEWTON_COLUMNS = ["newton_iterations", "newton_residual"]
 """Appended to SUMMARY_COLUMNS for ``kinematics = "finite"`` (linear runs keep those above)."""
@@ -146,7 +147,8 @@ def run_model(
     and a summary row after every step.
 
     Under growth law ``none`` there is no growth: a single static solve at t = 0. Implausible
-    states (large elastic strain, an active clamp) are logged as warnings, once per kind.
+    states are logged as warnings (:mod:`plantgrowth.runner.step_warnings`): a large elastic
+    strain once per band it enters, an active clamp once per run.
     Args:
         n_steps: stop after this many steps (default: the scene's t_max / dt).
         on_step: called after each step's solve as ``on_step(step, model)``.
@@ -184,7 +186,8 @@ def run_model(
         first = last + 1
         log.info("resuming after step %d (t = %g)", last, last * dt)
     rows = []
-    warnings = StepWarnings()
+    # a resumed run warns only for strain bands its kept steps had not reached
+    warnings = StepWarnings(scene.kinematics, summary.kept_max("elastic_strain_max"))
     prefix = f"{label}: " if label else ""
     start = time.perf_counter()
     with interrupt_at_step_end() as interrupt:
@@ -213,6 +216,9 @@ def run_model(
                 row["load_imbalance"] = result.load_balance.imbalance
             if result.ellipticity is not None:
                 row["nonelliptic_area_fraction"] = result.ellipticity.nonelliptic_area_fraction
+            peak = result.elastic_strain
+            row.update(elastic_strain_max=peak.value, elastic_strain_max_x1=peak.place[0],
+                       elastic_strain_max_x2=peak.place[1])  # fmt: skip
             row = {k: comm.allreduce(v, op=MPI.MAX) if k.startswith("seconds") else v
                    for k, v in row.items()}  # fmt: skip
             # fields (and cell rows), row, state: a kill between them leaves the state one step

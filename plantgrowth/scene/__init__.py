@@ -20,6 +20,8 @@ inclined wall length l2 = 1)::
     #   "symmetry" on x2 = 0, the point group "pinned" and named curve groups, loaded as
     #   loads.<name>
     # (docs/shapes.md; not with width or height: the shape's bounding box sets them)
+    # model = "micro" | "both" and plantgrowth compare: width and height other than these
+    #   defaults are an error (the cellular tissue is micro.nx cells per row, its own size)
     h = 0.1                    # (preset) fine-mesh edge: 0 < h <= min(width, height)/2,
                                # at most 4e6 cells
     H = 0.5                    # (preset) coarse-mesh edge (cell-problem nodes):
@@ -59,7 +61,9 @@ inclined wall length l2 = 1)::
                                # ((g1 - g2)/(|g1| + |g2|) of G's principal rates g1 >= g2, in
                                # [0, 1], 0 when both vanish), "growth_direction" (unit vector of
                                # g1, x1 >= 0; zero vector where G is isotropic), "stress_direction"
-                               # (same for sigma_hom; micro: the cells' mean wall stress).
+                               # (same for sigma_hom; micro: the cells' mean wall stress),
+                               # "elastic_strain" (largest principal |strain|: eps_el, or Ee;
+                               # micro: each cell's wall mean), "elastic_strain_tensor".
                                # Micro runs write u, Fg, G, cell_id and the growth outputs
                                # listed, plus cells.csv and cells.xdmf (cell outlines)
     every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has

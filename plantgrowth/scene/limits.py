@@ -23,7 +23,11 @@ MACRO_THRESHOLD = 200_000
 step meets LU's on the E-gradient scene, 1 rank (measured 1.96e5; scripts/benchmarks/scaling.py)."""
 GROWTH_FIELDS = ("trG", "growth_anisotropy", "growth_direction", "stress_direction")
 """Outputs derived from G and sigma_hom (plantgrowth/models/growth_fields.py, docs/outputs.md)."""
-OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", "stability", *GROWTH_FIELDS)
+STRAIN_FIELDS = ("elastic_strain", "elastic_strain_tensor")
+"""Elastic strain: largest principal magnitude, tensor (plantgrowth/models/elastic_strain.py)."""
+OUTPUT_FIELDS = (
+    "u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", "stability", *GROWTH_FIELDS, *STRAIN_FIELDS,
+)  # fmt: skip
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 EDGES = ("left", "right", "top")
 RANGES = {

@@ -148,6 +148,24 @@ class Scene:
         except GeometryError as e:
             raise SceneError(str(e)) from None
 
+    def check_cellular_extent(self, command: str = "", nx: int | None = None) -> None:
+        """A scene whose tissue is cellular (model micro or both, ``plantgrowth compare``) gives
+        no tissue.width or tissue.height but the defaults: its tissue is Nx cells per row, the
+        size the cells make (a width the run would silently ignore is an error). ``command``,
+        ``nx``: a command that builds its own ``--nx`` tissues (e.g. "plantgrowth compare" and
+        its first Nx); default: the scene's model and micro.nx."""
+        tissue, cells = self.tissue, f"micro.nx = {self.micro_nx}" if nx is None else f"--nx {nx}"
+        for key, default in (("width", REFERENCE_WIDTH), ("height", Tissue.height)):
+            if getattr(tissue, key) != default:
+                layout = TissueLayout(self.cell.at(0.0, 0.0), self.micro_nx if nx is None else nx)
+                box = " x ".join(f"{x:.4g}" for x in layout.bounding_box)
+                raise SceneError(
+                    f"tissue.{key} = {getattr(tissue, key):g} is not used by "
+                    f"{command or f'model = {self.model!r}'}: it builds a cellular tissue of "
+                    f"{cells} cells per row, here {box} (width x height, set by the cell count "
+                    "and the cell geometry); remove tissue.width and tissue.height"
+                )
+
     def over_extent(self, width: float, height: float) -> Scene:
         """This scene on a tissue of extent [0, width] x [0, height] (a micro tissue, or the
         macro side of a micro-macro comparison): every linear field runs from its ``from`` value
@@ -350,6 +368,8 @@ def parse_scene(
     base = Path.cwd() if directory is None else Path(directory)
     try:
         scene = _parse(data, base)
+        if scene.model != "macro":
+            scene.check_cellular_extent()
     except (InputError, GeometryError) as e:
         suffix = "" if source == "<scene>" else f" (in {source})"
         raise SceneError(f"{e}{suffix}") from None

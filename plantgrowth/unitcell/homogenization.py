@@ -40,6 +40,8 @@ log = logging.getLogger("plantgrowth")
 
 CHECK_EVERY = 10
 """The surrogate is checked against an exact solve at one random node every this many calls."""
+CHECK_LINE = "accuracy check of the interpolated cell tensors"
+"""How run.log names each such check (followed by its number)."""
 
 
 @dataclass(frozen=True)
@@ -240,8 +242,9 @@ class Homogenizer:
         self.checks += 1
         self.largest_checked_error = max(self.largest_checked_error, error)
         log.info(
-            "cell surrogate check %d: relative error %.2e at s = (%.4f, %.4f); largest "
-            "seen %.2e (tolerance %.1e)", self.checks, error, *where,
+            "%s %d: one cell problem solved exactly (cell stretch s = (%.4f, %.4f)) differs by "
+            "%.2e (relative) from the interpolated tensors; largest so far %.2e, allowed "
+            "accuracy.cell_tolerance = %.1e", CHECK_LINE, self.checks, *where, error,
             self.largest_checked_error, self.surrogate.tolerance,
         )  # fmt: skip
         return 1

@@ -57,9 +57,12 @@ def scene_files(hard: bool, only: list[str] | None) -> list[Path]:
     return [f for f in files if only is None or f.stem in only]
 
 
-def variant(path: Path, kinematics: str, preset: str | None, t_max: float | None) -> pg.Scene:
-    """The scene of ``path`` with the given kinematics (and preset / t_max overrides)."""
-    data = tomllib.loads(path.read_text(encoding="utf-8"))
+def variant(
+    path: Path, kinematics: str, preset: str | None, t_max: float | None, extra: dict | None = None
+) -> pg.Scene:
+    """The scene of ``path`` with the given kinematics (and preset / t_max overrides, and the
+    top-level tables of ``extra``)."""
+    data = tomllib.loads(path.read_text(encoding="utf-8")) | (extra or {})
     data["kinematics"] = kinematics
     if preset is not None:
         data.setdefault("accuracy", {})["preset"] = preset

@@ -25,6 +25,7 @@ from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import MeshGather, dof_state, restore_dofs
 from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS, det2
 from plantgrowth.models import diagnostics, growth, stability
+from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.macro.boundary import Boundary
 from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
@@ -36,7 +37,6 @@ from plantgrowth.models.step import (
     SideMesh,
     StepResult,
     clamped_fraction,
-    largest_strain,
     max_abs_components,
 )
 from plantgrowth.scene import Scene
@@ -57,9 +57,10 @@ class _Outputs:
         self.eps = fem.Function(T0, name="eps_hom")
         self.stability = fem.Function(problem.Q0, name="stability")
         self.growth = GrowthFields(problem.mesh, fields)
+        self.strain = StrainFields(problem.mesh, fields)
         chosen = {"u": problem.u, "Fg": problem.Fg, "G": self.G, "sigma_hom": self.sigma,
                   "eps_hom": self.eps, "stability": self.stability,
-                  **self.growth.functions}  # fmt: skip
+                  **self.growth.functions, **self.strain.functions}  # fmt: skip
         self.functions = [chosen[name] for name in fields if name in chosen]
 
 
@@ -271,6 +272,7 @@ class MacroModel:
         if eps_hom is not None:
             problem.set_cell_values(self.out.eps, eps_hom)
         self.out.growth.fill(G, sigma, problem.set_cell_values)
+        self.out.strain.fill(eps_el, problem.set_cell_values)
         if self.side_output.fields:
             self._fill_coarse_E_hom(C)
         t3 = time.perf_counter()
@@ -279,7 +281,7 @@ class MacroModel:
         return StepResult(
             G, report.reason, report.residual, self.homogenizer.solves_last_call,
             {"seconds_cells": t1 - t0, "seconds_solve": t2 - t1, "seconds_growth": t3 - t2},
-            largest_strain(eps_el[:n], self.comm),
+            strain_peak(principal_magnitude(eps_el[:n]), midpoints[:n], self.comm),
             clamped_fraction(G[:n], M, problem.areas, self.comm),
             *((newton.iterations, newton.residual) if newton else (0, 0.0)),
             problem.loads.balance() if self.scene.loads else None, ellipticity,

@@ -29,13 +29,14 @@ from plantgrowth.forms.elasticity import wall_bilinear_form
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
 from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
 from plantgrowth.models import diagnostics, growth
+from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
 from plantgrowth.models.micro.outlines import CellOutlines
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
 from plantgrowth.models.regions import RegionStatistics
-from plantgrowth.models.step import StepResult, clamped_fraction, largest_strain, max_abs_components
+from plantgrowth.models.step import StepResult, clamped_fraction, max_abs_components
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -134,8 +135,10 @@ class MicroModel:
         self._set(ids, np.arange(layout.n_cells, dtype=float))
         self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
         self.growth_fields = GrowthFields(msh, scene.output.fields)
+        self.strain_fields = StrainFields(msh, scene.output.fields)
         growth_outputs = list(self.growth_fields.functions.values())
-        self.outputs = [self.u_out, self.Fg, self.G_out, ids, *growth_outputs]
+        strain_outputs = list(self.strain_fields.functions.values())
+        self.outputs = [self.u_out, self.Fg, self.G_out, ids, *growth_outputs, *strain_outputs]
         self.stability_out = None
         if "stability" in scene.output.fields:
             self.stability_out = fem.Function(Q0, name="stability")
@@ -249,6 +252,8 @@ class MicroModel:
                 law = self.scene.growth.law
                 stress = (means if law == "stress" else self._stress_means()).reshape(-1, 2, 2)
             self.growth_fields.fill(G, stress, self._set)
+        strains = self._cell_mean_strains()
+        self.strain_fields.fill(strains, self._set)
         ellipticity = self.stability.check()
         if self.stability_out is not None:
             out = self.stability_out
@@ -261,7 +266,7 @@ class MicroModel:
         return StepResult(
             G, report.reason, report.residual, 0,
             {"seconds_cells": 0.0, "seconds_solve": t1 - t0, "seconds_growth": t2 - t1},
-            largest_strain(self._cell_mean_strains(), MPI.COMM_SELF),
+            strain_peak(principal_magnitude(strains), self.outlines.centroid_ref, MPI.COMM_SELF),
             clamped_fraction(
                 G, self.scene.growth.clamp, self.hexagon_area, MPI.COMM_SELF
             ),  # per-cell values are the same on every rank
