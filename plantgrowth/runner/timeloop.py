@@ -43,14 +43,15 @@ NEWTON_COLUMNS = ["newton_iterations", "newton_residual"]
 
 
 LOAD_COLUMNS = ["load_imbalance"]
-"""Appended for a scene with loads: the net x1 force of the applied loads over the largest edge
-force, in the configuration the forms apply them (plantgrowth.models.macro.edge_loads)."""
+"""Appended for a scene with loads that only the pinned point holds along x1 (no held edge holds
+u1: Scene.pinned): the net x1 force of the applied loads over the largest edge force, in the
+configuration the forms apply them (plantgrowth.models.macro.edge_loads)."""
 
 
 def summary_columns(scene: Scene) -> list[str]:
     """The columns of a scene's summary.csv."""
     newton = NEWTON_COLUMNS if scene.kinematics == "finite" else []
-    return SUMMARY_COLUMNS + newton + (LOAD_COLUMNS if scene.loads else [])
+    return SUMMARY_COLUMNS + newton + (LOAD_COLUMNS if scene.loads and scene.pinned else [])
 
 
 class Interrupted(Exception):

@@ -42,6 +42,7 @@ from plantgrowth.scene.parts import (
     Tissue,
     check_edge,
     edge_load,
+    held_edge,
 )
 from plantgrowth.scene.presets import DEFAULT_PRESET, PRESETS
 from plantgrowth.scene.shapes import mesh_shape, outline_points, outline_shape
@@ -77,6 +78,7 @@ class Scene:
     solver: Solver = Solver()
     numerics: Numerics = Numerics()
     kinematics: str = "linear"
+    supports: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         choice("model", self.model, MODELS)
@@ -94,7 +96,11 @@ class Scene:
             load = edge_load(edge, f, lengths[edge][0])
             if load not in ((0.0, 0.0), edge_loads.EdgeForce((0.0, 0.0))):  # non-zero loads only
                 loads[edge] = load
-        set_fields(self, loads=loads)
+        if not isinstance(self.supports, dict):
+            raise SceneError(f"supports: expected a table [supports], got {show(self.supports)}")
+        for edge, kind in self.supports.items():
+            held_edge(edge, kind, self.tissue, self.loads)  # every load given, zero ones too
+        set_fields(self, loads=loads, supports=dict(self.supports))
         if integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
             raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
         integer("micro.resolution", self.micro_resolution, 1, MAX_RESOLUTION)
@@ -110,8 +116,24 @@ class Scene:
         # suggest balancing on the rectangle's left edge, else on an edge not loaded yet
         fix = "left" if "left" in lengths else next((e for e in lengths if e not in loads), "")
         fix = fix or next(iter(loads), "")
-        if loads and (unbalanced := unbalanced_load(loads, lengths, self.tissue.pin, fix)):
+        if (
+            loads
+            and self.pinned
+            and (unbalanced := unbalanced_load(loads, lengths, self.tissue.pin, fix))
+        ):
             raise SceneError(unbalanced)
+
+    def held_components(self) -> dict[str, tuple[int, ...]]:
+        """Each held edge (``[supports]``) -> the components of u held at zero there (0: u1, 1:
+        u2; docs/model.md section 4)."""
+        return {e: held_edge(e, kind, self.tissue, self.loads) for e, kind in self.supports.items()}
+
+    @property
+    def pinned(self) -> bool:
+        """True if only the pinned point holds the tissue along x1 (no held edge holds u1): it
+        carries the loads' net x1 force, so they must balance (plantgrowth/scene/load_balance.py);
+        a held edge that holds u1 replaces the pin and carries the net force."""
+        return not any(0 in held for held in self.held_components().values())
 
     def corners(self) -> list[tuple[float, float]]:
         """The tissue rectangle's corners (x1, x2)."""
@@ -132,11 +154,12 @@ class Scene:
                     f"cell.{key} is a field, but model = {self.model!r} needs a constant cell "
                     "geometry: geometric gradients are defined for the macro model only"
                 )
-        if self.loads:
-            raise SceneError(
-                f"loads are not supported by model = {self.model!r}: the cellular tissue has no "
-                "straight left/right/top edges; use model = 'macro'"
-            )
+        for table in ("loads", "supports"):
+            if getattr(self, table):
+                raise SceneError(
+                    f"{table} are not supported by model = {self.model!r}: the cellular tissue "
+                    "has no straight left/right/top edges; use model = 'macro'"
+                )
         try:  # the walls mesh must be affordable
             wall_mesh_size(
                 TissueLayout(self.cell.at(0.0, 0.0), self.micro_nx), self.micro_resolution
@@ -208,6 +231,8 @@ class Scene:
         out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
         out["solver"] = {f.name: getattr(self.solver, f.name) for f in fields(self.solver)}
         out["numerics"] = {"on_instability": self.numerics.on_instability}
+        if self.supports:
+            out["supports"] = dict(self.supports)
         return out
 
     def dotted(self) -> dict[str, Any]:
@@ -239,7 +264,7 @@ def _table(data: dict, name: str) -> dict:
     table = data.get(name, {})
     if not isinstance(table, dict):
         raise SceneError(f"{name}: expected a table [{name}], got {show(table)}")
-    if name != "loads":  # the loadable edges depend on the tissue: Scene checks them
+    if name not in ("loads", "supports"):  # the edges depend on the tissue: Scene checks them
         check_keys(table, f"{name}.", TABLES[name])
     return table
 
@@ -394,6 +419,7 @@ def _parse(data: dict, directory: Path) -> Scene:
         solver=Solver(**t["solver"]),
         numerics=Numerics(**t["numerics"]),
         kinematics=data.get("kinematics", "linear"),
+        supports=dict(t["supports"]),
     )
 
 

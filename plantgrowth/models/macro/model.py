@@ -278,7 +278,8 @@ class MacroModel:
             largest_strain(eps_el[:n], self.comm),
             clamped_fraction(G[:n], M, problem.areas, self.comm),
             *((newton.iterations, newton.residual) if newton else (0, 0.0)),
-            problem.loads.balance() if self.scene.loads else None, ellipticity,
+            problem.loads.balance() if self.scene.loads and self.scene.pinned else None,
+            ellipticity,
         )  # fmt: skip
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:

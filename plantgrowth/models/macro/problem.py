@@ -3,9 +3,10 @@
 P1 displacement; every coefficient (Fg, E_hom, K_hom, phi_w, P2vec) is piecewise constant on
 the fine cells, so the forms are integrated exactly by one-point quadrature. Only the terms
 the scene activates are assembled. Boundary conditions (plantgrowth/models/macro/boundary.py): ``u2
-= 0`` on the symmetry edges x2 = 0 (no tangential traction) and ``u1 = 0`` at the pinned vertex (the
-origin of the rectangle; removes the remaining rigid translation); the other edges carry the
-scene's tractions or none. The operator is
+= 0`` on the symmetry edges x2 = 0 (no tangential traction), ``u = 0`` or its normal component 0
+on the held edges (``[supports]``) and, unless a held edge holds u1, ``u1 = 0`` at the pinned
+vertex (the origin of the rectangle; removes the remaining rigid translation); the other edges
+carry the scene's tractions or none. The operator is
 symmetric positive definite after these conditions, so large systems are solved by CG + GAMG
 (``solver.macro``), small ones by LU; a finite-kinematics Jacobian is not (GMRES + GAMG, then
 LU where GMRES stops).
@@ -132,7 +133,7 @@ class MacroProblem:
             scene.loads, msh, self.boundary.facets, self.boundary.edges, length,
             "current" if self.finite else "grown",
         )  # fmt: skip
-        self.bcs = self._boundary_conditions()
+        self.bcs = self._boundary_conditions(scene)
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         self.solver = scene.solver.macro_kind(self.ndofs)
         self._linear_forms(scene, psi, P1, grad_P1)  # finite kinematics: Newton's predictor
@@ -209,17 +210,25 @@ class MacroProblem:
     def _direct_jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
         return lu_solver(J, self.mesh.comm, NEWTON_PREFIX)
 
-    def _boundary_conditions(self) -> list:
-        facets = self.boundary.facets
-        bottom = np.concatenate([facets.find(tag) for tag in self.boundary.symmetry])
-        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, np.sort(bottom))
-        origin = pinned_vertices(self.mesh, self.boundary.pin)
-        origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
-        zero = PETSc.ScalarType(0.0)
-        return [
-            fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),
-            fem.dirichletbc(zero, origin_dofs, self.V.sub(0)),
+    def _boundary_conditions(self, scene: Scene) -> list:
+        """docs/model.md section 4: u2 = 0 on x2 = 0, the held edges' components, and u1 = 0 at
+        the pinned vertex unless a held edge holds u1 (all homogeneous)."""
+        facets, zero = self.boundary.facets, PETSc.ScalarType(0.0)
+        held = [(self.boundary.symmetry, 1)] + [
+            ((self.boundary.edges[edge],), i)
+            for edge, components in scene.held_components().items()
+            for i in components
         ]
+        bcs = []
+        for tags, i in held:
+            found = np.sort(np.concatenate([facets.find(tag) for tag in tags]))
+            dofs = fem.locate_dofs_topological(self.V.sub(i), 1, found)
+            bcs.append(fem.dirichletbc(zero, dofs, self.V.sub(i)))
+        if scene.pinned:
+            origin = pinned_vertices(self.mesh, self.boundary.pin)
+            origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
+            bcs.append(fem.dirichletbc(zero, origin_dofs, self.V.sub(0)))
+        return bcs
 
     def set_cell_values(self, function: fem.Function, values: np.ndarray) -> None:
         """Write per-cell values (n_cells, ...) into a DG0 function (cell order -> dof order)."""
