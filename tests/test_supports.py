@@ -18,6 +18,11 @@ the P1 space: the discrete u equals it up to the LU solve's round-off on any mes
   vanishes on the left edge: grad u has no 12 entry, the cell being symmetric), at every step,
   linear and finite kinematics.
 
+The held edges' force (summary.csv ``held_force_1``, ``held_force_2``) is the integral of the
+exact stress over them, ``-f H`` along x1 where a held edge carries the pull, the confined
+strip's ``sigma22 W`` on its top roller, 0 under turgor alone; and while the tissue grows, the
+clamp's x1 force balances the pull on the grown right edge (the symmetry plane carries no x1).
+
 Tolerances: ROUND_OFF = 1e-9 of the largest value, as tests/test_macro_exact_solutions.py (LU
 round-off, measured ~1e-12 here); the cell's shear coupling E1112, E2212 (zero for the
 mirror-symmetric honeycomb, ~1e-10 of E1111 from its mesh: measured and bounded below) enters the
@@ -125,6 +130,8 @@ def test_a_roller_held_strip_pulled_on_the_other_side_is_in_uniaxial_stress(shap
     error = relative_error(u, x * [e11, e22])
     print(f"{shape}: uniaxial plane stress, max |u - u_exact| / max |u_exact| = {error:.2e}")
     assert error <= ROUND_OFF
+    F1, F2 = model.problem.held.force()  # the roller carries the pull f on the edge of length 1
+    assert abs(F1 + PULL) <= ROUND_OFF * PULL and F2 == 0.0  # a roller on x1 = 0 holds u1 only
 
 
 def confined_stretch(C11: float, f: float) -> float:
@@ -141,13 +148,21 @@ def test_a_clamped_strip_with_a_roller_on_top_is_in_confined_tension(kinematics)
     f = CONFINED_PULL
     data = strip({"left": "clamped", "top": "roller"}, {"right": [f, 0.0]})
     model = solved(data | {"kinematics": kinematics})
-    C11 = stiffness(model)[0, 0]
+    C = stiffness(model)
+    C11 = C[0, 0]
     e = f / C11 if kinematics == "linear" else confined_stretch(C11, f)
     assert e > 0.015 and abs(confined_stretch(C11, f) - f / C11) > 0.02 * e
     x, u = nodes_and_u(model)
     error = relative_error(u, x * [e, 0.0])
     print(f"{kinematics}: confined tension e = {e:.6g}, relative error {error:.2e}")
     assert error <= ROUND_OFF
+    # the clamp holds the pull on the right edge (length 1); the top roller (length 2) the
+    # confined stress sigma22 = C12 e11 (linear) or S22 = C12 Ee11 (finite: F22 = 1)
+    strain = e if kinematics == "linear" else e + e * e / 2  # e11 or Ee11 = (lam^2 - 1) / 2
+    F1, F2 = model.problem.held.force()
+    expected = np.array([-f, 2.0 * C[0, 1] * strain])
+    assert expected[1] > 0.5 * f  # nu12 ~ 0.96: the roller holds the top with about 2 f
+    assert np.abs([F1, F2] - expected).max() <= ROUND_OFF * f
 
 
 def turgor_scene(kinematics: str, supports: dict) -> dict:
@@ -164,15 +179,18 @@ def turgor_scene(kinematics: str, supports: dict) -> dict:
 
 def displacements(data: dict) -> tuple[np.ndarray, list[np.ndarray]]:
     """Node coordinates and u after each of the scene's steps (growth advanced as a run does),
-    global and in the canonical node order on every rank (two runs' partitions may differ)."""
+    global and in the canonical node order on every rank (two runs' partitions may differ);
+    the held edges' force must vanish at every step (no load, zero total stress)."""
     scene = parse_scene(data)
     model = macro_model(scene, MPI.COMM_WORLD)
     gather = MeshGather(model.problem.V, root=None)
     Fg, out = model.initial_growth(), []
     for _ in range(scene.time.n_steps):
-        G = model.step(Fg).G
+        result = model.step(Fg)
         out.append(gather.function(model.problem.u))
-        Fg = growth.advance(Fg, G, scene.time.dt, scene.time.integrator)
+        if scene.supports:  # scale: turgor's wall stress (1 - phi_w) P1 on an edge of length 1.5
+            assert np.abs(result.held_force).max() <= ROUND_OFF * 0.001 * 1.5
+        Fg = growth.advance(Fg, result.G, scene.time.dt, scene.time.integrator)
     return gather.points(), out
 
 
@@ -259,6 +277,23 @@ def test_the_fuzzer_class_bad_supports_gives_named_errors(tmp_path_factory, caps
             assert not found, f"{case.name}: {found}"
 
 
+def test_a_clamp_holds_the_pull_on_the_growing_edge():
+    """The example scene, 4 steps: the clamp's x1 force balances the loads' x1 resultant on the
+    grown right edge at every step (the symmetry plane holds no x1), which grows with the
+    tissue; its x2 force holds the tissue's growth along x2 back (negative)."""
+    scene = load_scene(EXAMPLE).replace(**{"time.t_max": 4.0})
+    model = macro_model(scene, MPI.COMM_WORLD)
+    Fg, pulls = model.initial_growth(), []
+    for _ in range(scene.time.n_steps):
+        result = model.step(Fg)
+        pull = model.problem.loads.balance().net
+        F1, F2 = result.held_force
+        assert abs(F1 + pull) <= ROUND_OFF * abs(pull) and F2 < 0.0
+        pulls.append(pull)
+        Fg = growth.advance(Fg, result.G, scene.time.dt, scene.time.integrator)
+    assert pulls[0] == pytest.approx(2e-5 * 2.0, rel=1e-12) and np.all(np.diff(pulls) > 0.0)
+
+
 def test_a_sweep_varies_a_held_edge(tmp_path):
     """``supports.<edge>`` is a sweep key like ``loads.<edge>``, even where the base holds none."""
     sweep = tmp_path / "sweep.toml"
@@ -289,6 +324,7 @@ def test_the_held_and_pulled_example_runs(tmp_path_factory, capsys):
     assert code == 0, err
     table = summary(directory / "run")
     assert "load_imbalance" not in table
+    np.testing.assert_allclose(table["held_force_1"][0], -2e-5 * 2.0, rtol=ROUND_OFF)
     assert len(table["t"]) == scene.time.n_steps + 1
     assert np.all(table["growth_rate_11"] > table["growth_rate_22"])
 
@@ -307,5 +343,13 @@ def test_mpirun_reproduces_the_serial_example(tmp_path_factory, capsys):
     done = subprocess.run(command, capture_output=True, text=True, env=ENV, timeout=300)
     assert done.returncode == 0, done.stderr
     serial, parallel = summary(directory / "serial"), summary(directory / "mpi")
-    for column in ("area", "growth_rate_11", "growth_rate_22", "u1_max", "u2_max"):
+    for column in (
+        "area",
+        "growth_rate_11",
+        "growth_rate_22",
+        "u1_max",
+        "u2_max",
+        "held_force_1",
+        "held_force_2",
+    ):
         np.testing.assert_allclose(parallel[column], serial[column], rtol=1e-8, err_msg=column)

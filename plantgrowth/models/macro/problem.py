@@ -31,6 +31,7 @@ from plantgrowth.models import growth, stability
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
 from plantgrowth.models.macro.boundary import Boundary, pinned_vertices, rectangle_boundary
 from plantgrowth.models.macro.edge_loads import FORCE_LENGTH_RTOL, EdgeLoads
+from plantgrowth.models.macro.supports import HeldEdges
 from plantgrowth.models.newton import (
     NEWTON_ATOL,
     NewtonReport,
@@ -161,7 +162,9 @@ class MacroProblem:
                 )
                 self.active_terms.append("pressure gradient (grad P1, P2)")
         rhs += self.loads.terms(lambda f, n, ds: boundary_traction(f, psi, self.Fg, n, ds))
-        self.a = fem.form(macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx))
+        a = macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx)
+        self.held.set_residual(ufl.action(a, self.u) - rhs)
+        self.a = fem.form(a)
         self.L = fem.form(rhs)
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
@@ -179,6 +182,7 @@ class MacroProblem:
         if tractions:
             residual -= tractions
             load = -tractions if load is None else load - tractions
+        self.held.set_residual(residual)
         self.active_terms.append("finite kinematics (Newton, linear predictor)")
         self.newton = NewtonSolver(
             residual, self.u, self.bcs, self._jacobian_solver, load, self._newton_floor,
@@ -213,21 +217,12 @@ class MacroProblem:
     def _boundary_conditions(self, scene: Scene) -> list:
         """docs/model.md section 4: u2 = 0 on x2 = 0, the held edges' components, and u1 = 0 at
         the pinned vertex unless a held edge holds u1 (all homogeneous)."""
-        facets, zero = self.boundary.facets, PETSc.ScalarType(0.0)
-        held = [(self.boundary.symmetry, 1)] + [
-            ((self.boundary.edges[edge],), i)
-            for edge, components in scene.held_components().items()
-            for i in components
-        ]
-        bcs = []
-        for tags, i in held:
-            found = np.sort(np.concatenate([facets.find(tag) for tag in tags]))
-            dofs = fem.locate_dofs_topological(self.V.sub(i), 1, found)
-            bcs.append(fem.dirichletbc(zero, dofs, self.V.sub(i)))
+        self.held = HeldEdges(self.V, self.boundary, scene.held_components())
+        bcs = self.held.conditions()
         if scene.pinned:
             origin = pinned_vertices(self.mesh, self.boundary.pin)
             origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
-            bcs.append(fem.dirichletbc(zero, origin_dofs, self.V.sub(0)))
+            bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), origin_dofs, self.V.sub(0)))
         return bcs
 
     def set_cell_values(self, function: fem.Function, values: np.ndarray) -> None:
