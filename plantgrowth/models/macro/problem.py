@@ -127,6 +127,9 @@ class MacroProblem:
                 grad_P1 = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)))
                 self.set_cell_values(grad_P1, scene.P1.gradient(*at_cells))
         self.active_terms += [f"traction on {name}" for name in sorted(scene.loads)]
+        self.active_terms += [f"{name} {kind}" for name, kind in sorted(scene.supports.items())]
+        if not scene.pinned:
+            self.active_terms.append("no pinned point (a held edge holds u1)")
         length = (lambda n: finite.current_length(self.u, n)) if self.finite else (
             lambda n: grown_length(self.Fg, n)
         )  # fmt: skip
