@@ -250,7 +250,7 @@ def test_supports_on_shapes_and_their_limits(strip_msh):
         parse_scene(strip({"pinned": "clamped"}, {}) | mesh, directory=strip_msh)
     assert parse_scene(strip({"top": "roller"}, {}) | mesh, directory=strip_msh).pinned
     for model in ("micro", "both"):
-        with pytest.raises(SceneError, match="supports are not supported by model"):
+        with pytest.raises(SceneError, match="supports: no held edges with model"):
             parse_scene(strip({"left": "clamped"}, {}) | {"model": model})
 
 
@@ -265,7 +265,7 @@ def test_the_fuzzer_class_bad_supports_gives_named_errors(tmp_path_factory, caps
     """Every case of the class ends with its named error, exit code 2 and nothing written."""
     cases = mi.generate(7, 16, {"bad_supports": 1.0})
     kinds = {"edge": "'supports.", "loaded": "is also loaded", "kind": "supports.",
-             "inclined": "parallel to neither", "micro": "supports are not supported"}  # fmt: skip
+             "inclined": "parallel to neither", "micro": "supports: no held edges"}  # fmt: skip
     found = {k for c in cases for k, f in kinds.items() if c.expect[-1].startswith(f)}
     assert found == set(kinds)  # the seed covers every kind of bad [supports]
     for case in cases:

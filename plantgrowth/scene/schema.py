@@ -154,12 +154,16 @@ class Scene:
                     f"cell.{key} is a field, but model = {self.model!r} needs a constant cell "
                     "geometry: geometric gradients are defined for the macro model only"
                 )
-        for table in ("loads", "supports"):
-            if getattr(self, table):
-                raise SceneError(
-                    f"{table} are not supported by model = {self.model!r}: the cellular tissue "
-                    "has no straight left/right/top edges; use model = 'macro'"
-                )
+        if self.loads:
+            raise SceneError(
+                f"loads are not supported by model = {self.model!r}: the cellular tissue has no "
+                "straight left/right/top edges; use model = 'macro'"
+            )
+        if self.supports:
+            raise SceneError(
+                f"supports: no held edges with model = {self.model!r}: the cellular tissue has no "
+                "straight side to hold; use model = 'macro'"
+            )
         try:  # the walls mesh must be affordable
             wall_mesh_size(
                 TissueLayout(self.cell.at(0.0, 0.0), self.micro_nx), self.micro_resolution

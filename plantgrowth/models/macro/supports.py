@@ -21,7 +21,9 @@ from petsc4py import PETSc
 from plantgrowth.models.macro.boundary import Boundary
 
 
-def edge_dofs(V: fem.FunctionSpace, boundary: Boundary, tags: tuple[int, ...], i: int):
+def edge_dofs(
+    V: fem.FunctionSpace, boundary: Boundary, tags: tuple[int, ...], i: int
+) -> np.ndarray:
     """The dofs of component i of the P1 vector space V on the facets tagged ``tags`` (indices
     into V's unrolled local vector)."""
     found = np.sort(np.concatenate([boundary.facets.find(tag) for tag in tags]))
