@@ -712,7 +712,7 @@ def _bad_supports(rng: random.Random, scene: dict):
         return scene, (f"supports.{edge}", "parallel to neither")
     scene = base_scene(rng, micro=True)
     scene["supports"] = {rng.choice(sides): "clamped"}
-    return scene, ("supports: no held edges with model",)
+    return scene, ("supports: the micro model",)
 
 
 SCENE_MAKERS = {

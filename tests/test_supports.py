@@ -39,7 +39,7 @@ from pathlib import Path
 import malformed_inputs as mi
 import numpy as np
 import pytest
-from cli_helpers import ENV, PLANTGROWTH, RANK0, call, shared_dir
+from cli_helpers import ENV, PLANTGROWTH, RANK0, call, shared_dir, write
 from mpi4py import MPI
 
 from plantgrowth.base.gather import MeshGather
@@ -250,8 +250,19 @@ def test_supports_on_shapes_and_their_limits(strip_msh):
         parse_scene(strip({"pinned": "clamped"}, {}) | mesh, directory=strip_msh)
     assert parse_scene(strip({"top": "roller"}, {}) | mesh, directory=strip_msh).pinned
     for model in ("micro", "both"):
-        with pytest.raises(SceneError, match="supports: no held edges with model"):
+        with pytest.raises(SceneError, match="supports: the micro model"):
             parse_scene(strip({"left": "clamped"}, {}) | {"model": model})
+
+
+def test_compare_refuses_a_scene_with_held_edges(tmp_path_factory, capsys):
+    """``plantgrowth compare`` runs the micro model: a named error, exit 2, nothing written."""
+    directory = shared_dir(tmp_path_factory, "compare")
+    write(directory / "held.toml", '[growth]\nlaw = "stress"\n[supports]\nleft = "roller"\n')
+    argv = ["compare", directory / "held.toml", "--nx", "4", "-o", directory / "out"]
+    code, _, err = call(argv, capsys)
+    assert code == 2 and not (directory / "out").exists()
+    if RANK0:
+        assert err.startswith("plantgrowth: error: supports: the micro model")
 
 
 def test_supports_are_written_back_and_only_when_given():
@@ -265,7 +276,7 @@ def test_the_fuzzer_class_bad_supports_gives_named_errors(tmp_path_factory, caps
     """Every case of the class ends with its named error, exit code 2 and nothing written."""
     cases = mi.generate(7, 16, {"bad_supports": 1.0})
     kinds = {"edge": "'supports.", "loaded": "is also loaded", "kind": "supports.",
-             "inclined": "parallel to neither", "micro": "supports: no held edges"}  # fmt: skip
+             "inclined": "parallel to neither", "micro": "supports: the micro model"}  # fmt: skip
     found = {k for c in cases for k, f in kinds.items() if c.expect[-1].startswith(f)}
     assert found == set(kinds)  # the seed covers every kind of bad [supports]
     for case in cases:

@@ -161,8 +161,9 @@ class Scene:
             )
         if self.supports:
             raise SceneError(
-                f"supports: no held edges with model = {self.model!r}: the cellular tissue has no "
-                "straight side to hold; use model = 'macro'"
+                "supports: the micro model (model = 'micro' or 'both', plantgrowth compare) has "
+                "no held edges: the cellular tissue has no straight side to hold; hold edges with "
+                "model = 'macro'"
             )
         try:  # the walls mesh must be affordable
             wall_mesh_size(
