@@ -34,14 +34,16 @@ class MshInfo:
     """What a tissue .msh file holds.
 
     Attributes:
-        curves: curve group name -> (physical tag, total length, lowest x2, highest x2).
+        curves: curve group name -> (physical tag, total length, lowest x2, highest x2, normal
+            axis: 0 if every line is parallel to x2, 1 if parallel to x1, else None; to 1e-12
+            of the mesh's size, round-off).
         pinned: coordinates of the ``pinned`` point.
         lower: smallest (x1, x2) of the triangles' nodes.
         upper: largest (x1, x2) of the triangles' nodes.
         n_triangles: number of triangles.
     """
 
-    curves: dict[str, tuple[int, float, float, float]]
+    curves: dict[str, tuple[int, float, float, float, int | None]]
     pinned: tuple[float, float]
     lower: tuple[float, float]
     upper: tuple[float, float]
@@ -65,6 +67,14 @@ def _elements(dim: int, tag: int, kind: int, what: str) -> np.ndarray:
             )
         out += [np.asarray(n, dtype=np.int64).reshape(-1, dim + 1) for n in nodes]
     return np.concatenate(out) if out else np.empty((0, dim + 1), dtype=np.int64)
+
+
+def _normal_axis(ends: np.ndarray, nodes: np.ndarray) -> int | None:
+    """The axis along which the normal of every line ``ends`` (n, 2, 2) points (0: all lines
+    parallel to x2, 1: all parallel to x1), to 1e-12 of the nodes' extent; None otherwise."""
+    tol = 1e-12 * max(float(np.abs(nodes).max()), 1.0)
+    steps = np.abs(ends[:, 1] - ends[:, 0])
+    return next((axis for axis in (0, 1) if steps[:, axis].max() <= tol), None)
 
 
 def _inspect() -> MshInfo:
@@ -93,7 +103,7 @@ def _inspect() -> MshInfo:
         ends = x[index[lines]]
         length = float(np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1).sum())
         x2 = ends[:, :, 1]
-        curves[name] = (tag, length, float(x2.min()), float(x2.max()))
+        curves[name] = (tag, length, float(x2.min()), float(x2.max()), _normal_axis(ends, used))
     points = _groups(0)
     if PINNED not in points:
         raise MshError(f"no point group {PINNED!r} (the point where u1 = 0)")

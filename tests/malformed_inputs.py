@@ -4,7 +4,7 @@
 random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, sizes <= 0, nu out of
 (-1, 0.5), walls too thick for the cell, bad angles and time steps, empty/binary/invalid TOML, huge
 numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
-the tissue, bad micro scenes, bad regions (malformed, empty or undefined on the mesh) and named
+the tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the mesh) and named
 parameters (undefined, shadowing x1, x2, s, pi or a function), zip sweeps whose lists differ in
 length), bad command lines and output paths that cannot be written. Every case must end with
 exit code 2 and a one-line ``plantgrowth: error: ...`` naming the field (``Case.expect``), before
@@ -758,6 +758,38 @@ def _bad_parameter(rng: random.Random, scene: dict):
     return scene, "parameters: expected a table"
 
 
+def _bad_supports(rng: random.Random, scene: dict):
+    """``[supports]``: an edge the tissue does not have, an edge also loaded, an unknown kind, a
+    roller on an inclined outline edge, supports in a micro scene."""
+    what = rng.choice(["edge", "edge", "loaded", "loaded", "kind", "kind", "inclined", "micro"])
+    scene["model"] = "macro"
+    sides = ("left", "right", "top", "bottom")
+    if what == "edge":
+        edge = rng.choice(["front", "Left", "edge0", "symmetry", _name(rng, sides)])
+        scene["supports"] = {edge: rng.choice(["clamped", "roller"])}
+        return scene, f"'supports.{edge}'"
+    if what == "loaded":
+        edge = rng.choice(SCHEMA["loads"])
+        scene["loads"] = {edge: [0.0, rng.choice([0.0, 0.001])]}  # x2 only: balanced
+        scene["supports"] = {edge: rng.choice(["clamped", "roller"])}
+        return scene, (f"supports.{edge}", "is also loaded")
+    if what == "kind":
+        edge = rng.choice(sides)
+        scene["supports"] = {edge: rng.choice(
+            ["fixed", "Clamped", "pinned", "", "free", _name(rng, ("clamped", "roller")),
+             Raw("1"), Raw("true"), Raw('["clamped"]'), Raw("{kind = 'roller'}")]
+        )}  # fmt: skip
+        return scene, f"supports.{edge}"
+    if what == "inclined":  # OUTLINE's edges 2 and 3 are inclined
+        scene = _on_shape(scene, outline=[list(p) for p in OUTLINE])
+        edge = rng.choice(["edge2", "edge3"])
+        scene["supports"] = {edge: "roller"}
+        return scene, (f"supports.{edge}", "parallel to neither")
+    scene = base_scene(rng, micro=True)
+    scene["supports"] = {rng.choice(sides): "clamped"}
+    return scene, ("supports: the micro model",)
+
+
 SCENE_MAKERS = {
     "wrong_type": _wrong_type,
     "missing_required": _missing_required,
@@ -779,6 +811,7 @@ SCENE_MAKERS = {
     "bad_mesh": _bad_mesh,
     "bad_region": _bad_region,
     "bad_parameter": _bad_parameter,
+    "bad_supports": _bad_supports,
 }
 
 TOML_ERRORS = [

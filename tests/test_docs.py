@@ -156,7 +156,8 @@ def summary_columns() -> set[str]:
         MODELS / "micro" / "model.py", "measures"
     )
     assert {"area", "growth_rate_area"} <= measured  # the parse found the models' measures
-    return set(timeloop.SUMMARY_COLUMNS) | set(timeloop.NEWTON_COLUMNS) | measured
+    columns = timeloop.SUMMARY_COLUMNS + timeloop.NEWTON_COLUMNS + timeloop.HELD_COLUMNS
+    return set(columns + timeloop.LOAD_COLUMNS) | measured
 
 
 def sweep_columns() -> set[str]:

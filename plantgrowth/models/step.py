@@ -92,6 +92,7 @@ class StepResult:
     newton_residual: float = 0.0  # finite kinematics: its final relative residual
     load_balance: LoadBalance | None = None  # macro with loads: their x1 resultants
     ellipticity: Ellipticity | None = None  # where the material law is strongly elliptic
+    held_force: tuple[float, float] | None = None  # macro with [supports]: the held edges' force
 
 
 class GrowthModel(Protocol):

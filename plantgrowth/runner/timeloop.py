@@ -45,15 +45,22 @@ NEWTON_COLUMNS = ["newton_iterations", "newton_residual"]
 
 
 LOAD_COLUMNS = ["load_imbalance"]
-"""Appended for a scene with loads: the net x1 force of the applied loads over the largest edge
-force, in the configuration the forms apply them (plantgrowth.models.macro.edge_loads)."""
+"""Appended for a scene with loads that only the pinned point holds along x1 (no held edge holds
+u1: Scene.pinned): the net x1 force of the applied loads over the largest edge force, in the
+configuration the forms apply them (plantgrowth.models.macro.edge_loads)."""
+
+
+HELD_COLUMNS = ["held_force_1", "held_force_2"]
+"""Appended for a scene with held edges (``[supports]``): the total force they exert on the tissue
+(plantgrowth.models.macro.supports)."""
 
 
 def summary_columns(scene: Scene) -> list[str]:
     """The columns of a scene's summary.csv."""
     newton = NEWTON_COLUMNS if scene.kinematics == "finite" else []
-    loads = LOAD_COLUMNS if scene.loads else []
-    return SUMMARY_COLUMNS + newton + loads + region_columns(scene.regions)
+    loads = LOAD_COLUMNS if scene.loads and scene.pinned else []
+    held = HELD_COLUMNS if scene.supports else []
+    return SUMMARY_COLUMNS + newton + loads + held + region_columns(scene.regions)
 
 
 class Interrupted(Exception):
@@ -214,6 +221,8 @@ def run_model(
                        newton_residual=result.newton_residual, **result.seconds)  # fmt: skip
             if result.load_balance is not None:
                 row["load_imbalance"] = result.load_balance.imbalance
+            if result.held_force is not None:
+                row.update(zip(HELD_COLUMNS, result.held_force, strict=True))
             if result.ellipticity is not None:
                 row["nonelliptic_area_fraction"] = result.ellipticity.nonelliptic_area_fraction
             peak = result.elastic_strain

@@ -54,6 +54,10 @@ inclined wall length l2 = 1)::
     right = [0.0, 0.0]         # also "left", "top"; an outline's "edge<i>", a mesh's group names;
                                # on left/right/top a component may be {expr = "..."} of s, the
                                # coordinate along the edge (x2 on left/right, x1 on top)
+    [supports]                 # held edges (default none; macro only): "clamped" (u = 0) or
+    left = "clamped"           # "roller" (the normal component of u is 0; an edge parallel to
+                               # x1 or x2); the keys of [loads] and the edge(s) on x2 = 0
+                               # ("bottom": "clamped" only); not an edge that is also loaded
     [output]
     fields = ["u", "Fg", "G", "sigma_hom", "E_hom"]  # any of these, "eps_hom" and the growth
                                # outputs (docs/outputs.md), computed only when listed:
@@ -98,9 +102,11 @@ inclined wall length l2 = 1)::
 
 The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
 holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is
-0 to a relative 1e-6. With an outline or mesh the pinned point is the bottom-left-most vertex on
-x2 = 0 or the mesh's "pinned" point, coarse nodes outside the tissue get no cell problem, and
-only ``model = "macro"`` is possible (the micro model builds its own honeycomb tissue).
+0 to a relative 1e-6, unless a held edge holds u1 (clamped, or a roller on an edge parallel to
+x2): it then replaces the pinned point and carries the net force. With an outline or mesh the
+pinned point is the bottom-left-most vertex on x2 = 0 or the mesh's "pinned" point, coarse nodes
+outside the tissue get no cell problem, and only ``model = "macro"`` is possible (the micro model
+builds its own honeycomb tissue).
 
 Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/scene/presets.py; the values
 shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped

@@ -30,6 +30,8 @@ OUTPUT_FIELDS = (
 )  # fmt: skip
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 EDGES = ("left", "right", "top")
+SUPPORTS = ("clamped", "roller")
+"""Kinds of held edge (``[supports]``): u = 0, or the normal component of u = 0."""
 RANGES = {
     "cell.l1": (0.0, MAX_LENGTH, True, False),
     "cell.l2": (0.0, MAX_LENGTH, True, False),

@@ -1,5 +1,6 @@
-"""The balance of a scene's edge loads along x1 (docs/model.md section 4): only the pinned point
-holds the tissue along x1, so the tractions' x1 resultant must vanish."""
+"""The balance of a scene's edge loads along x1 (docs/model.md section 4): when only the pinned
+point holds the tissue along x1 (no held edge holds u1: Scene.pinned), the tractions' x1 resultant
+must vanish."""
 
 from __future__ import annotations
 
@@ -53,5 +54,6 @@ def unbalanced_load(
         f"{' (integrals over the edges for the expressions)' if varying else ''} = {net:.6g}, "
         f"not 0 (relative tolerance {LOAD_BALANCE_TOLERANCE:g}): only the pinned {where} holds "
         f"the tissue along x1 and would carry it; balance the x1 components, e.g. {fix} (x2 "
-        "loads are carried by the symmetry plane x2 = 0)"
+        "loads are carried by the symmetry plane x2 = 0), or hold an edge that carries the net "
+        'force, e.g. supports.<edge> = "clamped"'
     )

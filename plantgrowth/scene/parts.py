@@ -32,6 +32,7 @@ from plantgrowth.scene.limits import (
     OUTPUT_FIELDS,
     RANGES,
     REFERENCE_WIDTH,
+    SUPPORTS,
 )
 from plantgrowth.scene.presets import DEFAULT_PRESET, PRESETS, knob
 from plantgrowth.scene.shapes import Shape, mesh_shape, outline_points, outline_shape, unloadable
@@ -98,6 +99,18 @@ class Tissue:
                 "top": (self.width, "width"),
             }  # fmt: skip
         return {edge: (length, f"{length:.6g}") for edge, length in self.shape.edges.items()}
+
+    def normal_axes(self) -> dict[str, int | None]:
+        """Every edge, loadable or on x2 = 0 -> the axis its normal points along (0: x1, 1: x2,
+        None: an inclined edge of a shape)."""
+        if self.shape is None:
+            return {"bottom": 1, "left": 0, "right": 0, "top": 1}
+        return dict(self.shape.normal_axes)
+
+    @property
+    def symmetry_edges(self) -> tuple[str, ...]:
+        """The edges on the symmetry plane x2 = 0."""
+        return ("bottom",) if self.shape is None else self.shape.symmetry
 
     @property
     def pin(self) -> tuple[float, float]:
@@ -415,3 +428,35 @@ def check_edge(edge: str, shape: Shape | None) -> None:
         )
     if edge not in EDGES:
         raise SceneError(f"unknown key 'loads.{edge}' (valid keys: {', '.join(EDGES)})")
+
+
+def held_edge(edge: str, kind: object, tissue: Tissue, loads: dict) -> tuple[int, ...]:
+    """``supports.<edge> = kind``: the components of u it holds at zero (0: u1, 1: u2;
+    docs/model.md section 4): "clamped" both, "roller" the normal one of an edge parallel to x1
+    or x2. SceneError for an edge the tissue does not have, an unknown kind, an edge that is also
+    in ``loads`` and a roller that is not one (inclined, or on x2 = 0, which is one already)."""
+    key = f"supports.{edge}"
+    axes = tissue.normal_axes()
+    if edge not in axes:
+        shape = f"{tissue.shape.key}: " if tissue.shape is not None else ""
+        raise SceneError(f"unknown key '{key}' ({shape}edges that can be held: {', '.join(axes)})")
+    choice(key, kind, SUPPORTS)
+    if edge in loads:
+        raise SceneError(
+            f"{key} = {kind!r}: edge {edge!r} is also loaded (loads.{edge}): a held edge takes "
+            "whatever force holds it in place; hold the edge or load it, not both"
+        )
+    if kind == "clamped":
+        return (0, 1)
+    if edge in tissue.symmetry_edges:
+        raise SceneError(
+            f"{key} = 'roller': edge {edge!r} lies on the symmetry plane x2 = 0, which holds u2 = "
+            "0 already (it is a roller); 'clamped' holds u1 = 0 there too"
+        )
+    if axes[edge] is None:
+        raise SceneError(
+            f"{key} = 'roller': edge {edge!r} is parallel to neither x1 nor x2; a roller holds "
+            "the normal displacement of an edge parallel to an axis (u1 = 0 on an edge parallel "
+            "to x2, u2 = 0 on one parallel to x1); hold an inclined edge with 'clamped'"
+        )
+    return (axes[edge],)

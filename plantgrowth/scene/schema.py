@@ -43,6 +43,7 @@ from plantgrowth.scene.parts import (
     Tissue,
     check_edge,
     edge_load,
+    held_edge,
 )
 from plantgrowth.scene.presets import DEFAULT_PRESET, PRESETS
 from plantgrowth.scene.regions import Region, parse_regions
@@ -81,6 +82,7 @@ class Scene:
     kinematics: str = "linear"
     parameters: dict[str, float] = field(default_factory=dict)  # named numbers of expressions
     regions: dict[str, Region] = field(default_factory=dict)  # reported in summary.csv
+    supports: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         choice("model", self.model, MODELS)
@@ -98,7 +100,11 @@ class Scene:
             load = edge_load(edge, f, lengths[edge][0], self.parameters)
             if load not in ((0.0, 0.0), edge_loads.EdgeForce((0.0, 0.0))):  # non-zero loads only
                 loads[edge] = load
-        set_fields(self, loads=loads)
+        if not isinstance(self.supports, dict):
+            raise SceneError(f"supports: expected a table [supports], got {show(self.supports)}")
+        for edge, kind in self.supports.items():
+            held_edge(edge, kind, self.tissue, self.loads)  # every load given, zero ones too
+        set_fields(self, loads=loads, supports=dict(self.supports))
         if integer("micro.nx", self.micro_nx, 2, MAX_NX) % 2:
             raise SceneError(f"micro.nx = {self.micro_nx} is invalid: it must be even")
         integer("micro.resolution", self.micro_resolution, 1, MAX_RESOLUTION)
@@ -114,8 +120,24 @@ class Scene:
         # suggest balancing on the rectangle's left edge, else on an edge not loaded yet
         fix = "left" if "left" in lengths else next((e for e in lengths if e not in loads), "")
         fix = fix or next(iter(loads), "")
-        if loads and (unbalanced := unbalanced_load(loads, lengths, self.tissue.pin, fix)):
+        if (
+            loads
+            and self.pinned
+            and (unbalanced := unbalanced_load(loads, lengths, self.tissue.pin, fix))
+        ):
             raise SceneError(unbalanced)
+
+    def held_components(self) -> dict[str, tuple[int, ...]]:
+        """Each held edge (``[supports]``) -> the components of u held at zero there (0: u1, 1:
+        u2; docs/model.md section 4)."""
+        return {e: held_edge(e, kind, self.tissue, self.loads) for e, kind in self.supports.items()}
+
+    @property
+    def pinned(self) -> bool:
+        """True if only the pinned point holds the tissue along x1 (no held edge holds u1): it
+        carries the loads' net x1 force, so they must balance (plantgrowth/scene/load_balance.py);
+        a held edge that holds u1 replaces the pin and carries the net force."""
+        return not any(0 in held for held in self.held_components().values())
 
     def corners(self) -> list[tuple[float, float]]:
         """The tissue rectangle's corners (x1, x2)."""
@@ -140,6 +162,12 @@ class Scene:
             raise SceneError(
                 f"loads are not supported by model = {self.model!r}: the cellular tissue has no "
                 "straight left/right/top edges; use model = 'macro'"
+            )
+        if self.supports:
+            raise SceneError(
+                "supports: the micro model (model = 'micro' or 'both', plantgrowth compare) has "
+                "no held edges: the cellular tissue has no straight side to hold; hold edges with "
+                "model = 'macro'"
             )
         try:  # the walls mesh must be affordable
             wall_mesh_size(
@@ -234,6 +262,8 @@ class Scene:
             out["parameters"] = dict(self.parameters)
         if self.regions:
             out["regions"] = {name: r.to_toml() for name, r in self.regions.items()}
+        if self.supports:
+            out["supports"] = dict(self.supports)
         return out
 
     def dotted(self) -> dict[str, Any]:
@@ -265,7 +295,7 @@ def _table(data: dict, name: str) -> dict:
     table = data.get(name, {})
     if not isinstance(table, dict):
         raise SceneError(f"{name}: expected a table [{name}], got {show(table)}")
-    if name != "loads":  # the loadable edges depend on the tissue: Scene checks them
+    if name not in ("loads", "supports"):  # the edges depend on the tissue: Scene checks them
         check_keys(table, f"{name}.", TABLES[name])
     return table
 
@@ -430,6 +460,7 @@ def _parse(data: dict, directory: Path) -> Scene:
         kinematics=data.get("kinematics", "linear"),
         parameters=constants,
         regions=parse_regions(data.get("regions", {}), constants),
+        supports=dict(t["supports"]),
     )
 
 

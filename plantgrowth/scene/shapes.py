@@ -9,7 +9,7 @@ x1 = 0 to x1 = width as on the rectangle. Errors are :class:`InputError` naming 
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +33,9 @@ class Shape:
         symmetry: names of the edges on x2 = 0 (u2 = 0; they cannot be loaded).
         pin: the vertex where u1 = 0.
         triangles: the number of triangles of a mesh file (None for an outline: gmsh meshes it).
+        normal_axes: every edge (loadable or on x2 = 0) -> the axis its normal points along (0:
+            the edge is parallel to x2, 1: parallel to x1, None: inclined); a roller there holds
+            that component of u (``[supports]``).
     """
 
     key: str
@@ -42,6 +45,7 @@ class Shape:
     symmetry: tuple[str, ...]
     pin: tuple[float, float]
     triangles: int | None = None
+    normal_axes: dict[str, int | None] = field(default_factory=dict)
 
 
 def _coordinate(key: str, value: object) -> float:
@@ -94,10 +98,12 @@ def outline_shape(points: tuple[tuple[float, float], ...]) -> Shape:
             "x2 = 0) must lie on the symmetry plane x2 = 0"
         )
     names = [f"edge{i}" for i in range(len(x))]
+    step = np.roll(x, -1, axis=0) - x  # edge i: exactly parallel to an axis, as x2 = 0 is
+    axes = {names[i]: next((a for a in (0, 1) if step[i, a] == 0.0), None) for i in range(len(x))}
     return Shape(
         key, float(x[:, 0].max()), float(x[:, 1].max()),
         {names[i]: float(lengths[i]) for i in range(len(x)) if i not in bottom},
-        tuple(names[i] for i in bottom), polygon.pin_point(x),
+        tuple(names[i] for i in bottom), polygon.pin_point(x), normal_axes=axes,
     )  # fmt: skip
 
 
@@ -126,7 +132,7 @@ def mesh_shape(path: str) -> Shape:
             f"{key}: no curve group {SYMMETRY!r} (the edges on the symmetry plane x2 = 0); "
             f"curve groups: {', '.join(map(repr, info.curves)) or 'none'}"
         )
-    _, _, low, high = info.curves[SYMMETRY]
+    _, _, low, high, _ = info.curves[SYMMETRY]
     size = max(*info.upper, 1.0)
     if max(abs(low), abs(high)) > 1e-12 * size:  # gmsh writes x2 = 0 exactly; 1e-12: round-off
         raise InputError(
@@ -141,7 +147,7 @@ def mesh_shape(path: str) -> Shape:
     edges = {name: c[1] for name, c in info.curves.items() if name != SYMMETRY}
     return Shape(
         "tissue.mesh", info.upper[0], info.upper[1], edges, (SYMMETRY,), info.pinned,
-        info.n_triangles,
+        info.n_triangles, {name: c[4] for name, c in info.curves.items()},
     )  # fmt: skip
 
 

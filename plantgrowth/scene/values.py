@@ -16,6 +16,7 @@ TABLES = {
     "growth": ("law", "eta", "tau", "clamp", "Fg0"),
     "time": ("t_max", "dt", "integrator", "tolerance"),
     "loads": EDGES,
+    "supports": (*EDGES, "bottom"),
     "output": ("fields", "every", "precision"),
     "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),

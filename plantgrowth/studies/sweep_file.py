@@ -175,9 +175,11 @@ def _mode(data: dict, path: Path) -> str:
 
 
 def _scene_keys(scene: Scene) -> set[str]:
-    """Every dotted key a scene has (``model``, ``material.nu``, ..., ``loads.right``)."""
+    """Every dotted key a scene has (``model``, ``material.nu``, ..., ``loads.right``,
+    ``supports.left``)."""
     edges = set(EDGES) | set(scene.tissue.edge_lengths())
-    return set(scene.dotted()) | {f"loads.{edge}" for edge in edges}
+    held = {f"supports.{edge}" for edge in scene.tissue.normal_axes()}
+    return set(scene.dotted()) | {f"loads.{edge}" for edge in edges} | held
 
 
 def vary_items(table: dict, keys: set[str], prefix: str = "") -> Iterator[tuple[str, Any]]:

@@ -1,6 +1,7 @@
 """Where the macro problem's boundary conditions act (docs/model.md section 4): the symmetry facets
-on x2 = 0 (u2 = 0), the pinned vertex (u1 = 0, removes the x1 translation) and the loadable edges by
-name, as facet tags of the fine mesh; and the fine mesh of an outline or mesh-file tissue.
+on x2 = 0 (u2 = 0), the pinned vertex (u1 = 0, removes the x1 translation) and the edges by name
+(loaded or held), as facet tags of the fine mesh; and the fine mesh of an outline or mesh-file
+tissue.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ class Boundary:
     Attributes:
         facets: tags of the boundary facets.
         symmetry: the tags of the facets on the symmetry plane x2 = 0.
-        edges: loadable edge name (the keys of ``[loads]``) -> tag.
+        edges: edge name (the keys of ``[loads]`` and ``[supports]``; those on x2 = 0 too) -> tag.
         pin: the vertex where u1 = 0.
     """
 
@@ -50,7 +51,7 @@ def rectangle_boundary(msh: mesh.Mesh, width: float, height: float) -> Boundary:
     order = np.argsort(indices)
     tags = mesh.meshtags(msh, 1, indices[order].astype(np.int32), np.concatenate(values)[order])
     names = {name: tag for tag, name in enumerate(RECTANGLE_SIDES, start=1)}
-    return Boundary(tags, (names.pop("bottom"),), names, (0.0, 0.0))
+    return Boundary(tags, (names["bottom"],), names, (0.0, 0.0))
 
 
 def shape_domain(scene: Scene, comm: MPI.Comm) -> tuple[mesh.Mesh, Boundary]:
@@ -64,7 +65,7 @@ def shape_domain(scene: Scene, comm: MPI.Comm) -> tuple[mesh.Mesh, Boundary]:
     else:
         msh, _, facets, tags = read_msh(tissue.mesh, comm)
     symmetry = tuple(tags[name] for name in shape.symmetry)
-    edges = {name: tags[name] for name in shape.edges}
+    edges = {name: tags[name] for name in (*shape.edges, *shape.symmetry)}
     return msh, Boundary(facets, symmetry, edges, shape.pin)
 
 

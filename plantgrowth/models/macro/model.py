@@ -284,7 +284,8 @@ class MacroModel:
             strain_peak(principal_magnitude(eps_el[:n]), midpoints[:n], self.comm),
             clamped_fraction(G[:n], M, problem.areas, self.comm),
             *((newton.iterations, newton.residual) if newton else (0, 0.0)),
-            problem.loads.balance() if self.scene.loads else None, ellipticity,
+            problem.loads.balance() if self.scene.loads and self.scene.pinned else None,
+            ellipticity, problem.held.force() if self.scene.supports else None,
         )  # fmt: skip
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:

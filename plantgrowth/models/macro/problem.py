@@ -3,9 +3,10 @@
 P1 displacement; every coefficient (Fg, E_hom, K_hom, phi_w, P2vec) is piecewise constant on
 the fine cells, so the forms are integrated exactly by one-point quadrature. Only the terms
 the scene activates are assembled. Boundary conditions (plantgrowth/models/macro/boundary.py): ``u2
-= 0`` on the symmetry edges x2 = 0 (no tangential traction) and ``u1 = 0`` at the pinned vertex (the
-origin of the rectangle; removes the remaining rigid translation); the other edges carry the
-scene's tractions or none. The operator is
+= 0`` on the symmetry edges x2 = 0 (no tangential traction), ``u = 0`` or its normal component 0
+on the held edges (``[supports]``) and, unless a held edge holds u1, ``u1 = 0`` at the pinned
+vertex (the origin of the rectangle; removes the remaining rigid translation); the other edges
+carry the scene's tractions or none. The operator is
 symmetric positive definite after these conditions, so large systems are solved by CG + GAMG
 (``solver.macro``), small ones by LU; a finite-kinematics Jacobian is not (GMRES + GAMG, then
 LU where GMRES stops).
@@ -30,6 +31,7 @@ from plantgrowth.models import growth, stability
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
 from plantgrowth.models.macro.boundary import Boundary, pinned_vertices, rectangle_boundary
 from plantgrowth.models.macro.edge_loads import FORCE_LENGTH_RTOL, EdgeLoads
+from plantgrowth.models.macro.supports import HeldEdges
 from plantgrowth.models.newton import (
     NEWTON_ATOL,
     NewtonReport,
@@ -125,6 +127,9 @@ class MacroProblem:
                 grad_P1 = fem.Function(fem.VectorFunctionSpace(msh, ("DG", 0)))
                 self.set_cell_values(grad_P1, scene.P1.gradient(*at_cells))
         self.active_terms += [f"traction on {name}" for name in sorted(scene.loads)]
+        self.active_terms += [f"{name} {kind}" for name, kind in sorted(scene.supports.items())]
+        if not scene.pinned:
+            self.active_terms.append("no pinned point (a held edge holds u1)")
         length = (lambda n: finite.current_length(self.u, n)) if self.finite else (
             lambda n: grown_length(self.Fg, n)
         )  # fmt: skip
@@ -132,7 +137,7 @@ class MacroProblem:
             scene.loads, msh, self.boundary.facets, self.boundary.edges, length,
             "current" if self.finite else "grown",
         )  # fmt: skip
-        self.bcs = self._boundary_conditions()
+        self.bcs = self._boundary_conditions(scene)
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         self.solver = scene.solver.macro_kind(self.ndofs)
         self._linear_forms(scene, psi, P1, grad_P1)  # finite kinematics: Newton's predictor
@@ -160,7 +165,9 @@ class MacroProblem:
                 )
                 self.active_terms.append("pressure gradient (grad P1, P2)")
         rhs += self.loads.terms(lambda f, n, ds: boundary_traction(f, psi, self.Fg, n, ds))
-        self.a = fem.form(macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx))
+        a = macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx)
+        self.held.set_residual(ufl.action(a, self.u) - rhs)
+        self.a = fem.form(a)
         self.L = fem.form(rhs)
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
@@ -178,6 +185,7 @@ class MacroProblem:
         if tractions:
             residual -= tractions
             load = -tractions if load is None else load - tractions
+        self.held.set_residual(residual)
         self.active_terms.append("finite kinematics (Newton, linear predictor)")
         self.newton = NewtonSolver(
             residual, self.u, self.bcs, self._jacobian_solver, load, self._newton_floor,
@@ -209,17 +217,16 @@ class MacroProblem:
     def _direct_jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
         return lu_solver(J, self.mesh.comm, NEWTON_PREFIX)
 
-    def _boundary_conditions(self) -> list:
-        facets = self.boundary.facets
-        bottom = np.concatenate([facets.find(tag) for tag in self.boundary.symmetry])
-        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, np.sort(bottom))
-        origin = pinned_vertices(self.mesh, self.boundary.pin)
-        origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
-        zero = PETSc.ScalarType(0.0)
-        return [
-            fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),
-            fem.dirichletbc(zero, origin_dofs, self.V.sub(0)),
-        ]
+    def _boundary_conditions(self, scene: Scene) -> list:
+        """docs/model.md section 4: u2 = 0 on x2 = 0, the held edges' components, and u1 = 0 at
+        the pinned vertex unless a held edge holds u1 (all homogeneous)."""
+        self.held = HeldEdges(self.V, self.boundary, scene.held_components())
+        bcs = self.held.conditions()
+        if scene.pinned:
+            origin = pinned_vertices(self.mesh, self.boundary.pin)
+            origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
+            bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), origin_dofs, self.V.sub(0)))
+        return bcs
 
     def set_cell_values(self, function: fem.Function, values: np.ndarray) -> None:
         """Write per-cell values (n_cells, ...) into a DG0 function (cell order -> dof order)."""
