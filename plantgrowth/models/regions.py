@@ -6,10 +6,13 @@ weights of the whole-tissue columns (docs/outputs.md): for the growth units in t
     <name>.growth_rate_ij   sum(A_ref G_ij) / sum(A_ref), A_ref the units' reference areas
                             (fine triangles; cells' hexagons, cut at x2 = 0 in the bottom row)
     <name>.trG              growth_rate_11 + growth_rate_22
+    <name>.elastic_strain_max   the largest of the units' elastic strains (summary.csv's
+                            ``elastic_strain_max`` restricted to the region)
 
 A unit belongs to a region when the region's condition holds at its reference midpoint
 (:class:`plantgrowth.scene.regions.Region`), so a region covering the whole tissue gives the
-global ``area``, ``growth_rate_11``, ``growth_rate_22`` and ``growth_rate_area`` to round-off.
+global ``area``, ``growth_rate_11``, ``growth_rate_22``, ``growth_rate_area`` and
+``elastic_strain_max`` to round-off.
 """
 
 from __future__ import annotations
@@ -19,7 +22,9 @@ from mpi4py import MPI
 
 from plantgrowth.scene.regions import Region
 
-STATISTICS = ("area", "trG", "growth_rate_11", "growth_rate_22", "growth_rate_12")
+STATISTICS = (
+    "area", "trG", "growth_rate_11", "growth_rate_22", "growth_rate_12", "elastic_strain_max",
+)  # fmt: skip
 """Each region's columns, ``<name>.<statistic>``, in this order."""
 
 
@@ -46,18 +51,22 @@ class RegionStatistics:
         self.inside = {name: r.inside(midpoints) for name, r in regions.items()}
         self.ref_areas, self.comm = ref_areas, comm
 
-    def measures(self, areas: np.ndarray, G: np.ndarray) -> dict[str, float]:
+    def measures(self, areas: np.ndarray, G: np.ndarray, strain: np.ndarray) -> dict[str, float]:
         """Collective: the columns of :func:`region_columns` for this rank's units' current
-        areas (n,) and growth rates G (n, 2, 2)."""
+        areas (n,), growth rates G (n, 2, 2) and elastic strains (n,: the largest principal
+        magnitudes, plantgrowth.models.elastic_strain.principal_magnitude)."""
         if not self.inside:
             return {}
         w = self.ref_areas
         parts = np.stack([areas, w, w * G[:, 0, 0], w * G[:, 1, 1], w * G[:, 0, 1]], axis=1)
         local = np.array([parts[mask].sum(axis=0) for mask in self.inside.values()])
         sums = self.comm.allreduce(local, op=MPI.SUM)
+        local_peaks = np.array([strain[mask].max(initial=-np.inf) for mask in self.inside.values()])
+        peaks = np.empty_like(local_peaks)
+        self.comm.Allreduce(local_peaks, peaks, op=MPI.MAX)  # element-wise (pickled max is not)
         out = {}
-        for name, (area, weight, g11, g22, g12) in zip(self.inside, sums, strict=True):
+        for name, (area, weight, g11, g22, g12), peak in zip(self.inside, sums, peaks, strict=True):
             g11, g22, g12 = g11 / weight, g22 / weight, g12 / weight
-            values = (area, g11 + g22, g11, g22, g12)
+            values = (area, g11 + g22, g11, g22, g12, peak)
             out |= {f"{name}.{s}": float(v) for s, v in zip(STATISTICS, values, strict=True)}
         return out

@@ -146,6 +146,7 @@ class MacroModel:
         self.regions = RegionStatistics(
             scene.regions, problem.midpoints[:n, :2], problem.areas, comm
         )
+        self.strain_magnitudes = np.zeros(n)  # the last step's, per owned fine cell
         self.sampling = field_sampling(
             scene, vertices, problem.areas, self._W_active[:n], nodes, self.per_cell, comm
         )
@@ -278,10 +279,11 @@ class MacroModel:
         t3 = time.perf_counter()
         n, M = problem.n_owned, self.scene.growth.clamp
         newton = problem.newton_report if problem.finite else None
+        self.strain_magnitudes = principal_magnitude(eps_el[:n])  # for measures' regions
         return StepResult(
             G, report.reason, report.residual, self.homogenizer.solves_last_call,
             {"seconds_cells": t1 - t0, "seconds_solve": t2 - t1, "seconds_growth": t3 - t2},
-            strain_peak(principal_magnitude(eps_el[:n]), midpoints[:n], self.comm),
+            strain_peak(self.strain_magnitudes, midpoints[:n], self.comm),
             clamped_fraction(G[:n], M, problem.areas, self.comm),
             *((newton.iterations, newton.residual) if newton else (0, 0.0)),
             problem.loads.balance() if self.scene.loads and self.scene.pinned else None,
@@ -308,7 +310,7 @@ class MacroModel:
             "u1_max": u1_max,
             "u2_max": u2_max,
             "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
-            **self.regions.measures(current, G[:n]),
+            **self.regions.measures(current, G[:n], self.strain_magnitudes),
         }
 
 

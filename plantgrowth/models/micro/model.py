@@ -153,6 +153,7 @@ class MicroModel:
         self.regions = RegionStatistics(
             scene.regions, layout.centres, self.hexagon_area, MPI.COMM_SELF
         )  # every rank holds every cell
+        self.strain_magnitudes = np.zeros(len(layout.centres))  # the last step's, per cell
         self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
         self.cell_table = self.outlines  # cells.csv
         self._E, self._nu = E, nu
@@ -253,6 +254,7 @@ class MicroModel:
                 stress = (means if law == "stress" else self._stress_means()).reshape(-1, 2, 2)
             self.growth_fields.fill(G, stress, self._set)
         strains = self._cell_mean_strains()
+        self.strain_magnitudes = principal_magnitude(strains)  # for measures' regions
         self.strain_fields.fill(strains, self._set)
         ellipticity = self.stability.check()
         if self.stability_out is not None:
@@ -266,7 +268,7 @@ class MicroModel:
         return StepResult(
             G, report.reason, report.residual, 0,
             {"seconds_cells": 0.0, "seconds_solve": t1 - t0, "seconds_growth": t2 - t1},
-            strain_peak(principal_magnitude(strains), self.outlines.centroid_ref, MPI.COMM_SELF),
+            strain_peak(self.strain_magnitudes, self.outlines.centroid_ref, MPI.COMM_SELF),
             clamped_fraction(
                 G, self.scene.growth.clamp, self.hexagon_area, MPI.COMM_SELF
             ),  # per-cell values are the same on every rank
@@ -365,5 +367,5 @@ class MicroModel:
             "u1_max": u1_max,
             "u2_max": u2_max,
             "det_Fg_min": float(np.linalg.det(Fg).min()),
-            **self.regions.measures(self.outlines.area, G),
+            **self.regions.measures(self.outlines.area, G, self.strain_magnitudes),
         }
