@@ -1,5 +1,6 @@
 """Per-cell tensors against the coarse grid (issue 20, item 4): cost and accuracy of each preset
-on ``gradient_E_strain`` (t = 60) for this checkout and another (today's main), side by side.
+on ``gradient_E_strain`` (t = 60), or on the soft disc's first step (``--scene soft_disc``, the
+accuracy check's run), for this checkout and another (today's main), side by side.
 
 Runs ``plantgrowth run`` of both checkouts as whole processes (imports included, the cell cache
 off) in turn, A B A B ..., per preset; records the median CPU and wall seconds, the ratio A/B of
@@ -9,7 +10,7 @@ deterministic), with the machine and the load average. ``--base`` is the other c
 ``/tmp/basevenv``). Writes ``benchmarks/results/cells_vs_main.json``.
 
     python scripts/benchmarks/bench_cells_vs_main.py --base /tmp/basevenv/bin/plantgrowth \\
-        [--repeats 3] [--presets draft balanced fine]
+        [--repeats 3] [--presets draft balanced fine] [--scene gradient_E_strain|soft_disc]
 """
 
 from __future__ import annotations
@@ -32,7 +33,12 @@ from plantgrowth.scene.toml_text import dict_to_toml
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "benchmarks/results/cells_vs_main.json"
-SCENE = ROOT / "scenes/gradient_E_strain.toml"
+SCENES = {
+    "gradient_E_strain": (ROOT / "scenes/gradient_E_strain.toml", None),
+    "soft_disc": (ROOT / "scenes/biology/soft_disc.toml", {"t_max": 1.0, "dt": 1.0}),
+}
+"""Name: (scene, time table replacing the scene's, or None). Results go under ``presets`` for
+gradient_E_strain (as before the soft disc was added) and ``presets_<name>`` otherwise."""
 MEASURES = ("u1_max", "u2_max", "area")
 
 
@@ -54,10 +60,16 @@ def timed_run(exe: str, scene_text: str) -> dict:
     return {"cpu": cpu, "wall": wall} | {m: float(last[m]) for m in MEASURES}
 
 
-def preset_text(preset: str) -> str:
-    """The E-gradient scene as shipped, with ``accuracy.preset`` set."""
-    data = tomllib.loads(SCENE.read_text())
+def preset_text(scene: str, preset: str, base: bool = False) -> str:
+    """The scene as shipped, with ``accuracy.preset`` set (and its time table replaced). For the
+    base checkout the ``[numerics]`` table is dropped: main knew no ``on_instability``."""
+    path, time_table = SCENES[scene]
+    data = tomllib.loads(path.read_text())
     data.setdefault("accuracy", {})["preset"] = preset
+    if time_table is not None:
+        data["time"] = time_table
+    if base:
+        data.pop("numerics", None)
     return dict_to_toml(data)
 
 
@@ -66,26 +78,29 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--base", required=True, help="the other checkout's plantgrowth")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--presets", nargs="+", default=["draft", "balanced", "fine"])
+    parser.add_argument("--scene", choices=sorted(SCENES), default="gradient_E_strain")
     args = parser.parse_args(argv)
     this = str(Path(sys.executable).with_name("plantgrowth"))
-    result = json.loads(OUT.read_text()) if OUT.is_file() else {"presets": {}}
+    result = json.loads(OUT.read_text()) if OUT.is_file() else {}
+    key = "presets" if args.scene == "gradient_E_strain" else f"presets_{args.scene}"
+    result.setdefault(key, {})
     result |= {"machine": machine_description(), "load_before": os.getloadavg(),
                "base": args.base, "cache": "off"}  # fmt: skip
-    timed_run(this, preset_text("draft"))  # warm-up: JIT and file caches of both
-    timed_run(args.base, preset_text("draft"))
+    timed_run(this, preset_text(args.scene, "draft"))  # warm-up: JIT and file caches of both
+    timed_run(args.base, preset_text(args.scene, "draft", base=True))
     for preset in args.presets:
-        text = preset_text(preset)
+        text, base_text = preset_text(args.scene, preset), preset_text(args.scene, preset, True)
         runs: dict[str, list[dict]] = {"cells": [], "base": []}
         for _ in range(args.repeats):
             runs["cells"].append(timed_run(this, text))
-            runs["base"].append(timed_run(args.base, text))
+            runs["base"].append(timed_run(args.base, base_text))
         ratios = [a["cpu"] / b["cpu"] for a, b in zip(runs["cells"], runs["base"], strict=True)]
         record = {"repeats": args.repeats, "cpu_ratio_median": statistics.median(ratios),
                   "cpu_ratios": ratios}  # fmt: skip
         for side, rows in runs.items():
             record[side] = {k: statistics.median(r[k] for r in rows) for k in ("cpu", "wall")}
             record[side] |= {m: rows[-1][m] for m in MEASURES}
-        result["presets"][preset] = record
+        result[key][preset] = record
         print(preset, json.dumps(record), flush=True)
         result["load_after"] = os.getloadavg()
         OUT.write_text(json.dumps(result, indent=1) + "\n")
