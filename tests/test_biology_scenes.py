@@ -20,7 +20,9 @@ from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.results.reader import read_series
 from plantgrowth.scene.toml_text import dict_to_toml
 
-BIOLOGY = Path(__file__).resolve().parents[1] / "scenes" / "biology"
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+BIOLOGY = [*sorted((SCENES / "biology").glob("*.toml")), SCENES / "examples" / "soft_disc.toml"]
+"""The biology scenes and the soft disc example (its region and parameter: tests/test_regions.py)."""
 T_MAX = 10.0
 
 
@@ -29,7 +31,7 @@ def runs(tmp_path_factory) -> dict:
     """name -> (ResultSeries, cell midpoints (M, 2)) of each cheap biology run."""
     root = shared_dir(tmp_path_factory, "biology")
     out = {}
-    for path in sorted(BIOLOGY.glob("*.toml")):
+    for path in BIOLOGY:
         data = tomllib.loads(path.read_text())
         data["accuracy"] = {"preset": "draft"}
         data["time"] = {"t_max": T_MAX}

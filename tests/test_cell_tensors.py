@@ -2,7 +2,7 @@
 asks the lattice with its own Fg and takes its own E; the soft disc comes out round and
 accurate at ``draft``; serial and parallel runs agree; a field finer than its mesh is named.
 
-Scenes: scenes/biology/soft_disc.toml (8 x 4 tissue, E = 0.3 within a radius 1 of its centre)
+Scenes: scenes/examples/soft_disc.toml (8 x 4 tissue, E = 0.3 within a radius 1 of its centre)
 and the shipped scenes, built as models (no time loop) except one CLI run for the warning.
 """
 
@@ -23,7 +23,7 @@ from plantgrowth.scene import Scene, load_scene
 from plantgrowth.unitcell.homogenization import Homogenizer
 
 ROOT = Path(__file__).resolve().parents[1]
-DISC = ROOT / "scenes/biology/soft_disc.toml"
+DISC = ROOT / "scenes/examples/soft_disc.toml"
 CENTRE, RADIUS = np.array([4.0, 2.0]), 1.0
 
 
@@ -79,7 +79,7 @@ def _growth(points: np.ndarray) -> np.ndarray:
     return Fg
 
 
-@pytest.mark.parametrize("scene_file", ["scenes/biology/soft_disc.toml",
+@pytest.mark.parametrize("scene_file", ["scenes/examples/soft_disc.toml",
                                         "scenes/gradient_w_strain.toml"])  # fmt: skip
 def test_a_cells_tensors_do_not_depend_on_the_ranks(scene_file):
     """Each rank answers its own cells (ghosts too) from the shared lattice; a cell's answer

@@ -294,7 +294,7 @@ def test_render_regions_outlines_the_regions_units(tmp_path_factory, capsys):
 
 
 def test_the_shipped_soft_disc_sweep_varies_the_disc_by_name():
-    path = Path(__file__).parents[1] / "scenes" / "sweeps" / "soft_disc_E.toml"
+    path = Path(__file__).parents[1] / "scenes" / "examples" / "soft_disc_E.toml"
     sweep = load_sweep(path)
     assert [r.scene.material.E(4.0, 2.0) for r in sweep.runs] == [0.3, 0.5, 0.7, 1.0]
     assert all(r.scene.material.E(0.5, 0.5) == 1.0 for r in sweep.runs)

@@ -26,7 +26,7 @@ STRAIN_BANDS = (0.2, 0.5, 1.0)
 draft preset, benchmarks/results/strain_bands.json): the shipped examples that stay in the model
 reach 0.016 (reference) to 0.12 (gradient_w_stress), 0.10 (the pull of docs/usage.md, at t = 0),
 0.11 (biology/anisotropic_pregrowth), 0.17 (biology/stiff_band); up to 0.2 linear and finite
-kinematics agree on area and mean tr G to 0.6%. Above it they part: biology/soft_disc at t = 23
+kinematics agree on area and mean tr G to 0.6%. Above it they part: examples/soft_disc at t = 23
 has 0.224 (linear) against 0.248 (finite), and its finite run fails at t = 24; soft_patch 0.25
 against 0.39 at t = 39. So 20% is where the linear model stops being trustworthy (the old 5%
 warned on the pull example and most gradients), 50% and 100% where the wall law itself is far

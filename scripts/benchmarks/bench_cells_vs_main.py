@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "benchmarks/results/cells_vs_main.json"
 SCENES = {
     "gradient_E_strain": (ROOT / "scenes/gradient_E_strain.toml", None),
-    "soft_disc": (ROOT / "scenes/biology/soft_disc.toml", {"t_max": 1.0, "dt": 1.0}),
+    "soft_disc": (ROOT / "scenes/examples/soft_disc.toml", {"t_max": 1.0, "dt": 1.0}),
 }
 """Name: (scene, time table replacing the scene's, or None). Results go under ``presets`` for
 gradient_E_strain (as before the soft disc was added) and ``presets_<name>`` otherwise."""

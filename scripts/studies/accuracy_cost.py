@@ -2,7 +2,7 @@
 converged reference versus run time.
 
 For each scene (default: ``gradient_E_strain``, ``gradient_P1_stress``, the hard case
-``E_contrast_100`` and the small feature ``biology/soft_disc``) it runs, with ``plantgrowth
+``E_contrast_100`` and the small feature ``examples/soft_disc``) it runs, with ``plantgrowth
 run`` in a subprocess and the on-disk cell cache off (every run pays for its own cell solves):
 
 - the scene as shipped (its preset: ``balanced``) and each numerical knob varied alone from
@@ -73,7 +73,7 @@ SCENES = (
     "gradient_E_strain.toml",
     "gradient_P1_stress.toml",
     "hard/E_contrast_100.toml",
-    "biology/soft_disc.toml",
+    "examples/soft_disc.toml",
 )
 SCENE_OVERRIDES = {
     "E_contrast_100": {"numerics.on_instability": "warn"},

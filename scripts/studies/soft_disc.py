@@ -1,6 +1,6 @@
 """The soft disc's growth rate at t = 0 (issue 20, item 4): the small-feature accuracy check.
 
-``scenes/biology/soft_disc.toml`` (8 x 4 tissue, E = 0.3 within a radius 1 of its centre, 1
+``scenes/examples/soft_disc.toml`` (8 x 4 tissue, E = 0.3 within a radius 1 of its centre, 1
 outside, strain law) run for one step by ``plantgrowth run`` (the cell cache off) under each
 preset and on a sequence of fine meshes; the quantity is the mean tr G at t = 0 inside the
 disc, area-weighted over the fine cells whose midpoint is inside. The converged value is the
@@ -31,7 +31,7 @@ from plantgrowth.results.reader import read_series
 from plantgrowth.scene.toml_text import dict_to_toml
 
 ROOT = Path(__file__).resolve().parents[2]
-SCENE = ROOT / "scenes/biology/soft_disc.toml"
+SCENE = ROOT / "scenes/examples/soft_disc.toml"
 OUT = ROOT / "benchmarks/results/soft_disc.json"
 CENTRE, RADIUS = (4.0, 2.0), 1.0
 FINE_KNOBS = {"accuracy": {"cell_resolution": 3, "cell_tolerance": 1e-4}}
