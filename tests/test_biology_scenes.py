@@ -22,7 +22,7 @@ from plantgrowth.scene.toml_text import dict_to_toml
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 BIOLOGY = [*sorted((SCENES / "biology").glob("*.toml")), SCENES / "examples" / "soft_disc.toml"]
-"""The biology scenes and the soft disc example (its region and parameter: tests/test_regions.py)."""
+"""The biology scenes and the soft disc example (its region: tests/test_regions.py)."""
 T_MAX = 10.0
 
 
