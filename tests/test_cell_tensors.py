@@ -127,7 +127,7 @@ def test_varying_geometry_combines_the_nodes_tables_at_the_cells_own_Fg():
 
 def shipped_scenes() -> list[str]:
     patterns = ("scenes/*.toml", "scenes/biology/*.toml", "scenes/hard/*.toml",
-                "scenes/shapes/*.toml")  # fmt: skip
+                "scenes/shapes/*.toml", "scenes/examples/held_and_pulled.toml")  # fmt: skip
     files = sorted(
         str(Path(f).relative_to(ROOT)) for p in patterns for f in glob.glob(str(ROOT / p))
     )

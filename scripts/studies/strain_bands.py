@@ -2,13 +2,13 @@
 behind the strain warnings' bands (plantgrowth/runner/step_warnings.py, STRAIN_BANDS).
 
 Runs every example scene (``scenes/*.toml`` but the 1-million-dof organ, ``scenes/biology``,
-``scenes/shapes`` and the pull of docs/usage.md: the reference scene with
-``left = [-0.0002, 0]``, ``right = [0.0002, 0]``) with ``accuracy.preset = "draft"`` (the
-scene's own h, H and dt dropped), in this process, one after the other, and records from each
-run's summary.csv the largest ``elastic_strain_max`` over the steps run, its time and place, and
-the time reached, and the last area and mean growth rate (``--kinematics finite``: the same
-runs with finite kinematics, to see how far the linear ones are off). Results:
-``benchmarks/results/strain_bands.json``; runs under ``results/strain_bands/``.
+``scenes/shapes``, the scenes of ``scenes/examples`` and the pull of docs/usage.md: the
+reference scene with ``left = [-0.0002, 0]``, ``right = [0.0002, 0]``) with
+``accuracy.preset = "draft"`` (the scene's own h, H and dt dropped), in this process, one after
+the other, and records from each run's summary.csv the largest ``elastic_strain_max`` over the
+steps run, its time and place, the time reached, and the last area and mean growth rate
+(``--kinematics finite``: the same runs with finite kinematics, to see how far the linear ones
+are off). Results: ``benchmarks/results/strain_bands.json``; runs under ``results/strain_bands/``.
 
     python scripts/studies/strain_bands.py [--only reference_stress,...] [--t-max 60]
         [--kinematics finite]
@@ -38,6 +38,7 @@ def example_scenes() -> dict[str, tuple[Path, dict]]:
     files = [p for p in sorted(Path("scenes").glob("*.toml")) if p.stem != "organ_E_gradient"]
     files += sorted(Path("scenes/biology").glob("*.toml"))
     files += sorted(Path("scenes/shapes").glob("*.toml"))
+    files += [Path(f"scenes/examples/{name}.toml") for name in ("soft_disc", "held_and_pulled")]
     scenes = {p.stem: (p, {}) for p in files}
     scenes["usage_pull"] = (Path("scenes/reference_stress.toml"), {"loads": PULL})
     return scenes
