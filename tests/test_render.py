@@ -21,6 +21,7 @@ from matplotlib.quiver import QuiverKey
 from mpi4py import MPI
 from PIL import Image
 
+from plantgrowth.results import picture as picture_module
 from plantgrowth.results import render as render_module
 from plantgrowth.results.animate import MAX_FRAMES, frame_times
 from plantgrowth.results.reader import read_series
@@ -205,7 +206,8 @@ def test_colours_span_vmin_vmax_in_every_run(runs, capsys, monkeypatch):
     them each spans its own values (read back from the figures the CLI draws)."""
     dirs, pictures = runs
     drawn = []
-    monkeypatch.setattr(render_module, "draw", lambda *a: drawn.append(draw(*a)) or drawn[-1])
+    monkeypatch.setattr(picture_module, "draw",
+                        lambda *a, **k: drawn.append(draw(*a, **k)) or drawn[-1])  # fmt: skip
     for model in ("macro", "micro"):
         for limits in ([], ["--vmin", "0.01", "--vmax", "0.02"]):
             picture = pictures / f"limits_{model}_{len(limits)}.png"

@@ -40,7 +40,7 @@ def render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     """Rank 0 draws; the others wait for its outcome and fail the same way."""
     outcome = None
     if comm.rank == 0:
-        from plantgrowth.results.render import render
+        from plantgrowth.results.picture import render
 
         try:
             if args.dpi is not None and not 10 <= args.dpi <= 1200:

@@ -15,7 +15,6 @@ file unless ``force`` (then atomically: a temporary file renamed into place).
 from __future__ import annotations
 
 import math
-import os
 import textwrap
 from dataclasses import dataclass
 from pathlib import Path
@@ -342,7 +341,8 @@ def draw(
 ) -> Figure:  # fmt: skip
     """The figure of one field at one written time (see the module docstring), in ``view``
     (default: this time's own) and into ``fig`` (cleared; default: a new figure sized to fit);
-    with ``regions``, the outlines of the scene's regions (plantgrowth/results/region_outlines.py)."""
+    with ``regions``, the outlines of the scene's regions
+    (plantgrowth/results/region_outlines.py)."""
     view = view or plan_view(series, name, component, [t])
     fitted = fig is None
     fig = fig or new_figure(view)
@@ -467,36 +467,3 @@ def fit_height(fig: Figure) -> None:
         if placed is not None and np.allclose(now, placed, rtol=0.0, atol=1e-3):
             return
         placed = now
-
-
-def render(
-    directory: Path, name: str, output: Path, time: float | str | None = None,
-    component: str | None = None, force: bool = False, title: str | None = None,
-    dpi: int | None = None, vmin: float | None = None, vmax: float | None = None,
-    regions: bool = False,
-) -> Path:  # fmt: skip
-    """Draw ``name`` of the run in ``directory`` at the written time nearest ``time`` (default
-    the last) into the picture ``output`` (.png, .pdf, .svg), or at every written time
-    (``time = "all"``) into the animation ``output`` (.gif); colours in [vmin, vmax] (default:
-    the values' range); returns ``output``. RenderError on bad input."""
-    from plantgrowth.results.animate import ANIMATION_DPI, write_animation
-
-    directory, output = Path(directory), Path(output)
-    animation = time == ALL_TIMES
-    check_limits(vmin, vmax)
-    check_output(output, directory, force, animation)
-    series = open_run(directory)
-    times = pick_times(series, time)
-    view = plan_view(series, name, component, times, vmin, vmax)
-    tmp = output.with_name(f".{output.stem}.tmp{output.suffix}")
-    try:
-        if animation:
-            write_animation(series, name, component, times, view, title, tmp,
-                            dpi or ANIMATION_DPI, regions)  # fmt: skip
-        else:
-            fig = draw(series, name, times[0], component, title, view, regions=regions)
-            fig.savefig(tmp, dpi=dpi or 150, format=output.suffix.lower()[1:])
-        os.replace(tmp, output)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return output

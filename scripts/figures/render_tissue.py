@@ -16,7 +16,7 @@ import re
 import sys
 from pathlib import Path
 
-from plantgrowth.results.render import render
+from plantgrowth.results.picture import render
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

@@ -1,0 +1,52 @@
+"""The picture file of ``plantgrowth render``: one picture (.png, .pdf, .svg) of a written
+field at one time, drawn by :func:`plantgrowth.results.render.draw`, or a .gif over every written
+time (:mod:`plantgrowth.results.animate`), in one shared view; written to a temporary file
+renamed into place, never into the run's directory.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from plantgrowth.results.animate import ANIMATION_DPI, write_animation
+from plantgrowth.results.render import (
+    ALL_TIMES,
+    check_limits,
+    check_output,
+    draw,
+    open_run,
+    pick_times,
+    plan_view,
+)
+
+
+def render(
+    directory: Path, name: str, output: Path, time: float | str | None = None,
+    component: str | None = None, force: bool = False, title: str | None = None,
+    dpi: int | None = None, vmin: float | None = None, vmax: float | None = None,
+    regions: bool = False,
+) -> Path:  # fmt: skip
+    """Draw ``name`` of the run in ``directory`` at the written time nearest ``time`` (default
+    the last) into the picture ``output`` (.png, .pdf, .svg), or at every written time
+    (``time = "all"``) into the animation ``output`` (.gif); colours in [vmin, vmax] (default:
+    the values' range); returns ``output``. RenderError on bad input."""
+    directory, output = Path(directory), Path(output)
+    animation = time == ALL_TIMES
+    check_limits(vmin, vmax)
+    check_output(output, directory, force, animation)
+    series = open_run(directory)
+    times = pick_times(series, time)
+    view = plan_view(series, name, component, times, vmin, vmax)
+    tmp = output.with_name(f".{output.stem}.tmp{output.suffix}")
+    try:
+        if animation:
+            write_animation(series, name, component, times, view, title, tmp,
+                            dpi or ANIMATION_DPI, regions)  # fmt: skip
+        else:
+            fig = draw(series, name, times[0], component, title, view, regions=regions)
+            fig.savefig(tmp, dpi=dpi or 150, format=output.suffix.lower()[1:])
+        os.replace(tmp, output)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return output
