@@ -171,7 +171,7 @@ def test_all_parallel_fibres_have_order_one():
     for a in (0.0, 37.5, 90.0, -60.0):
         # 180 apart is the same axis: order 1
         angles = np.where(rng.random(50) < 0.5, a, a + 180.0)
-        order, mean = fibres.fibre_statistics(angles, areas)
+        order, mean = fibres.fibre_statistics(angles, areas, MPI.COMM_SELF)
         assert abs(order - 1.0) <= 8 * EPS  # round-off of a sum of 50 terms, relative
         assert _apart(mean, a) <= 1e-12
 
@@ -179,10 +179,12 @@ def test_all_parallel_fibres_have_order_one():
 def test_two_perpendicular_families_of_equal_area_have_order_zero():
     angles = np.array([20.0, 20.0, 110.0, 110.0, 110.0])
     areas = np.array([0.75, 0.75, 0.5, 0.5, 0.5])
-    order, mean = fibres.fibre_statistics(angles, areas)
+    order, mean = fibres.fibre_statistics(angles, areas, MPI.COMM_SELF)
     assert order <= 1e-15 and mean == 0.0  # no mean direction: reported as 0
     # unequal areas: the larger family's direction, order = the area imbalance
-    order, mean = fibres.fibre_statistics(angles, np.array([1.0, 1.0, 0.5, 0.5, 0.5]))
+    order, mean = fibres.fibre_statistics(
+        angles, np.array([1.0, 1.0, 0.5, 0.5, 0.5]), MPI.COMM_SELF
+    )
     assert abs(order - 0.5 / 3.5) <= 1e-15 and abs(mean - 20.0) <= 1e-12
 
 

@@ -79,9 +79,7 @@ def director(angle: np.ndarray) -> np.ndarray:
     return np.stack([np.cos(radians), np.sin(radians)], axis=-1)
 
 
-def fibre_statistics(
-    angle: np.ndarray, weight: np.ndarray, comm: MPI.Comm = MPI.COMM_SELF
-) -> tuple[float, float]:
+def fibre_statistics(angle: np.ndarray, weight: np.ndarray, comm: MPI.Comm) -> tuple[float, float]:
     """Collective: ``(fibre_order, fibre_angle_mean)`` of the director field, from this rank's
     owned units' angles (degrees) and weights (areas). With the area-weighted mean
     ``z = sum w exp(2 i a) / sum w`` over all ranks (the parts summed with allreduce):
