@@ -5,8 +5,9 @@ random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, si
 (-1, 0.5), walls too thick for the cell, bad angles and time steps, empty/binary/invalid TOML, huge
 numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
 the tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the
-mesh) and named parameters (undefined, shadowing x1, x2, s, pi or a function), zip sweeps whose
-lists differ in length), bad command lines and output paths that cannot be written. Every case
+mesh) and named parameters (undefined, shadowing x1, x2, s, pi or a function), bad fibre walls
+and feedback (and valid ones, which the runner refuses), zip sweeps whose lists differ in
+length), bad command lines and output paths that cannot be written. Every case
 must end with exit code 2 and a one-line ``plantgrowth: error: ...`` naming the field
 (``Case.expect``), before anything is written.
 
@@ -790,6 +791,80 @@ def _bad_supports(rng: random.Random, scene: dict):
     return scene, ("supports: the micro model",)
 
 
+FIBRE_INTERIOR = [  # valid expressions whose values leave the key's range inside the tissue
+    ("fibre_stiffness", "x1 - 1e7"),
+    ("fibre_stiffness", "where(x2 > 0.2, -1, 1)"),
+    ("fibre_angle", "1e7 * (x1 + 1)"),
+    ("fibre_angle", "log(x1 - 1e7)"),
+]
+CUE_TYPOS = ["Stress", "stresses", "curvature", "", "strain ", Raw("1"), Raw("true"),
+             Raw('["stress"]')]  # fmt: skip
+
+
+def _bad_fibres(rng: random.Random, scene: dict):
+    """``[walls]`` and ``[feedback]``: wrong types, NaN/inf, a negative fibre_stiffness, an
+    angle beyond 1e6 degrees, an unknown cue, a bad rate, missing keys, feedback without fibres,
+    a fibre angle without fibre_stiffness (or the reverse), an expression out of range inside
+    the tissue, and a valid fibred scene, which the runner refuses (the models do not read
+    fibres yet)."""
+    what = rng.choice(["wrong_type", "nonfinite", "negative", "huge_angle", "cue", "rate",
+                       "missing", "no_fibres", "angle_alone", "stiffness_alone", "interior",
+                       "refused"])  # fmt: skip
+    scene.pop("loads", None)  # so that compare reaches the fibre checks
+    walls: dict = {"fibre_stiffness": rng.uniform(0.1, 5.0), "fibre_angle": rng.uniform(-90, 90)}
+    feedback: dict = {"cue": rng.choice(["stress", "strain"]), "rate": rng.uniform(0.0, 2.0)}
+    key = rng.choice(("fibre_stiffness", "fibre_angle"))
+    expect: tuple[str, ...] = (f"walls.{key}",)
+    if what == "wrong_type":
+        walls[key] = Raw(rng.choice(WRONG_FOR_NUMBER))
+    elif what == "nonfinite":
+        walls[key] = Raw(rng.choice(NONFINITE))
+        expect = (f"walls.{key} =", "finite")
+    elif what == "negative":
+        bad = rng.choice([-1e-12, -1.0, -_magnitude(rng)])
+        walls["fibre_stiffness"] = rng.choice([bad, _one_end(rng, 1.0, bad)])
+        expect = ("walls.fibre_stiffness", "[0, ")
+    elif what == "huge_angle":
+        walls["fibre_angle"] = rng.choice([1, -1]) * rng.uniform(1.0001e6, 1e12)
+        expect = ("walls.fibre_angle =", "[-1e+06, 1e+06]")
+    elif what == "interior":
+        key, text = rng.choice(FIBRE_INTERIOR)
+        walls[key] = {"expr": text}
+        expect = (f"walls.{key} =", "at x1 =")
+    elif what == "angle_alone":
+        walls.pop("fibre_stiffness")
+        expect = ("walls.fibre_stiffness is required",)
+    elif what == "stiffness_alone":
+        walls.pop("fibre_angle")
+        expect = ("walls.fibre_angle is required",)
+    if what in ("cue", "rate", "missing", "no_fibres") or (
+        what == "refused" and rng.random() < 0.5
+    ):
+        scene["feedback"] = feedback
+    if what == "cue":
+        feedback["cue"] = rng.choice(CUE_TYPOS)
+        expect = ("feedback.cue",)
+    elif what == "rate":
+        feedback["rate"] = rng.choice([-1e-9, -1.0, Raw("nan"), Raw("-inf"), Raw('"fast"'),
+                                       {"from": 0.0, "to": 1.0}, Raw("[1]")])  # fmt: skip
+        expect = ("feedback.rate",)
+    elif what == "missing":
+        name = rng.choice(["cue", "rate"])
+        feedback.pop(name)
+        expect = (f"feedback.{name} is required",)
+    elif what == "no_fibres":
+        walls = rng.choice([{}, {"fibre_stiffness": 0.0}])
+        expect = ("feedback:", "no fibres")
+    elif what == "refused":
+        expect = (
+            "feedback" if "feedback" in scene else "walls.fibre_stiffness",
+            "not yet supported",
+        )
+    if walls:
+        scene["walls"] = walls
+    return scene, expect
+
+
 SCENE_MAKERS = {
     "wrong_type": _wrong_type,
     "missing_required": _missing_required,
@@ -812,6 +887,7 @@ SCENE_MAKERS = {
     "bad_region": _bad_region,
     "bad_parameter": _bad_parameter,
     "bad_supports": _bad_supports,
+    "bad_fibres": _bad_fibres,
 }
 
 TOML_ERRORS = [

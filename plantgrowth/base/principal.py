@@ -55,11 +55,17 @@ def anisotropy(T: np.ndarray) -> np.ndarray:
     return np.divide(r, scale, out=np.zeros_like(r), where=scale > 0.0)
 
 
+def principal_angle(T: np.ndarray) -> np.ndarray:
+    """phi = atan2(2 b, a - d) / 2 in (-pi/2, pi/2]: the angle (radians, from x1) of the largest
+    principal value's direction; 0 where T is isotropic."""
+    _, _, diff, two_b = _parts(T)
+    return 0.5 * np.arctan2(two_b + 0.0, diff)  # + 0.0: -0.0 -> 0.0, so atan2 never gives -pi
+
+
 def principal_direction(T: np.ndarray) -> np.ndarray:
     """(..., 2) unit vector of the largest principal value (x1 >= 0; vertical: pointing up);
     the zero vector where T is isotropic (:data:`ISOTROPIC`)."""
-    _, _, diff, two_b = _parts(T)
-    phi = 0.5 * np.arctan2(two_b + 0.0, diff)  # + 0.0: -0.0 -> 0.0, so atan2 never gives -pi
+    phi = principal_angle(T)
     direction = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
     vertical = direction[..., 0] <= AXIS_TOLERANCE
     direction[..., 1] = np.where(vertical, np.abs(direction[..., 1]), direction[..., 1])

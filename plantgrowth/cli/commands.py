@@ -150,7 +150,7 @@ def run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 
 def sweep_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from plantgrowth.runner.scene_run import run_scene
+    from plantgrowth.runner.scene_run import refuse_fibres, run_scene
     from plantgrowth.studies.sweep import run_sweep
     from plantgrowth.studies.sweep_file import load_sweep
     from plantgrowth.studies.sweep_share import Share, dry_run
@@ -159,6 +159,8 @@ def sweep_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     sweep = load_sweep(args.sweep)
     if args.dry_run:
         return dry_run(sweep, share, comm)
+    for run in sweep.runs:  # before the sweep claims DIR
+        refuse_fibres(run.scene, f" (in {args.sweep}: {run.label})")
     if args.overwrite and share.elements > 1:
         raise InputError(
             "--overwrite cannot be given to a job-array element (the elements share DIR): "

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from plantgrowth.base.errors import RunError
+from plantgrowth.base.errors import RunError, SceneError
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.model import model_on
 from plantgrowth.models.micro.model import MicroModel
@@ -46,14 +46,32 @@ def checked_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> Macro
             check_macro_places(domain.scene, *domain.places(), comm)
         if nx is not None or scene.model in ("micro", "both"):
             check_micro_places(scene, scene.micro_nx if nx is None else nx)
+    refuse_fibres(scene)
     return domain
+
+
+def refuse_fibres(scene: Scene, source: str = "") -> None:
+    """SceneError if the scene has fibred walls (``walls.fibre_stiffness`` other than the
+    constant 0) or ``[feedback]``: the macro and micro models do not read them yet, so a run
+    stops here, after the scene's values are checked and before anything is written.
+    ``source`` (e.g. a sweep's run) is appended to the message."""
+    fibred = scene.walls is not None and scene.walls.fibred
+    if fibred or scene.feedback is not None:
+        key = "feedback" if scene.feedback is not None else "walls.fibre_stiffness"
+        raise SceneError(
+            f"{key}: fibre-reinforced walls and their feedback are not yet supported by the "
+            "macro and micro models: remove [feedback], and remove [walls] or set "
+            f"walls.fibre_stiffness = 0, to run the paper's isotropic walls{source}"
+        )
 
 
 def check_used_values(scene: Scene, comm: MPI.Comm) -> None:
     """Collective: the checks of :func:`checked_domain`, building a mesh only when a field must
-    be checked at its places (``plantgrowth validate``)."""
+    be checked at its places (``plantgrowth validate``), and :func:`refuse_fibres`."""
     if needs_place_checks(scene):
         checked_domain(scene, comm)
+    else:
+        refuse_fibres(scene)
 
 
 def warn_about(scene: Scene) -> None:

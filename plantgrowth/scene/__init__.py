@@ -99,6 +99,17 @@ inclined wall length l2 = 1)::
     disc = {expr = "(x1 - 3)**2 + (x2 - 1.5)**2 < 1"}  # true where non-zero; summary.csv gets
                                # <name>.area, .trG, .growth_rate_11, _22, _12 per step; a region
                                # holding no growth unit of the mesh is an error (scene/regions.py)
+    [walls]                    # fibre-reinforced walls (none by default: the paper's isotropic
+    fibre_stiffness = 2.0      # walls): E_f / E, a field >= 0 (the constant 0: the paper's)
+    fibre_angle = 30.0         # the fibre director at t = 0, degrees from x1, a field (finite,
+                               # |a| <= 1e6); required unless fibre_stiffness is 0, and only with
+                               # fibre_stiffness
+    [feedback]                 # the director turns toward the cue's principal direction (none
+    cue = "stress"             # by default; needs both walls keys): "stress" | "strain"
+    rate = 0.5                 # k >= 0 in da/dt = -(k A / 2) sin(2 (a - a_Q)) (models/fibres.py)
+                               # The models do not read [walls] and [feedback] yet: runs refuse
+                               # fibre_stiffness other than 0 and [feedback]
+                               # (plantgrowth/runner/scene_run.py)
 
 The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
 holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is
@@ -112,8 +123,8 @@ Keys marked (preset) take the value of ``accuracy.preset`` (plantgrowth/scene/pr
 shown are ``balanced``'s) unless the scene gives them; the preset's ``h`` and ``H`` are clipped
 to the tissue (``h <= min(width, height)/2``, ``h <= H <= max(width, height)``).
 
-The keys of ``[cell]``, ``[material]``, ``pressure.P1``, ``growth.eta``, ``growth.tau`` and each
-entry of ``growth.Fg0`` are *fields* (docs/fields.md):
+The keys of ``[cell]``, ``[material]``, ``[walls]``, ``pressure.P1``, ``growth.eta``,
+``growth.tau`` and each entry of ``growth.Fg0`` are *fields* (docs/fields.md):
 
 - a number;
 - ``{from = a, to = b}`` (``along = "x1"``, the default) or ``{from = a, to = b, along = "x2"}``:

@@ -12,6 +12,9 @@ MAX_LENGTH = 1e6  # tissue and cell lengths, |Fg0 entries|
 MAX_CELLS = 4e6  # triangles of the fine mesh
 MAX_STEPS = 1e6  # t_max / dt
 MAX_RESOLUTION = 64  # accuracy.cell_resolution
+MAX_ANGLE = 1e6
+"""Largest |walls.fibre_angle| (degrees): reduced to (-90, 90] (a ~ a + 180), an angle of 1e6 keeps
+1e-10 degrees; beyond it the reduction would lose digits."""
 MAX_NX = TISSUE_MAX_NX  # micro.nx
 LAWS = ("stress", "strain", "none")
 INTEGRATORS = ("euler", "exp", "adaptive")
@@ -30,6 +33,8 @@ OUTPUT_FIELDS = (
 )  # fmt: skip
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 EDGES = ("left", "right", "top")
+CUES = ("stress", "strain")
+"""``feedback.cue``: the tensor whose principal direction the fibre director turns toward."""
 SUPPORTS = ("clamped", "roller")
 """Kinds of held edge (``[supports]``): u = 0, or the normal component of u = 0."""
 RANGES = {
@@ -42,6 +47,8 @@ RANGES = {
     "pressure.P1": (0.0, BIG, False, False),
     "growth.eta": (0.0, BIG, False, False),
     "growth.tau": (0.0, BIG, False, False),
+    "walls.fibre_stiffness": (0.0, BIG, False, False),
+    "walls.fibre_angle": (-MAX_ANGLE, MAX_ANGLE, False, False),
 }
 """Each field's interval (low, high, low end open, high end open), checked wherever it is used."""
 FG0_RANGE = (-MAX_LENGTH, MAX_LENGTH, False, False)

@@ -20,6 +20,7 @@ from plantgrowth.scene import loads as edge_loads
 from plantgrowth.scene.expression import parse_expression
 from plantgrowth.scene.fields import AXES, AnyField, ExprField, Field
 from plantgrowth.scene.limits import (
+    CUES,
     KINEMATICS,
     LAWS,
     MAX_LENGTH,
@@ -34,6 +35,7 @@ from plantgrowth.scene.parameters import parse_parameters
 from plantgrowth.scene.parts import (
     Accuracy,
     CellGeometry,
+    Feedback,
     Growth,
     Material,
     Numerics,
@@ -41,6 +43,7 @@ from plantgrowth.scene.parts import (
     Solver,
     Time,
     Tissue,
+    Walls,
     check_edge,
     edge_load,
     held_edge,
@@ -83,10 +86,18 @@ class Scene:
     parameters: dict[str, float] = field(default_factory=dict)  # named numbers of expressions
     regions: dict[str, Region] = field(default_factory=dict)  # reported in summary.csv
     supports: dict[str, str] = field(default_factory=dict)
+    walls: Walls | None = None  # fibre-reinforced walls; None: the paper's isotropic walls
+    feedback: Feedback | None = None  # the fibre director's mechanical feedback
 
     def __post_init__(self) -> None:
         choice("model", self.model, MODELS)
         choice("kinematics", self.kinematics, KINEMATICS)
+        if self.feedback is not None and (self.walls is None or self.walls.fibre_angle is None):
+            raise SceneError(
+                "feedback: [feedback] turns the fibre director, but the scene has no fibres: give "
+                "walls.fibre_stiffness (E_f / E, >= 0) and walls.fibre_angle (the director at "
+                "t = 0, degrees from x1), or remove [feedback]"
+            )
         self.P1.check("pressure.P1", *RANGES["pressure.P1"])
         for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
             if isinstance(f, Field) and f.width != self.tissue.width:
@@ -207,22 +218,25 @@ class Scene:
 
         cell = CellGeometry(*(over(f) for f in self.cell.fields()))
         material = Material(over(self.material.E), over(self.material.nu))
+        walls = None if self.walls is None else self.walls.over(width, height)
         return replace(
             self, tissue=replace(self.tissue, width=width, height=height), cell=cell,
             material=material, P1=over(self.P1), growth=self.growth.over(width, height),
+            walls=walls,
         )  # fmt: skip
 
     def parameter_fields(self) -> dict[str, AnyField]:
-        """All spatially varying parameters by dotted key."""
+        """All spatially varying parameters by dotted key (the fibre fields when given)."""
         cell, mat, g = self.cell, self.material, self.growth
         out = {f"cell.{k}": getattr(cell, k) for k in ("l1", "l2", "theta", "w")}
-        return out | {
+        out |= {
             "material.E": mat.E,
             "material.nu": mat.nu,
             "pressure.P1": self.P1,
             "growth.eta": g.eta,
             "growth.tau": g.tau,
         }
+        return out if self.walls is None else out | self.walls.fields()
 
     @classmethod
     def from_dict(cls, data: dict, directory: str | os.PathLike | None = None) -> Scene:
@@ -264,6 +278,8 @@ class Scene:
             out["regions"] = {name: r.to_toml() for name, r in self.regions.items()}
         if self.supports:
             out["supports"] = dict(self.supports)
+        if self.feedback is not None:  # the walls are among the parameter fields
+            out["feedback"] = {"cue": self.feedback.cue, "rate": self.feedback.rate}
         return out
 
     def dotted(self) -> dict[str, Any]:
@@ -461,7 +477,36 @@ def _parse(data: dict, directory: Path) -> Scene:
         parameters=constants,
         regions=parse_regions(data.get("regions", {}), constants),
         supports=dict(t["supports"]),
+        walls=_walls(data, t["walls"], tissue, constants),
+        feedback=_feedback(data, t["feedback"]),
     )
+
+
+def _walls(data: dict, table: dict, tissue: Tissue, constants: dict[str, float]) -> Walls | None:
+    """``[walls]`` (None if the scene has none): fibre_stiffness (required) and fibre_angle,
+    fields of x1, x2 and the named parameters ``constants``."""
+    if "walls" not in data:
+        return None
+    if "fibre_stiffness" not in table:
+        raise SceneError(
+            "walls.fibre_stiffness is required in [walls]: E_f / E, a field >= 0 (0: the "
+            "paper's isotropic walls); without it the fibre direction has no effect"
+        )
+    width, height = tissue.width, tissue.height
+    return Walls(**{k: _field(f"walls.{k}", v, width, height, constants) for k, v in table.items()})
+
+
+def _feedback(data: dict, table: dict) -> Feedback | None:
+    """``[feedback]`` (None if the scene has none): cue and rate, both required."""
+    if "feedback" not in data:
+        return None
+    for key, valid in (
+        ("cue", f"one of {', '.join(map(repr, CUES))}"),
+        ("rate", "the director's turning rate k, a number >= 0"),
+    ):
+        if key not in table:
+            raise SceneError(f"feedback.{key} is required in [feedback]: {valid}")
+    return Feedback(**table)
 
 
 def load_scene(path: str | os.PathLike) -> Scene:

@@ -22,6 +22,8 @@ TABLES = {
     "micro": ("nx", "resolution"),
     "solver": ("macro", "macro_threshold"),
     "numerics": ("on_instability",),
+    "walls": ("fibre_stiffness", "fibre_angle"),
+    "feedback": ("cue", "rate"),
 }
 
 # --- checks shared by the dataclasses and the loader ----------------------------------------------

@@ -18,6 +18,7 @@ from plantgrowth.scene import Scene, load_scene, parse_scene
 from plantgrowth.scene.limits import EDGES
 from plantgrowth.scene.schema import with_values
 from plantgrowth.scene.toml_text import dict_to_toml
+from plantgrowth.scene.values import TABLES
 
 MODES = ("grid", "one-at-a-time", "zip")
 SWEEP_KEYS = ("base", "mode", "vary")
@@ -176,10 +177,11 @@ def _mode(data: dict, path: Path) -> str:
 
 def _scene_keys(scene: Scene) -> set[str]:
     """Every dotted key a scene has (``model``, ``material.nu``, ..., ``loads.right``,
-    ``supports.left``)."""
+    ``supports.left``, the keys of the optional tables [walls] and [feedback])."""
     edges = set(EDGES) | set(scene.tissue.edge_lengths())
     held = {f"supports.{edge}" for edge in scene.tissue.normal_axes()}
-    return set(scene.dotted()) | {f"loads.{edge}" for edge in edges} | held
+    optional = {f"{table}.{key}" for table in ("walls", "feedback") for key in TABLES[table]}
+    return set(scene.dotted()) | {f"loads.{edge}" for edge in edges} | held | optional
 
 
 def vary_items(table: dict, keys: set[str], prefix: str = "") -> Iterator[tuple[str, Any]]:
