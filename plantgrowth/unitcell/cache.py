@@ -30,7 +30,8 @@ from plantgrowth.unitcell import surrogate
 log = logging.getLogger("plantgrowth")
 
 _SOURCES = (
-    "plantgrowth.unitcell.solver", "plantgrowth.unitcell.periodic",
+    "plantgrowth.unitcell.solver", "plantgrowth.unitcell.gradient_basis",
+    "plantgrowth.unitcell.periodic",
     "plantgrowth.unitcell.surrogate", "plantgrowth.unitcell.homogenization",
     "plantgrowth.base.tensors", "plantgrowth.forms.cell_problems", "plantgrowth.forms.elasticity",
     "plantgrowth.meshes.unit_cell", "plantgrowth.meshes.honeycomb",
