@@ -1,8 +1,9 @@
 """Fibre-reinforced walls in the unit cell (docs/model.md, "Fibre-reinforced walls").
 
 The mesh split by segment family, the consequences (1), (2), (3) and (6) of the wall tensor
-``C_w = C_iso + E_f q t_g x t_g x t_g x t_g`` on the homogenized tensors, and the ``cell`` CLI's
-fibre flags. The fast path against the UFL forms for fibred cells is in test_cell_solver_fast.py.
+``C_w = C_iso + E_f q t_g x t_g x t_g x t_g`` on the homogenized tensors, the ``cell`` CLI's
+fibre flags, and fibred cells through the Homogenizer and its on-disk cache keys. The fast path
+against the UFL forms for fibred cells is in test_cell_solver_fast.py.
 
 Tolerances: at resolution 1 gmsh meshes the regular hexagon symmetrically under its 60-degree
 rotation and its mirrors (the isotropic cell's E1112 / E1111 is 3e-16 there; at resolution 2 the
@@ -21,10 +22,12 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from plantgrowth.base.tensors import orthotropic_moduli, rotate2, rotate4
+from plantgrowth.base.tensors import orthotropic_moduli, rotate2, rotate4, voigt_matrix
 from plantgrowth.cli import main
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.meshes.unit_cell import CELL_TAGS, WALL_FAMILY_TAGS, build_unit_cell_mesh
+from plantgrowth.unitcell.cache import CellCache
+from plantgrowth.unitcell.homogenization import Homogenizer
 from plantgrowth.unitcell.solver import CellSolver
 
 ROUND_OFF = 1e-10  # two direct solves of one symmetric mesh (see the module docstring)
@@ -233,3 +236,83 @@ def test_cli_bad_fibre_input_exits_2(capsys, args, name):
     if RANK0:
         assert err.startswith("plantgrowth: error:") and len(err.strip().splitlines()) == 1
         assert name in err, err
+
+
+# --- the Homogenizer and its cache -------------------------------------------------------------
+# The exact path keys a fibred cell by (fibre_stiffness, a mod 180) as well, and keeps isotropic
+# keys as they were; the surrogate keys a fibred table by the director turned back by the growth's
+# rotation (consequence (6)), so a pure rotation is answered at a lattice point, exactly; the
+# on-disk cache tells fibred tables apart. The reference solves are CellSolver's on the same
+# mesh, so only the inputs' rounding to the key tolerance (1e-6) separates them: 1e-8 relative
+# is allowed (measured <= 1e-13: the inputs here are on the rounding grid).
+
+GEOMETRY = (1.5, 1.0, 30.0, 0.1)  # l1 = 1.5: orthotropic, so rotations show
+ROUNDING = 1e-8  # inputs rounded to the key tolerance 1e-6 (see above)
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """CellSolver results on COMM_SELF: ``reference(Fg, fibre_stiffness, angle)``."""
+    solvers = {}
+
+    def solve(Fg: np.ndarray, stiffness: float, angle: float):
+        fibred = stiffness > 0.0
+        if fibred not in solvers:
+            solvers[fibred] = CellSolver(HoneycombCell(*GEOMETRY), 1, MPI.COMM_SELF, fibres=fibred)
+        return solvers[fibred].solve(Fg, 1.0, 0.3, True, True, stiffness, angle)
+
+    yield solve
+    solvers.clear()
+
+
+def test_exact_path_keys_fibres(reference):
+    """Directors 30 and 210 degrees are one director (one solve); fibre_stiffness = 0 is the
+    isotropic cell whatever the angle; each matches CellSolver's solve."""
+    homogenizer = Homogenizer(1, 1e-6, True, True, MPI.COMM_WORLD)
+    n = 3
+    stiffness, angle = np.array([5.0, 5.0, 0.0]), np.array([30.0, 210.0, 77.0])
+    tensors = homogenizer.homogenize(
+        np.tile(GEOMETRY, (n, 1)), np.ones(n), np.full(n, 0.3), np.tile(np.eye(2), (n, 1, 1)),
+        fibres=(stiffness, angle),
+    )  # fmt: skip
+    assert homogenizer.solves_last_call == 2
+    np.testing.assert_array_equal(tensors.C[0], tensors.C[1])
+    fibred, plain = reference(np.eye(2), 5.0, 30.0), reference(np.eye(2), 0.0, 0.0)
+    assert _rel(tensors.C[0], voigt_matrix(fibred.E_hom)) < ROUNDING
+    assert _rel(tensors.C[2], voigt_matrix(plain.E_hom)) < ROUNDING
+    assert _rel(tensors.dbar_w[0], fibred.dbar_w) < ROUNDING
+    assert _rel(tensors.K[0], fibred.K_hom) < ROUNDING
+    assert _rel(tensors.C[0], tensors.C[2]) > 0.1  # the fibres count (measured 2.5x)
+
+
+def test_surrogate_turns_the_director_back(reference):
+    """Fg = R (a pure rotation by 35 degrees), director 50 degrees: the surrogate asks the
+    fibred table at director 15 degrees and zero stretch (a lattice point, solved exactly) and
+    rotates the answer by R; by (6) that is CellSolver's solve at (R, 50) to round-off. Under
+    mpirun each rank answers a block of the points."""
+    homogenizer = Homogenizer(1, 1e-6, True, True, MPI.COMM_WORLD, cell_tolerance=1e-3)
+    n = 2
+    R = _rotation(35.0)
+    tensors = homogenizer.homogenize(
+        np.tile(GEOMETRY, (n, 1)), np.ones(n), np.full(n, 0.3), np.array([R, np.eye(2)]),
+        fibres=(np.full(n, 5.0), np.full(n, 50.0)),
+    )  # fmt: skip
+    rotated = reference(R, 5.0, 50.0)
+    assert _rel(tensors.C[0], voigt_matrix(rotated.E_hom)) < ROUNDING
+    assert _rel(tensors.dbar_v[0], rotated.dbar_v) < ROUNDING
+    unrotated = reference(np.eye(2), 5.0, 50.0)
+    assert _rel(tensors.C[1], voigt_matrix(unrotated.E_hom)) < ROUNDING
+    assert _rel(tensors.C[0], tensors.C[1]) > 1e-3  # the rotation shows (orthotropic cell)
+
+
+def test_cache_key_includes_fibres(tmp_path):
+    """A table's directory depends on fibre_stiffness and the director when the walls are
+    fibred; an isotropic table is the (geometry, nu) key it always was."""
+    cache = CellCache(tmp_path, (1, True, True), MPI.COMM_SELF)
+    base = (1, 2, 3, 4, 5)
+    directories = {cache._directory(t) for t in (base, (*base, 7, 8), (*base, 9, 8), (*base, 7, 9))}
+    assert len(directories) == 4
+    homogenizer = Homogenizer(1, 1e-6, True, True, MPI.COMM_SELF, cell_tolerance=1e-3)
+    rows = np.array([[*base, 0, 0], [*base, 7, 8]])
+    tables, inverse = homogenizer._tables(rows)
+    assert [tables[i] for i in inverse] == [base, (*base, 7, 8)]
