@@ -1,13 +1,14 @@
 """On-disk cache of the surrogate's lattice values, shared by later and concurrent runs.
 
 Layout: ``CACHE/cells/<key>/<writer>.npz``, one directory per table, keyed by a hash of the
-cell geometry, nu (and, for fibre-reinforced walls, fibre_stiffness and the director angle
-relative to the growth's rotation: the table's own key), the cell-mesh resolution, the lattice
-(H0, MAX_LEVEL), the packed layout and the *code version*: the bytes of every source file that
-shapes a cell solve, so that a changed solver never reuses old numbers. Each run writes only files of its own (``<host>-<pid>-<n>``),
+cell geometry, nu, the cell-mesh resolution, the lattice (H0, MAX_LEVEL), the packed layout and
+the *code version*: the bytes of every source file that shapes a cell solve, so that a changed
+solver never reuses old numbers. Each run writes only files of its own (``<host>-<pid>-<n>``),
 each under a temporary name renamed when complete, and reads every complete file of the tables
 it uses: concurrent runs never write the same file, and a killed run leaves only complete files
 (a stray temporary file is ignored). Rank 0 reads and writes; the values are broadcast.
+A fibre-reinforced table's own key holds fibre_stiffness and the director angle relative to the
+growth's rotation as well (:mod:`plantgrowth.unitcell.homogenization`).
 
 ``CACHE`` is ``$PLANTGROWTH_CACHE_DIR``, else ``$XDG_CACHE_HOME/plantgrowth``, else
 ``~/.cache/plantgrowth``; ``PLANTGROWTH_CACHE_DIR=off`` disables the cache.
