@@ -22,7 +22,13 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from plantgrowth.base.tensors import orthotropic_moduli, rotate2, rotate4, voigt_matrix
+from plantgrowth.base.tensors import (
+    fibre_tensor,
+    orthotropic_moduli,
+    rotate2,
+    rotate4,
+    voigt_matrix,
+)
 from plantgrowth.cli import main
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.meshes.unit_cell import CELL_TAGS, WALL_FAMILY_TAGS, build_unit_cell_mesh
@@ -107,6 +113,23 @@ def test_split_needs_a_hexagonal_void():
     assert len(cell.void()) < 6
     with pytest.raises(GeometryError, match="w = 0.3"):
         build_unit_cell_mesh(cell, 1, MPI.COMM_WORLD, fibres=True)
+
+
+# --- the wall tensor ----------------------------------------------------------------------------
+
+
+def test_fibre_tensor_uses_the_grown_tangent():
+    """``E_f q t_g^4`` with t_g = Fg t / |Fg t|: a director across the grown tangent adds nothing
+    (it is not across the reference tangent: q would be 0.1 there), one along it adds E_f in
+    t_g t_g t_g t_g, and scaling Fg changes nothing (pure arithmetic: 1e-14)."""
+    t = np.array([1.0, 1.0]) / np.sqrt(2.0)
+    Fg = np.diag([2.0, 1.0])
+    tg = np.array([2.0, 1.0]) / np.sqrt(5.0)
+    across = np.array([-tg[1], tg[0]])
+    assert np.abs(fibre_tensor(Fg, t, across, 7.0)).max() < 1e-14
+    along = fibre_tensor(Fg, t, tg, 7.0)
+    np.testing.assert_allclose(along, 7.0 * np.einsum("i,j,k,l->ijkl", tg, tg, tg, tg), atol=1e-14)
+    np.testing.assert_allclose(fibre_tensor(3.0 * Fg, t, tg, 7.0), along, atol=1e-14)
 
 
 # --- consequences (1), (2), (3), (6) -------------------------------------------------------------

@@ -122,11 +122,6 @@ def tensor_weights(Fg: np.ndarray, C: np.ndarray) -> np.ndarray:
     return np.linalg.det(Fg) * L.T @ C.reshape(4, 4) @ L
 
 
-def stiffness_weights(Fg: np.ndarray, E: float, nu: float) -> np.ndarray:
-    """:func:`tensor_weights` of the isotropic plane-stress wall tensor."""
-    return tensor_weights(Fg, isotropic_tensor(E, nu))
-
-
 class CellSolver:
     """Periodic unit-cell solver, reusable for many (Fg, E, nu, fibres) on one geometry.
 
