@@ -124,6 +124,19 @@ def _clip_to_convex(polygon: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nda
     return np.array([a + lo * (b - a), a + hi * (b - a)])
 
 
+def _six_sided_limit(hexagon: np.ndarray) -> float:
+    """Largest w that keeps every side of the void: a side of length L between corners of
+    interior angles A1, A2 shrinks to ``L - w (cot(A1/2) + cot(A2/2))``."""
+    n = len(hexagon)
+    half_cot = []
+    for k in range(n):
+        a, b = hexagon[k - 1] - hexagon[k], hexagon[(k + 1) % n] - hexagon[k]
+        angle = np.arccos(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+        half_cot.append(1.0 / np.tan(0.5 * angle))
+    sides = np.linalg.norm(np.roll(hexagon, -1, axis=0) - hexagon, axis=1)
+    return float(min(sides[k] / (half_cot[k] + half_cot[(k + 1) % n]) for k in range(n)))
+
+
 def corner_bisectors(cell: HoneycombCell, polygon: np.ndarray) -> list[np.ndarray]:
     """The wall's split lines inside the domain polygon, as (2, 2) end points.
 
@@ -136,7 +149,7 @@ def corner_bisectors(cell: HoneycombCell, polygon: np.ndarray) -> list[np.ndarra
     if len(void) != len(hexagon):
         raise GeometryError(
             f"w = {cell.w} leaves a void with {len(void)} sides: fibre-reinforced walls need all "
-            "six sides of the hexagon (a thinner w)"
+            f"six, so w must lie in (0, {_six_sided_limit(hexagon):.6g}) for this cell"
         )
     ends = void[[int(np.argmin(np.linalg.norm(void - v, axis=1))) for v in hexagon]]
     pieces = []

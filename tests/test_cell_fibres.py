@@ -108,11 +108,14 @@ def test_split_mesh_tags_each_segment_family(cell, shape, origin):
 
 def test_split_needs_a_hexagonal_void():
     """A wall so thick that the void lost its vertical sides has no corner bisectors to split
-    along: a GeometryError naming w."""
+    along: a GeometryError naming w and its range, (0, l1 / (2 cot 60 deg)) here (the vertical
+    sides shrink by w cot(60 deg) at each end); just below that w the split works."""
+    limit = 0.2 / (2.0 / np.tan(np.radians(60.0)))
     cell = HoneycombCell(l1=0.2, w=0.3)
     assert len(cell.void()) < 6
-    with pytest.raises(GeometryError, match="w = 0.3"):
+    with pytest.raises(GeometryError, match=rf"w = 0.3 .* \(0, {limit:.6g}\)"):
         build_unit_cell_mesh(cell, 1, MPI.COMM_WORLD, fibres=True)
+    build_unit_cell_mesh(HoneycombCell(l1=0.2, w=0.99 * limit), 1, MPI.COMM_WORLD, fibres=True)
 
 
 # --- the wall tensor ----------------------------------------------------------------------------
