@@ -2,6 +2,7 @@
 
 [UC_weak]:  int_{Y_w} Jg E[ d[w] + b ] : grad_g(phi) dy = 0,   d[w] = sym(grad(w) Fg^{-1})
 [UCw_weak]: int_{Y_w} Jg ( E[ d[v] ] + I ) : grad_g(phi) dy = 0
+E is the wall tensor C_w: isotropic, or with fibres (``elasticity.Fibres``) its section-11 form.
 All problems share one bilinear form; they differ in the right-hand side only.
 """
 
@@ -9,12 +10,12 @@ from __future__ import annotations
 
 import ufl
 
-from .elasticity import growth_weighted_work, sym_grad_g, wall_stress
+from .elasticity import Fibres, growth_weighted_work, sym_grad_g, walls_stress
 
 
-def cell_strain_rhs(b, phi, Fg, E, nu, dx) -> ufl.Form:
+def cell_strain_rhs(b, phi, Fg, E, nu, dx, fibres: Fibres | None = None) -> ufl.Form:
     """Right-hand side of [UC_weak] for the unit strain ``b = b_ij`` (a 2x2 ``Constant``)."""
-    return -growth_weighted_work(wall_stress(b, E, nu), phi, Fg, dx)
+    return -growth_weighted_work(walls_stress(b, E, nu, Fg, fibres), phi, Fg, dx)
 
 
 def cell_pressure_rhs(phi, Fg, dx) -> ufl.Form:
@@ -22,10 +23,16 @@ def cell_pressure_rhs(phi, Fg, dx) -> ufl.Form:
     return -growth_weighted_work(ufl.Identity(2), phi, Fg, dx)
 
 
-def stress_average_form(z, selector, Fg, E, nu, dx) -> ufl.Form:
-    """``int_{Y_w} E[d[z]] : S dy``; with S = e_k (x) e_l it gives one component of
-    ``|Y| * mean(E d[z])`` used in [maacro_E] and [maacro_K]."""
-    return ufl.inner(wall_stress(sym_grad_g(z, Fg), E, nu), selector) * dx
+def stress_average_form(z, selector, Fg, E, nu, dx, fibres: Fibres | None = None) -> ufl.Form:
+    """``int_{Y_w} C_w[d[z]] : S dy``; with S = e_k (x) e_l it gives one component of
+    ``|Y| * mean(C_w d[z])`` used in [maacro_E] and [maacro_K]."""
+    return ufl.inner(walls_stress(sym_grad_g(z, Fg), E, nu, Fg, fibres), selector) * dx
+
+
+def wall_average_form(b, selector, Fg, E, nu, dx, fibres: Fibres | None = None) -> ufl.Form:
+    """``int_{Y_w} C_w[b] : S dy``: the first term of [maacro_E] (``phi_w E[b]`` for isotropic
+    walls, a sum over the segment families for fibred ones)."""
+    return ufl.inner(walls_stress(b, E, nu, Fg, fibres), selector) * dx
 
 
 def strain_average_form(z, selector, Fg, dx) -> ufl.Form:

@@ -6,7 +6,19 @@ Pure UFL: UFL expressions (or ``fem.Constant``/``fem.Function``) in, UFL express
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import ufl
+
+
+class Fibres(NamedTuple):
+    """Fibre reinforcement of the walls (docs/model.md, "Fibre-reinforced walls"), as UFL
+    coefficients: ``stiffness`` E_f (= fibre_stiffness * E), ``director`` m (grown frame) and
+    ``tangent`` t, the reference tangent of the mid-line segment each wall point belongs to."""
+
+    stiffness: object
+    director: object
+    tangent: object
 
 
 def lame_parameters(E, nu) -> tuple:
@@ -21,6 +33,21 @@ def wall_stress(e, E, nu):
     """Isotropic wall stress ``E[e] = lam tr(e) I + 2 mu e`` (docs/model.md section 1)."""
     mu, lam = lame_parameters(E, nu)
     return lam * ufl.tr(e) * ufl.Identity(e.ufl_shape[0]) + 2.0 * mu * e
+
+
+def fibre_stress(e, Fg, fibres: Fibres):
+    """``E_f q (t_g . e t_g) t_g (x) t_g``: the fibre part of ``C_w[e]``, with the grown tangent
+    ``t_g = Fg t / |Fg t|`` and the fibre weight ``q = (m . t_g)^2``."""
+    Ft = ufl.dot(Fg, fibres.tangent)
+    tg = Ft / ufl.sqrt(ufl.inner(Ft, Ft))
+    q = ufl.inner(fibres.director, tg) ** 2
+    return fibres.stiffness * q * ufl.inner(tg, ufl.dot(e, tg)) * ufl.outer(tg, tg)
+
+
+def walls_stress(e, E, nu, Fg, fibres: Fibres | None = None):
+    """``C_w[e]``: the isotropic wall stress, plus :func:`fibre_stress` for fibred walls."""
+    stress = wall_stress(e, E, nu)
+    return stress if fibres is None else stress + fibre_stress(e, Fg, fibres)
 
 
 def grad_g(z, Fg):
@@ -62,7 +89,8 @@ def elastic_strain(u, Fg):
     return sym_grad_g(u, Fg) + growth_strain(Fg)
 
 
-def wall_bilinear_form(z, psi, Fg, E, nu, dx) -> ufl.Form:
-    """``int Jg E[sym(grad(z) Fg^{-1})] : grad(psi) Fg^{-1} dx``: the walls' stiffness, shared by
-    the cell problems [UC_weak], [UCw_weak] and the micro model [var_inequal]."""
-    return growth_weighted_work(wall_stress(sym_grad_g(z, Fg), E, nu), psi, Fg, dx)
+def wall_bilinear_form(z, psi, Fg, E, nu, dx, fibres: Fibres | None = None) -> ufl.Form:
+    """``int Jg C_w[sym(grad(z) Fg^{-1})] : grad(psi) Fg^{-1} dx``: the walls' stiffness, shared
+    by the cell problems [UC_weak], [UCw_weak] and the micro model [var_inequal] (C_w isotropic
+    unless ``fibres`` are given)."""
+    return growth_weighted_work(walls_stress(sym_grad_g(z, Fg), E, nu, Fg, fibres), psi, Fg, dx)

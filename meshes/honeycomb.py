@@ -120,6 +120,12 @@ class HoneycombCell:
         c, s, h = self.c, self.s, 0.5 * self.l1
         return np.array([[c, h], [0.0, h + s], [-c, h], [-c, -h], [0.0, -h - s], [c, -h]])
 
+    def wall_tangents(self) -> np.ndarray:
+        """Unit tangents of the three mid-line segment families, shape (3, 2): ``e2`` (CD, FA),
+        ``(c, s)/l2`` (BC, EF) and ``(-c, s)/l2`` (AB, DE)."""
+        c, s = self.c / self.l2, self.s / self.l2
+        return np.array([[0.0, 1.0], [c, s], [-c, s]])
+
     def void(self) -> np.ndarray:
         """The void Y_c: the hexagon offset inwards by w (CCW vertices)."""
         return offset_convex_polygon(self.hexagon(), self.w)

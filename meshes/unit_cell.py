@@ -21,6 +21,10 @@ from mpi4py import MPI
 from .honeycomb import GeometryError, HoneycombCell
 
 CELL_TAGS = {"walls": 1}
+WALL_FAMILY_TAGS = (11, 12, 13)
+"""Cell tags of a mesh split for fibre-reinforced walls (docs/model.md, "Fibre-reinforced walls"):
+the wall points nearest to a mid-line segment of tangent ``HoneycombCell.wall_tangents()[k]``
+carry tag ``WALL_FAMILY_TAGS[k]``; an unsplit mesh tags every wall ``CELL_TAGS["walls"]``."""
 FACET_TAGS = {"membrane": 1, "periodic_boundary": 2}
 """Physical tags looked up by name: ``membrane`` is Gamma, the boundary of the void."""
 
@@ -85,18 +89,92 @@ def domain_polygon(cell: HoneycombCell, shape: str, origin: tuple[float, float])
     raise GeometryError(f"shape = {shape!r} is invalid: it must be one of {SHAPES}")
 
 
-def void_polygons(cell: HoneycombCell, polygon: np.ndarray) -> list[np.ndarray]:
-    """The voids of all lattice translates that may meet the domain polygon."""
+def lattice_shifts(cell: HoneycombCell, polygon: np.ndarray) -> list[np.ndarray]:
+    """The lattice vectors whose translate of the mid-line hexagon may meet the domain polygon."""
     centre = polygon.mean(axis=0)
     reach = np.linalg.norm(polygon - centre, axis=1).max()
     reach += np.linalg.norm(cell.hexagon(), axis=1).max()
+    shifts = (k1 * cell.b1 + k2 * cell.b2 for k1, k2 in itertools.product(range(-2, 3), repeat=2))
+    return [shift for shift in shifts if np.linalg.norm(shift - centre) < reach]
+
+
+def void_polygons(cell: HoneycombCell, polygon: np.ndarray) -> list[np.ndarray]:
+    """The voids of all lattice translates that may meet the domain polygon."""
     base = cell.void()
-    voids = []
-    for k1, k2 in itertools.product(range(-2, 3), repeat=2):
-        shift = k1 * cell.b1 + k2 * cell.b2
-        if np.linalg.norm(shift - centre) < reach:
-            voids.append(base + shift)
-    return voids
+    return [base + shift for shift in lattice_shifts(cell, polygon)]
+
+
+def _clip_to_convex(polygon: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """The part of the segment ab inside the CCW convex polygon (Cyrus-Beck), or None."""
+    lo, hi = 0.0, 1.0
+    n = len(polygon)
+    for i in range(n):
+        d = polygon[(i + 1) % n] - polygon[i]
+        normal = np.array([-d[1], d[0]])  # inward for a CCW polygon
+        start, rate = (a - polygon[i]) @ normal, (b - a) @ normal
+        if rate == 0.0:
+            if start < 0.0:
+                return None
+        elif rate > 0.0:
+            lo = max(lo, -start / rate)
+        else:
+            hi = min(hi, -start / rate)
+    if hi - lo <= 1e-9:
+        return None
+    return np.array([a + lo * (b - a), a + hi * (b - a)])
+
+
+def _six_sided_limit(hexagon: np.ndarray) -> float:
+    """Largest w that keeps every side of the void: a side of length L between corners of
+    interior angles A1, A2 shrinks to ``L - w (cot(A1/2) + cot(A2/2))``."""
+    n = len(hexagon)
+    half_cot = []
+    for k in range(n):
+        a, b = hexagon[k - 1] - hexagon[k], hexagon[(k + 1) % n] - hexagon[k]
+        angle = np.arccos(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+        half_cot.append(1.0 / np.tan(0.5 * angle))
+    sides = np.linalg.norm(np.roll(hexagon, -1, axis=0) - hexagon, axis=1)
+    return float(min(sides[k] / (half_cot[k] + half_cot[(k + 1) % n]) for k in range(n)))
+
+
+def corner_bisectors(cell: HoneycombCell, polygon: np.ndarray) -> list[np.ndarray]:
+    """The wall's split lines inside the domain polygon, as (2, 2) end points.
+
+    At each corner of the mid-line hexagon the wall points nearest to its two sides are
+    separated by the corner's bisector, from the corner to the void's corner that the inward
+    offset puts on it (docs/model.md, "Fibre-reinforced walls"). A void that lost a side to the
+    offset has no such split: a GeometryError.
+    """
+    hexagon, void = cell.hexagon(), cell.void()
+    if len(void) != len(hexagon):
+        raise GeometryError(
+            f"w = {cell.w} leaves a void with {len(void)} sides: fibre-reinforced walls need all "
+            f"six, so w must lie in (0, {_six_sided_limit(hexagon):.6g}) for this cell"
+        )
+    ends = void[[int(np.argmin(np.linalg.norm(void - v, axis=1))) for v in hexagon]]
+    pieces = []
+    for shift in lattice_shifts(cell, polygon):
+        for v, e in zip(hexagon + shift, ends + shift, strict=True):
+            piece = _clip_to_convex(polygon, v, e)
+            if piece is not None and np.linalg.norm(piece[1] - piece[0]) > 1e-9 * cell.l2:
+                pieces.append(piece)
+    return pieces
+
+
+def wall_family(cell: HoneycombCell, polygon: np.ndarray, point: np.ndarray) -> int:
+    """Index k of the family (tangent ``cell.wall_tangents()[k]``) of the mid-line segment
+    nearest to ``point``, over the lattice translates of the hexagon's six sides."""
+    hexagon = cell.hexagon()
+    best, family = np.inf, -1
+    tangents = cell.wall_tangents()
+    for shift in lattice_shifts(cell, polygon):
+        for p, q in zip(hexagon + shift, np.roll(hexagon, -1, axis=0) + shift, strict=True):
+            d = q - p
+            t = np.clip((point - p) @ d / (d @ d), 0.0, 1.0)
+            distance = np.linalg.norm(p + t * d - point)
+            if distance < best:
+                best, family = distance, int(np.argmax(np.abs(tangents @ d)))
+    return family
 
 
 def periodic_domain(cell: HoneycombCell, polygon: np.ndarray) -> PeriodicDomain:
@@ -202,16 +280,40 @@ def _curve_ends(curve: int) -> np.ndarray:
     return np.array([gmsh.model.getValue(0, tag, [])[:2] for _, tag in ends])
 
 
-def _build_gmsh_model(cell: HoneycombCell, domain: PeriodicDomain, h: float) -> None:
-    """Walls = domain minus voids, tagged, with periodic sides; meshed with size h."""
+def _split_walls(cell: HoneycombCell, domain: PeriodicDomain, walls: list) -> list:
+    """Cut the walls along the corner bisectors (mesh edges) and tag each piece by the family of
+    its nearest mid-line segment (:data:`WALL_FAMILY_TAGS`); returns the pieces."""
+    occ = gmsh.model.occ
+    lines = []
+    for a, b in corner_bisectors(cell, domain.polygon):
+        ends = [occ.addPoint(x, y, 0.0) for x, y in (a, b)]
+        lines.append((1, occ.addLine(*ends)))
+    pieces, _ = occ.fragment(walls, lines)
+    occ.synchronize()
+    pieces = [(dim, tag) for dim, tag in pieces if dim == 2]
+    by_family: dict[int, list[int]] = {}
+    for _, tag in pieces:
+        centre = np.array(occ.getCenterOfMass(2, tag)[:2])
+        by_family.setdefault(wall_family(cell, domain.polygon, centre), []).append(tag)
+    for family, tags in sorted(by_family.items()):
+        gmsh.model.addPhysicalGroup(2, tags, WALL_FAMILY_TAGS[family])
+    return pieces
+
+
+def _build_gmsh_model(cell: HoneycombCell, domain: PeriodicDomain, h: float, fibres: bool) -> None:
+    """Walls = domain minus voids, tagged (split by segment family if ``fibres``), with periodic
+    sides; meshed with size h."""
     gmsh.model.add("unit_cell")
     occ = gmsh.model.occ
     surface = _add_polygon(domain.polygon)
     voids = [(2, _add_polygon(v)) for v in void_polygons(cell, domain.polygon)]
     walls, _ = occ.cut([(2, surface)], voids)
     occ.synchronize()
-    wall_tags = [tag for dim, tag in walls if dim == 2]
-    gmsh.model.addPhysicalGroup(2, wall_tags, CELL_TAGS["walls"])
+    if fibres:
+        walls = _split_walls(cell, domain, walls)
+    else:
+        wall_tags = [tag for dim, tag in walls if dim == 2]
+        gmsh.model.addPhysicalGroup(2, wall_tags, CELL_TAGS["walls"])
 
     tol = 1e-7
     boundary = [tag for _, tag in gmsh.model.getBoundary(walls, oriented=False, combined=True)]
@@ -258,6 +360,8 @@ class UnitCellMesh:
     domain: PeriodicDomain
     cell: HoneycombCell
     h: float
+    wall_tags: tuple[int, ...]
+    """The cell tags of the walls: ``(CELL_TAGS["walls"],)``, or :data:`WALL_FAMILY_TAGS`."""
 
 
 def build_unit_cell_mesh(
@@ -267,6 +371,7 @@ def build_unit_cell_mesh(
     shape: str = "hexagon",
     origin: tuple[float, float] = (0.0, 0.0),
     model_rank: int = 0,
+    fibres: bool = False,
 ) -> UnitCellMesh:
     """Mesh the walls of one fundamental domain with periodic opposite sides.
 
@@ -277,16 +382,21 @@ def build_unit_cell_mesh(
         shape: ``"hexagon"`` or ``"parallelogram"``.
         origin: lower-left corner of the parallelogram (ignored for the hexagon).
         model_rank: rank that runs gmsh.
+        fibres: split the walls along the corner bisectors and tag them by segment family
+            (for fibre-reinforced walls); False keeps the unsplit mesh of the isotropic walls.
     """
     polygon = domain_polygon(cell, shape, origin)
     domain = periodic_domain(cell, polygon)
     h = mesh_size(cell, resolution)
+    if fibres:
+        corner_bisectors(cell, polygon)  # on every rank: a GeometryError before gmsh runs
     ensure_gmsh()
     try:
         if comm.rank == model_rank:
-            _build_gmsh_model(cell, domain, h)
+            _build_gmsh_model(cell, domain, h, fibres)
         mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, model_rank, gdim=2)
     finally:
         if comm.rank == model_rank:
             gmsh.model.remove()
-    return UnitCellMesh(mesh, cell_tags, facet_tags, domain, cell, h)
+    wall_tags = WALL_FAMILY_TAGS if fibres else (CELL_TAGS["walls"],)
+    return UnitCellMesh(mesh, cell_tags, facet_tags, domain, cell, h, wall_tags)

@@ -90,19 +90,25 @@ def _progress_logged(comm: MPI.Comm) -> Iterator[None]:
 def cell(
     *, l1: float = 1.0, l2: float = 1.0, theta: float = 30.0, w: float = 0.05, E: float = 1.0,
     nu: float = 0.3, Fg: object = ((1.0, 0.0), (0.0, 1.0)), resolution: int | None = None,
-    comm: MPI.Comm | None = None,
-) -> dict[str, float]:  # fmt: skip
+    comm: MPI.Comm | None = None, fibre_stiffness: float = 0.0, fibre_angle: float = 0.0,
+) -> dict[str, object]:  # fmt: skip
     """One honeycomb unit cell's homogenized properties, as ``plantgrowth cell --json`` prints
     them: E_hom's six components (E1111, ...), K11, K22, K12, the orthotropic moduli, phi_w,
-    ndofs (an int) and seconds. ``theta`` in degrees, ``Fg`` a 2x2 growth tensor,
+    ndofs (an int), seconds, and the strain averages dbar_w ({"11": [d11, d22, d12], "22": ...,
+    "12": ...}) and dbar_v ([d11, d22, d12]). ``theta`` in degrees, ``Fg`` a 2x2 growth tensor,
     ``resolution`` P2 elements across a wall (default: about 0.3% error on the moduli);
-    ``comm`` the ranks that share the solve (default ``MPI.COMM_SELF``: each caller alone).
+    ``comm`` the ranks that share the solve (default ``MPI.COMM_SELF``: each caller alone);
+    ``fibre_stiffness`` E_f / E >= 0 and ``fibre_angle`` the director in degrees from x1
+    (fibre-reinforced walls, docs/fibres.md; 0: the paper's isotropic walls).
 
     Raises:
         InputError: a parameter out of range or an impossible cell; the message names it.
     """
     comm = MPI.COMM_SELF if comm is None else comm
     try:
-        return cell_properties(l1, l2, theta, w, E, nu, Fg, resolution, comm)
+        return cell_properties(
+            l1, l2, theta, w, E, nu, Fg, resolution, comm,
+            fibre_stiffness=fibre_stiffness, fibre_angle=fibre_angle,
+        )  # fmt: skip
     except GeometryError as err:
         raise InputError(str(err)) from None

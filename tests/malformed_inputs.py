@@ -935,8 +935,8 @@ CELL_OPTIONS = ("--l1", "--l2", "--theta", "--w", "--E", "--nu", "--Fg", "--reso
 
 
 def _cli_cell(rng: random.Random):
-    what = rng.choice(["nu", "Fg_count", "Fg_det", "Fg_text", "w", "w_thick", "theta",
-                       "resolution", "E", "l", "nonfinite"])  # fmt: skip
+    what = rng.choice(["nu", "Fg_count", "Fg_det", "Fg_text", "w", "w_thick", "theta", "resolution",
+                       "E", "l", "nonfinite", "fibre_stiffness", "fibre_angle"])  # fmt: skip
     if what == "nu":
         v = rng.choice([0.5, 0.7, 1.0, 0.5 + _magnitude(rng, -6, 2), -1.0, -1 - _magnitude(rng)])
         return ["--nu", repr(v)], ("nu = ",)
@@ -963,6 +963,11 @@ def _cli_cell(rng: random.Random):
         return ["--resolution", str(rng.choice([0, -1, -rng.randint(2, 10**6)]))], ("resolution",)
     if what == "E":
         return ["--E", repr(rng.choice([0.0, -1.0, -_magnitude(rng)]))], ("E = ",)
+    if what == "fibre_stiffness":  # E_f / E: finite and >= 0
+        v = rng.choice([-1.0, -_magnitude(rng), "nan", "inf", "-inf"])
+        return ["--fibre-stiffness", str(v)], ("--fibre-stiffness = ",)
+    if what == "fibre_angle":  # the director angle: any finite number of degrees
+        return ["--fibre-angle", rng.choice(["nan", "inf", "-inf"])], ("--fibre-angle = ",)
     if what == "l":
         opt = rng.choice(["--l1", "--l2"])
         return [opt, repr(rng.choice([0.0, -_magnitude(rng)]))], (opt[2:] + " = ",)

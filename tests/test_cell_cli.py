@@ -135,7 +135,8 @@ def test_help():
         [PLANTGROWTH, "cell", "--help"], capture_output=True, text=True, env=ENV, timeout=120
     )
     assert proc.returncode == 0
-    for option in ("--l1", "--l2", "--theta", "--w", "--E", "--nu", "--Fg", "--json"):
+    for option in ("--l1", "--l2", "--theta", "--w", "--E", "--nu", "--Fg", "--json",
+                   "--fibre-stiffness", "--fibre-angle"):  # fmt: skip
         assert option in proc.stdout
     top = subprocess.run(
         [PLANTGROWTH, "--help"], capture_output=True, text=True, env=ENV, timeout=120

@@ -6,7 +6,9 @@ and averages from four moments). The reference here is the direct route, written
 of ``forms.cell_problems`` as docs/model.md section 3 states them: dolfinx_mpc assembles
 [UC_weak]/[UCw_weak] for the given Fg, E, nu, PETSc factorizes (LU on one rank, MUMPS on several),
 and the averages are ``fem.assemble_scalar`` of the stress and strain average forms, component by
-component.
+component. Fibred cells (walls split by segment family, docs/model.md "Fibre-reinforced walls")
+are compared the same way, the reference's wall tensor being the UFL ``walls_stress`` with its
+own fibre coefficients.
 
 Tolerances: the two routes assemble the same matrix up to the summation order (measured
 <= 1.1e-15 relative to the largest entry) and then factorize it differently (Cholesky in nested
@@ -25,13 +27,12 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from plantgrowth.base.tensors import isotropic_tensor, unit_strain
+from plantgrowth.base.tensors import director, isotropic_tensor, unit_strain
 from plantgrowth.forms import cell_problems
-from plantgrowth.forms.elasticity import lame_parameters, wall_bilinear_form
+from plantgrowth.forms.elasticity import Fibres, lame_parameters, wall_bilinear_form
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.meshes.unit_cell import CELL_TAGS
 from plantgrowth.models.linear import lu_solver
-from plantgrowth.unitcell.solver import STRAIN_PROBLEMS, CellSolver, stiffness_weights
+from plantgrowth.unitcell.solver import STRAIN_PROBLEMS, CellSolver, tensor_weights
 
 # round-off of two direct factorizations of the same matrix (see the module docstring)
 ROUND_OFF = 1e-10
@@ -51,11 +52,15 @@ CASES = [
     (np.array([[1.1, -0.2], [0.35, 0.8]]) @ _rotation(-1.1), 1.5, 0.3),
 ]
 CASE_IDS = ["identity", "grown", "sheared", "rotated", "general"]
+FIBRES = [(0.0, 0.0), (5.0, 90.0), (1.0, 17.0), (20.0, -40.0), (2.5, 133.0)]
+"""(fibre_stiffness, fibre_angle) of each case on a fibred cell (0: isotropic, on split walls)."""
 GEOMETRIES = {
-    # (cell, resolution, shape, origin)
-    "elongated-hexagon": (HoneycombCell(l1=1.5, theta_deg=40.0), 1, "hexagon", (0.0, 0.0)),
-    "parallelogram": (HoneycombCell(w=0.1), 1, "parallelogram", (0.1, -0.45)),
-    "reference-res2": (HoneycombCell(), 2, "hexagon", (0.0, 0.0)),
+    # (cell, resolution, shape, origin, fibres)
+    "elongated-hexagon": (HoneycombCell(l1=1.5, theta_deg=40.0), 1, "hexagon", (0.0, 0.0), False),
+    "parallelogram": (HoneycombCell(w=0.1), 1, "parallelogram", (0.1, -0.45), False),
+    "reference-res2": (HoneycombCell(), 2, "hexagon", (0.0, 0.0), False),
+    "fibred-hexagon": (HoneycombCell(l1=1.5, theta_deg=40.0), 1, "hexagon", (0.0, 0.0), True),
+    "fibred-parallelogram": (HoneycombCell(w=0.1), 1, "parallelogram", (0.1, -0.45), True),
 }
 COMMS = {"world": MPI.COMM_WORLD, "self": MPI.COMM_SELF}
 
@@ -67,29 +72,37 @@ class _Reference:
     def __init__(self, solver: CellSolver) -> None:
         self.solver = solver
         mesh = solver.unit_cell.mesh
-        dx = ufl.Measure("dx", domain=mesh, subdomain_data=solver.unit_cell.cell_tags)(
-            CELL_TAGS["walls"]
-        )
+        dx = solver.dx
         self.Fg = fem.Constant(mesh, np.eye(2))
         self.E = fem.Constant(mesh, 1.0)
         self.nu = fem.Constant(mesh, 0.3)
         self.b = fem.Constant(mesh, np.zeros((2, 2)))
         self.S = fem.Constant(mesh, np.zeros((2, 2)))
+        self.fibres = None
+        if solver.fibres:  # E_f, m: the reference's own; t: the tangent of each wall cell
+            tangent = solver.fibre_coefficients.tangent
+            self.fibres = Fibres(fem.Constant(mesh, 0.0), fem.Constant(mesh, np.zeros(2)), tangent)
         z, phi = ufl.TrialFunction(solver.V), ufl.TestFunction(solver.V)
         self.z = fem.Function(solver.mpc.function_space)
-        Fg, E, nu = self.Fg, self.E, self.nu
-        self.a = fem.form(wall_bilinear_form(z, phi, Fg, E, nu, dx))
-        self.L_strain = fem.form(cell_problems.cell_strain_rhs(self.b, phi, Fg, E, nu, dx))
+        Fg, E, nu, fibres = self.Fg, self.E, self.nu, self.fibres
+        self.a = fem.form(wall_bilinear_form(z, phi, Fg, E, nu, dx, fibres))
+        self.L_strain = fem.form(cell_problems.cell_strain_rhs(self.b, phi, Fg, E, nu, dx, fibres))
         self.L_pressure = fem.form(cell_problems.cell_pressure_rhs(phi, Fg, dx))
         self.stress_average = fem.form(
-            cell_problems.stress_average_form(self.z, self.S, Fg, E, nu, dx)
+            cell_problems.stress_average_form(self.z, self.S, Fg, E, nu, dx, fibres)
+        )
+        self.wall_average = fem.form(
+            cell_problems.wall_average_form(self.b, self.S, Fg, E, nu, dx, fibres)
         )
         self.strain_average = fem.form(cell_problems.strain_average_form(self.z, self.S, Fg, dx))
 
-    def matrix(self, Fg: np.ndarray, E: float, nu: float) -> PETSc.Mat:
+    def matrix(self, Fg: np.ndarray, E: float, nu: float, fibres=(0.0, 0.0)) -> PETSc.Mat:
         self.Fg.value[:] = Fg
         self.E.value = E
         self.nu.value = nu
+        if self.fibres is not None:
+            self.fibres.stiffness.value = fibres[0] * E
+            self.fibres.director.value[:] = director(fibres[1])
         s = self.solver
         return dolfinx_mpc.assemble_matrix(self.a, s.mpc, bcs=s.bcs)
 
@@ -111,17 +124,15 @@ class _Reference:
         s.mpc.backsubstitution(self.z.vector)
         b.destroy()
 
-    def solve(self, Fg: np.ndarray, E: float, nu: float) -> dict[str, np.ndarray]:
+    def solve(self, Fg: np.ndarray, E: float, nu: float, fibres=(0.0, 0.0)) -> dict:
         """E_hom, K_hom, dbar_w, dbar_v; the pressure corrector v stays in ``self.z``."""
-        A = self.matrix(Fg, E, nu)
+        A = self.matrix(Fg, E, nu, fibres)
         ksp = lu_solver(A, self.solver.comm, "test_cell_reference_", serial="petsc")
-        wall = isotropic_tensor(E, nu)
-        phi_w = self.solver.wall_area / self.solver.area
         out = {"E_hom": np.zeros((2, 2, 2, 2)), "dbar_w": np.zeros((2, 2, 2, 2))}
         for i, j in STRAIN_PROBLEMS:
             self.b.value[:] = unit_strain(i, j)
             self._solve(ksp, self.L_strain)
-            E_ij = phi_w * np.einsum("klmn,mn->kl", wall, unit_strain(i, j))
+            E_ij = self._average(self.wall_average)  # (1/|Y|) int C_w[b_ij]
             out["E_hom"][i, j] = out["E_hom"][j, i] = E_ij + self._average(self.stress_average)
             out["dbar_w"][i, j] = out["dbar_w"][j, i] = self._average(self.strain_average)
         self._solve(ksp, self.L_pressure)
@@ -140,8 +151,10 @@ def pair():
     def get(geometry: str, comm: str) -> tuple[CellSolver, _Reference]:
         key = (geometry, comm)
         if key not in cache:
-            cell, resolution, shape, origin = GEOMETRIES[geometry]
-            solver = CellSolver(cell, resolution, COMMS[comm], shape=shape, origin=origin)
+            cell, resolution, shape, origin, fibres = GEOMETRIES[geometry]
+            solver = CellSolver(
+                cell, resolution, COMMS[comm], shape=shape, origin=origin, fibres=fibres
+            )
             cache[key] = (solver, _Reference(solver))
         return cache[key]
 
@@ -170,7 +183,7 @@ def test_stiffness_weights_are_the_lame_expansion():
             + mu * (np.einsum("ij,ac->aicj", d, G @ G.T) + np.einsum("aj,ci->aicj", G, G))
         )
         expected = coeff.transpose(1, 0, 3, 2).reshape(4, 4)  # rows (i, a), columns (j, c)
-        S = stiffness_weights(Fg, E, nu)
+        S = tensor_weights(Fg, isotropic_tensor(E, nu))
         assert _rel(S, expected) < 1e-14
         assert _rel(S, S.T) < 1e-15
 
@@ -182,9 +195,10 @@ def test_matrix_equals_direct_assembly(pair, geometry, comm):
     assembly of the bilinear form, unit diagonal of Dirichlet and slave rows included: same
     pattern, values equal up to summation order."""
     solver, reference = pair(geometry, comm)
-    for Fg, E, nu in CASES:
-        solver.solve(Fg, E, nu)
-        A, A_ref = solver.A, reference.matrix(Fg, E, nu)
+    for (Fg, E, nu), fibres in zip(CASES, FIBRES, strict=True):
+        fibres = fibres if solver.fibres else (0.0, 0.0)
+        solver.solve(Fg, E, nu, fibre_stiffness=fibres[0], fibre_angle=fibres[1])
+        A, A_ref = solver.A, reference.matrix(Fg, E, nu, fibres)
         I, J, V = A.getValuesCSR()  # the owned rows, same layout on each rank
         I_ref, J_ref, V_ref = A_ref.getValuesCSR()
         np.testing.assert_array_equal(I, I_ref)
@@ -203,10 +217,11 @@ def test_solve_equals_direct_assembly(pair, geometry, comm, case):
     asked for is None."""
     solver, reference = pair(geometry, comm)
     Fg, E, nu = CASES[case]
-    expected = reference.solve(Fg, E, nu)
+    fibres = FIBRES[case] if solver.fibres else (0.0, 0.0)
+    expected = reference.solve(Fg, E, nu, fibres)
     for pressure in (True, False):
         for strain_averages in (True, False):
-            r = solver.solve(Fg, E, nu, pressure, strain_averages)
+            r = solver.solve(Fg, E, nu, pressure, strain_averages, *fibres)
             asked = {
                 "E_hom": True,
                 "K_hom": pressure,

@@ -6,9 +6,12 @@ Hostname-free on purpose: result files are committed and shared.
 from __future__ import annotations
 
 import datetime
+import json
 import os
 import platform
+import time
 from importlib import import_module, metadata
+from pathlib import Path
 
 
 def _cpu_model() -> str:
@@ -88,3 +91,13 @@ def machine_description() -> dict:
         "gmsh": _version("gmsh"),
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }
+
+
+def write_study_json(path: Path, result: dict, start: float) -> None:
+    """Write a study's ``result`` as indented JSON to ``path`` (its directory made), with the
+    machine description and the seconds since ``start`` (a ``time.perf_counter()`` value)."""
+    result = {**result, "machine": machine_description()}
+    result["script_seconds"] = time.perf_counter() - start
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result, indent=1) + "\n")
+    print(f"wrote {path} in {result['script_seconds']:.1f} s")

@@ -49,6 +49,22 @@ def isotropic_tensor(E: float, nu: float) -> np.ndarray:
     )
 
 
+def director(angle_deg: float) -> np.ndarray:
+    """The fibre director ``m = (cos a, sin a)``, a in degrees anticlockwise from x1."""
+    a = np.radians(angle_deg)
+    return np.array([np.cos(a), np.sin(a)])
+
+
+def fibre_tensor(Fg: np.ndarray, t: np.ndarray, m: np.ndarray, stiffness: float) -> np.ndarray:
+    """(2, 2, 2, 2) fibre part ``E_f q t_g x t_g x t_g x t_g`` of the wall tensor, with the grown
+    tangent ``t_g = Fg t / |Fg t|`` and ``q = (m . t_g)^2`` (docs/model.md, "Fibre-reinforced
+    walls"); ``stiffness`` is E_f."""
+    tg = Fg @ t
+    tg = tg / np.linalg.norm(tg)
+    q = float(m @ tg) ** 2
+    return stiffness * q * np.einsum("i,j,k,l->ijkl", tg, tg, tg, tg)
+
+
 def voigt_matrix(E_hom: np.ndarray) -> np.ndarray:
     """Voigt matrix C, ``(s11, s22, s12) = C (e11, e22, 2 e12)``, of (..., 2, 2, 2, 2) tensors."""
     idx = ((0, 0), (1, 1), (0, 1))

@@ -24,13 +24,15 @@ def cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         raise InputError(f"--Fg needs 4 numbers F11,F12,F21,F22, got {len(args.Fg)}")
     Fg = [args.Fg[:2], args.Fg[2:]]
     result = cell_properties(args.l1, args.l2, args.theta, args.w, args.E, args.nu, Fg,
-                             args.resolution, comm, "--resolution")  # fmt: skip
+                             args.resolution, comm, "--resolution", args.fibre_stiffness,
+                             args.fibre_angle, ("--fibre-stiffness", "--fibre-angle"))  # fmt: skip
     if comm.rank == 0:
         if args.json:
             print(json.dumps(result))
-        else:
-            width = max(len(k) for k in result)
-            for key, value in result.items():
+        else:  # the scalars; the strain averages in --json only
+            scalars = {k: v for k, v in result.items() if k not in ("dbar_w", "dbar_v")}
+            width = max(len(k) for k in scalars)
+            for key, value in scalars.items():
                 shown = value if key == "ndofs" else f"{value:.6g}"
                 print(f"{key:<{width}}  {shown}")
     return 0

@@ -81,7 +81,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="P2 elements across a wall (default: about 0.3%% error on moduli)",
     )
-    cell.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+    fibre_flags = {
+        "--fibre-stiffness": "fibre-reinforced walls: fibre modulus E_f / E, finite >= 0 "
+        "(default 0: the paper's isotropic walls; docs/fibres.md)",
+        "--fibre-angle": "fibre director, degrees anticlockwise from x1 (grown frame; default 0)",
+    }
+    for flag, text in fibre_flags.items():
+        cell.add_argument(flag, type=float, default=0.0, metavar="X", help=text)
+    cell.add_argument("--json", action="store_true", help="print one JSON object as the last "
+                      "line (with the strain averages dbar_w, dbar_v)")  # fmt: skip
     cell.set_defaults(handler=commands.cell_command)
 
     run = sub.add_parser(

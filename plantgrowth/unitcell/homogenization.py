@@ -5,14 +5,20 @@ Inputs are reduced before solving, by exact invariances of the cell problems
 (docs/model.md section 3):
 - ``Fg -> Fg / sqrt(det Fg)``: scaling Fg by g scales the cell solutions by g and leaves every
   homogenized quantity unchanged;
-- ``E -> 1``: E_hom scales with E, dbar[v] with 1/E; K_hom, dbar[w^ij] do not depend on E.
+- ``E -> 1``: E_hom scales with E, dbar[v] with 1/E; K_hom, dbar[w^ij] do not depend on E
+  (fibred walls too: E_f = fibre_stiffness * E scales with E);
+- fibre-reinforced walls (docs/model.md, "Fibre-reinforced walls"): the director angle a
+  modulo 180 degrees (m and -m are one director); fibre_stiffness = 0 adds nothing to the key,
+  so isotropic cells keep their keys (and their on-disk cache).
 The reduced inputs are rounded to ``key_tolerance``; each distinct key is solved once per run
 (results are cached across time steps). Keys are shared among the ranks by estimated cost
 (:mod:`plantgrowth.unitcell.scheduler`), each solving on ``COMM_SELF``, and the results are
 exchanged with one ``allgather``.
 
 With ``cell_tolerance > 0`` the growth state goes through :mod:`plantgrowth.unitcell.surrogate`
-instead (rotation split off exactly, the stretch interpolated on lattices refined to the tolerance),
+instead (rotation split off exactly, the stretch interpolated on lattices refined to the
+tolerance; a fibred table is one (geometry, nu, fibre_stiffness, a - rotation angle): the cell
+problem for (R U, m) is the one for (U, R^T m) rotated by R),
 backed by the on-disk cache of :mod:`plantgrowth.unitcell.cache`; every ``CHECK_EVERY``-th call
 also solves one of its queries exactly and logs the surrogate's error there. A lookup costs
 microseconds, so each fine cell can ask with its own Fg and E; only the cell geometry and nu,
@@ -54,6 +60,13 @@ class NodeTensors:
     dbar_w: np.ndarray | None  # (n, 2, 2, 2, 2)
     dbar_v: np.ndarray | None  # (n, 2, 2)
     P2_matrix: np.ndarray  # (n, 2, 2), P2vec = P2_matrix grad(P1)
+
+
+def _mesh_group(key: tuple) -> tuple:
+    """The solver (mesh) a rounded key or table is solved on: its geometry, and whether its walls
+    are fibred (keys longer than 9 entries, tables longer than 5)."""
+    fibred = len(key) in (7, 11)
+    return key[:4] + (("fibres",) if fibred else ())
 
 
 def _pack(result: CellResult) -> np.ndarray:
@@ -105,7 +118,7 @@ class Homogenizer:
                 slice(a, b) for a, b in zip(bounds[3:-1], bounds[4:], strict=True)
             ]  # E_hom and the optional pieces; phi_w and P2 depend on the geometry only
             self.surrogate = surrogate.LatticeSurrogate(
-                self._solve_stretch, cell_tolerance, segments, comm, self.scheduler
+                self._solve_stretch, cell_tolerance, segments, comm, self.scheduler, _mesh_group
             )
             fingerprint = (resolution, pressure, strain_averages)
             self.cache = CellCache(cache_root(), fingerprint, comm)
@@ -115,25 +128,38 @@ class Homogenizer:
             self.checks = 0
             self.largest_checked_error = 0.0
 
-    def _key(self, geometry: np.ndarray, nu: float, Fg: np.ndarray) -> tuple:
+    def _key(
+        self, geometry: np.ndarray, nu: float, Fg: np.ndarray, fibre: tuple = (0.0, 0.0)
+    ) -> tuple:
+        """Rounded (geometry, nu, Fg / sqrt(det Fg)[, fibre_stiffness, a mod 180])."""
         reduced = np.concatenate([geometry, [nu], (Fg / np.sqrt(np.linalg.det(Fg))).ravel()])
+        if round(fibre[0] / self.tol) > 0:
+            reduced = np.concatenate([reduced, [fibre[0], fibre[1] % 180.0]])
         return tuple(int(k) for k in np.round(reduced / self.tol))
 
     def _solve(self, key: tuple) -> np.ndarray:
         values = np.array(key, dtype=float) * self.tol
-        return self._solve_exact(tuple(values[:4]), values[4], values[5:].reshape(2, 2))
+        fibre = tuple(values[9:11]) if len(key) > 9 else (0.0, 0.0)
+        return self._solve_exact(tuple(values[:4]), values[4], values[5:9].reshape(2, 2), fibre)
 
-    def _solve_exact(self, geometry: tuple, nu: float, Fg: np.ndarray) -> np.ndarray:
-        """Packed results of one cell problem (E = 1) on this rank."""
-        solver = self._solvers.get(geometry)
+    def _solve_exact(
+        self, geometry: tuple, nu: float, Fg: np.ndarray, fibre: tuple = (0.0, 0.0)
+    ) -> np.ndarray:
+        """Packed results of one cell problem (E = 1, fibre = (fibre_stiffness, angle)) on this
+        rank; fibred and isotropic cells of one geometry have their own meshes."""
+        fibred = fibre[0] > 0.0
+        solver = self._solvers.get((geometry, fibred))
         if solver is None:
-            solver = CellSolver(HoneycombCell(*geometry), self.resolution, MPI.COMM_SELF)
-            self._solvers[geometry] = solver
-        return _pack(solver.solve(Fg, 1.0, nu, self.pressure, self.strain_averages))
+            cell = HoneycombCell(*geometry)
+            solver = CellSolver(cell, self.resolution, MPI.COMM_SELF, fibres=fibred)
+            self._solvers[geometry, fibred] = solver
+        extra = dict(fibre_stiffness=fibre[0], fibre_angle=fibre[1]) if fibred else {}
+        return _pack(solver.solve(Fg, 1.0, nu, self.pressure, self.strain_averages, **extra))
 
     def _solve_stretch(self, table: tuple, U: np.ndarray) -> np.ndarray:
         values = np.array(table, dtype=float) * self.tol
-        return self._solve_exact(tuple(values[:4]), values[4], U)
+        fibre = tuple(values[5:7]) if len(table) > 5 else (0.0, 0.0)
+        return self._solve_exact(tuple(values[:4]), values[4], U, fibre)
 
     def homogenize(
         self,
@@ -142,6 +168,7 @@ class Homogenizer:
         nu: np.ndarray,
         Fg: np.ndarray,
         weights: sp.spmatrix | None = None,
+        fibres: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> NodeTensors:
         """Homogenized tensors at n points from m sample nodes.
 
@@ -155,14 +182,20 @@ class Homogenizer:
                 points and the nodes' P1 weights there, (n, m): point p gets
                 ``sum_k W_pk T(geometry_k, nu_k; Fg_p) E_p``, each node's table asked at the
                 point's own Fg.
+            fibres: None (isotropic walls), or fibre-reinforced walls: (fibre_stiffness (m,)
+                per node, E_f / E >= 0, like nu; fibre_angle (n,) per point, degrees from x1
+                in the grown frame, like Fg).
         """
         start = time.perf_counter()
+        if fibres is None:
+            fibres = (np.zeros(len(nu)), np.zeros(len(Fg)))
         if weights is not None:
-            tensors = self._interpolate(geometry, E, nu, Fg, weights)
+            tensors = self._interpolate(geometry, E, nu, Fg, weights, fibres)
         elif self.surrogate is None:
-            keys = [self._key(g, v, F) for g, v, F in zip(geometry, nu, Fg, strict=True)]
+            points = zip(geometry, nu, Fg, zip(*fibres, strict=True), strict=True)
+            keys = [self._key(g, v, F, f) for g, v, F, f in points]
             new = sorted(set(keys) - self._results.keys())
-            self._results.update(self.scheduler.solve_all(new, lambda k: k[:4], self._solve))
+            self._results.update(self.scheduler.solve_all(new, _mesh_group, self._solve))
             self.solves_last_call = len(new)
             packed = np.array([self._results[k] for k in keys])
             tensors = self._unpack(packed, E)
@@ -170,36 +203,48 @@ class Homogenizer:
             n, size, rank = len(Fg), self.comm.size, self.comm.rank
             block = slice(n * rank // size, n * (rank + 1) // size)
             mine = sp.identity(n, format="csr")[block]
-            tensors = self._all_blocks(self._interpolate(geometry, E[block], nu, Fg[block], mine))
+            own = (fibres[0], fibres[1][block])
+            tensors = self._all_blocks(
+                self._interpolate(geometry, E[block], nu, Fg[block], mine, own)
+            )
         self.seconds_last_call = time.perf_counter() - start
         return tensors
 
-    def _tables(self, geometry: np.ndarray, nu: np.ndarray) -> tuple[list[tuple], np.ndarray]:
-        """The distinct rounded (geometry, nu) of the nodes (as in :meth:`_key`) and each node's
-        index among them; their lattices loaded from the cache (collective: the nodes are the
-        same on every rank)."""
-        rounded = np.round(np.column_stack([geometry, nu]) / self.tol).astype(np.int64)
-        unique, node_table = np.unique(rounded, axis=0, return_inverse=True)
-        tables = [tuple(row) for row in unique.tolist()]
-        for table in sorted(set(tables) - self._loaded):
+    def _tables(self, rows: np.ndarray) -> tuple[list[tuple], np.ndarray]:
+        """The distinct rounded (geometry, nu, fibre_stiffness, reduced angle) ``rows`` as
+        tables (the fibre entries dropped where fibre_stiffness is 0: isotropic tables keep their
+        keys) and each row's index among them; their lattices loaded from the cache
+        (collective: every rank loads the tables any rank asks for)."""
+        unique, inverse = np.unique(rows, axis=0, return_inverse=True)
+        tables = [tuple(row[:5]) if row[5] == 0 else tuple(row) for row in unique.tolist()]
+        wanted = set().union(*self.comm.allgather(set(tables)))
+        for table in sorted(wanted - self._loaded):
             self.surrogate.add(self.cache.load(table))
             self._loaded.add(table)
-        return tables, node_table.ravel()
+        return tables, inverse.ravel()
 
     def _interpolate(
-        self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray, weights
-    ) -> NodeTensors:
+        self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray, weights,
+        fibres: tuple[np.ndarray, np.ndarray],
+    ) -> NodeTensors:  # fmt: skip
         """The surrogate's answer at this rank's points: for each point and each table its
         nodes weigh (merged: a table met at several nodes is asked once), the stretch
-        interpolated, then combined with the weights, scaled by E and rotated exactly."""
+        interpolated, then combined with the weights, scaled by E and rotated exactly (a
+        fibred table at the director turned back by the rotation)."""
         n = len(Fg)
-        tables, node_table = self._tables(geometry, nu)
+        R, s = surrogate.split_growth(Fg)
+        turn = np.degrees(np.arctan2(R[:, 1, 0], R[:, 0, 0]))
         W = weights.tocoo()
-        pairs = sp.csr_matrix((W.data, (W.row, node_table[W.col])), shape=(n, len(tables)))
+        stiffness = fibres[0][W.col]
+        angle = np.where(stiffness > 0.0, (fibres[1][W.row] - turn[W.row]) % 180.0, 0.0)
+        node = np.column_stack([geometry, nu])[W.col]
+        rows = np.round(np.column_stack([node, stiffness, angle]) / self.tol).astype(np.int64)
+        rows[rows[:, 5] == 0, 6] = 0  # no fibres: no angle
+        tables, entry_table = self._tables(rows)
+        pairs = sp.csr_matrix((W.data, (W.row, entry_table)), shape=(n, len(tables)))
         pairs.sum_duplicates()
         pairs.eliminate_zeros()
         point = np.repeat(np.arange(n), np.diff(pairs.indptr))
-        R, s = surrogate.split_growth(Fg)
         answer = self.surrogate.evaluate(tables, pairs.indices, s[point])
         self.cache.save(self.surrogate.take_new_points())
         self.solves_last_call = answer.solves + self._check(tables, pairs.indices, s[point], answer)

@@ -20,29 +20,30 @@ reference the tests compare with.
 
 from __future__ import annotations
 
-import itertools
 import time
 from dataclasses import dataclass
 
-import dolfinx_mpc
 import numpy as np
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from plantgrowth.base.errors import check_growth_tensor, check_wall_material
+from plantgrowth.base.errors import check_growth_tensor, check_number, check_wall_material
 from plantgrowth.base.tensors import (
     VOIGT_NAMES,
     VOIGT_PAIRS,
+    director,
+    fibre_tensor,
     isotropic_tensor,
     orthotropic_moduli,
     unit_strain,
 )
 from plantgrowth.forms import cell_problems
-from plantgrowth.forms.elasticity import wall_bilinear_form
+from plantgrowth.forms.elasticity import Fibres, wall_bilinear_form
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.meshes.unit_cell import CELL_TAGS, FACET_TAGS, build_unit_cell_mesh, mesh_size
+from plantgrowth.meshes.unit_cell import FACET_TAGS, build_unit_cell_mesh, mesh_size
+from plantgrowth.unitcell.gradient_basis import GradientBasis
 from plantgrowth.unitcell.periodic import periodic_constraint
 
 DEFAULT_RESOLUTION = 3
@@ -87,6 +88,18 @@ class CellResult:
             raise ValueError("P2vec is defined on the hexagonal cell only")
         return self.P2_matrix @ np.asarray(grad_P1, dtype=float)
 
+    def strain_averages(self) -> dict:
+        """``dbar_w``: {"11", "22", "12"} -> [d11, d22, d12] of dbar[w^ij]; ``dbar_v``:
+        [d11, d22, d12] of dbar[v] (the CLI's JSON; None for what was not computed)."""
+
+        def components(d: np.ndarray | None) -> list[float] | None:
+            return None if d is None else [float(d[0, 0]), float(d[1, 1]), float(d[0, 1])]
+
+        dbar_w = None
+        if self.dbar_w is not None:
+            dbar_w = {f"{i + 1}{j + 1}": components(self.dbar_w[i, j]) for i, j in STRAIN_PROBLEMS}
+        return {"dbar_w": dbar_w, "dbar_v": components(self.dbar_v)}
+
     def summary(self) -> dict:
         """Flat dictionary of the CLI's JSON keys."""
         E = self.E_voigt
@@ -102,171 +115,19 @@ def growth_map(Fg: np.ndarray) -> np.ndarray:
     return np.kron(np.eye(2), np.linalg.inv(Fg).T)
 
 
-def stiffness_weights(Fg: np.ndarray, E: float, nu: float) -> np.ndarray:
-    """(4, 4) symmetric S with ``a(z, phi) = sum_pq S[q, p] int d_q phi d_p z`` ([UC_weak]).
-
-    ``S = Jg L^T C L``: C is the plane-stress wall tensor, p = (i, a) stands for ``d_a z_i``.
-    """
+def tensor_weights(Fg: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """(4, 4) symmetric S with ``a(z, phi) = sum_pq S[q, p] int d_q phi d_p z`` ([UC_weak]) on
+    walls of tensor C (2, 2, 2, 2): ``S = Jg L^T C L``, p = (i, a) stands for ``d_a z_i``."""
     L = growth_map(Fg)
-    return np.linalg.det(Fg) * L.T @ isotropic_tensor(E, nu).reshape(4, 4) @ L
-
-
-def _csr_pointer(rows: np.ndarray, n: int) -> np.ndarray:
-    """Row pointer of a CSR matrix on n rows whose entries have these row indices."""
-    return np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n))]).astype(PETSc.IntType)
-
-
-def _selector(p: int) -> np.ndarray:
-    """``e_i (x) e_a`` for the flat gradient index p = 2 i + a."""
-    return np.eye(4)[p].reshape(2, 2)
-
-
-class GradientBasis:
-    """The integrals every cell problem is a weighted sum of, assembled once per geometry.
-
-    ``products``: for p <= q the MPC-reduced ``B_pq + B_qp``, ``B_pq = int d_q phi d_p z``, zero on
-    Dirichlet and slave rows (dolfinx_mpc with diagval 0); ``diagonal``: dolfinx_mpc's unit
-    diagonal on those rows, added once. ``reduced``/``full``: (owned dofs, 4) moments
-    ``int d_c phi_j``, MPC-reduced with the Dirichlet rows zeroed (right-hand sides) and
-    unconstrained (the averages).
-
-    Matrices are stored as ``M[order][:, order]``, all with one pattern, so that a weighted sum
-    is a sum of value arrays (AXPY). On one rank ``order`` is PETSc's nested dissection of the
-    2x2 node blocks and the storage symmetric (SBAIJ, upper triangle, dolfinx_mpc assembles
-    into it through a permuted local-to-global map): Cholesky in that order has the fill of
-    nested-dissection LU and took 1.5 ms of CPU against 3.4 ms (BAIJ LU) and 4.2 ms (AIJ LU,
-    before) at resolution 2 (loaded machine). On several ranks ``order`` is the identity and
-    the storage dolfinx_mpc's AIJ, for MUMPS' LU (PETSc 3.18's MPISBAIJ AXPY with the same
-    pattern adds wrongly).
-
-    Args:
-        V: the displacement space.
-        mpc: the finalized periodic constraint.
-        bcs: the Dirichlet conditions (their rows and columns are zero in every product).
-        dx: the wall measure.
-    """
-
-    PAIRS = tuple(itertools.combinations_with_replacement(range(4), 2))
-
-    def __init__(
-        self,
-        V: fem.FunctionSpace,
-        mpc: dolfinx_mpc.MultiPointConstraint,
-        bcs: list,
-        dx: ufl.Measure,
-    ) -> None:
-        mesh = V.mesh
-        self.comm = mesh.comm
-        P = fem.Constant(mesh, np.zeros((2, 2), dtype=PETSc.ScalarType))
-        Q = fem.Constant(mesh, np.zeros((2, 2), dtype=PETSc.ScalarType))
-        z, phi = ufl.TrialFunction(V), ufl.TestFunction(V)
-        product = fem.form(cell_problems.gradient_product_form(z, phi, P, Q, dx))
-        moment = fem.form(cell_problems.gradient_moment_form(phi, Q, dx))
-        # zero selectors: only the diagonal that dolfinx_mpc puts on Dirichlet and slave rows
-        # (diagval); in dolfinx_mpc's own AIJ matrix, whose pattern all others share
-        dof_matrix = dolfinx_mpc.assemble_matrix(product, mpc, bcs=bcs, diagval=1.0)
-        self.order = np.arange(dof_matrix.getLocalSize()[0], dtype=PETSc.IntType)
-        if self.comm.size == 1:
-            self._ordered_pattern(dof_matrix)
-            self.diagonal = self._new_matrix(dof_matrix)
-            dolfinx_mpc.assemble_matrix(product, mpc, bcs=bcs, diagval=1.0, A=self.diagonal)
-            dof_matrix.destroy()
-        else:
-            self.diagonal = dof_matrix
-        self.products = []
-        for p, q in self.PAIRS:
-            P.value[:], Q.value[:] = _selector(p), _selector(q)
-            B = self._new_matrix(self.diagonal)
-            dolfinx_mpc.assemble_matrix(product, mpc, bcs=bcs, diagval=0.0, A=B)
-            self.products.append(B)
-        reduced, full = [], []
-        for q in range(4):
-            Q.value[:] = _selector(q)
-            b = dolfinx_mpc.assemble_vector(moment, mpc)
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD_VALUES, mode=PETSc.ScatterMode.REVERSE)
-            fem.petsc.set_bc(b, bcs)
-            f = fem.petsc.assemble_vector(moment)
-            f.ghostUpdate(addv=PETSc.InsertMode.ADD_VALUES, mode=PETSc.ScatterMode.REVERSE)
-            reduced.append(b.array[self.order])
-            full.append(f.array.copy())
-            b.destroy()
-            f.destroy()
-        self.reduced = np.stack(reduced, axis=1)
-        self.full = np.stack(full, axis=1)
-
-    def _ordered_pattern(self, dof_matrix: PETSc.Mat) -> None:
-        """Nested-dissection order of the node blocks and the upper block pattern in it."""
-        I, J, _ = dof_matrix.getValuesCSR()
-        rows = np.repeat(np.arange(len(I) - 1), np.diff(I))
-        corner = (rows % 2 == 0) & (J % 2 == 0)  # one entry per 2x2 node block
-        n_nodes = (len(I) - 1) // 2
-        rows, cols = rows[corner] // 2, J[corner] // 2
-        csr = (_csr_pointer(rows, n_nodes), cols.astype(PETSc.IntType))
-        graph = PETSc.Mat().createAIJ((n_nodes, n_nodes), csr=csr, comm=self.comm)
-        nodes = graph.getOrdering("nd")[0].getIndices()
-        graph.destroy()
-        self.order = (2 * nodes[:, None] + np.arange(2)).ravel().astype(PETSc.IntType)
-        position = np.argsort(nodes)  # node -> its place in the order
-        rows, cols = position[rows], position[cols]
-        upper = cols >= rows
-        rows, cols = rows[upper], cols[upper]
-        by_row = np.lexsort((cols, rows))
-        self._pattern = (_csr_pointer(rows, n_nodes), cols[by_row].astype(PETSc.IntType))
-        self._lgmap = PETSc.LGMap().create(position.astype(PETSc.IntType), bsize=2, comm=self.comm)
-
-    def _new_matrix(self, template: PETSc.Mat) -> PETSc.Mat:
-        """An empty stored matrix that dolfinx_mpc assembles into (in dof numbering)."""
-        if self.comm.size > 1:
-            return template.duplicate()
-        n = len(self.order)
-        M = PETSc.Mat().createSBAIJ((n, n), 2, csr=self._pattern, comm=self.comm)
-        M.setLGMap(self._lgmap, self._lgmap)
-        M.setOption(PETSc.Mat.Option.IGNORE_LOWER_TRIANGULAR, True)  # symmetric: K^T A K
-        return M
-
-    def matrix(self, S: np.ndarray, A: PETSc.Mat) -> None:
-        """``A = sum_pq S[q, p] B_qp + diagonal`` (stored): the matrix of the cell problems."""
-        same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
-        self.diagonal.copy(A, same)
-        for (p, q), B in zip(self.PAIRS, self.products, strict=True):
-            A.axpy(S[p, q] if p != q else 0.5 * S[p, p], B, same)
-
-    def factorization(self, A: PETSc.Mat, prefix: str) -> PETSc.KSP:
-        """PREONLY KSP that factorizes the stored A: Cholesky in the stored (nested-dissection)
-        order on one rank, MUMPS' LU on several. Its symbolic factorization is reused while
-        only the values of A change."""
-        ksp = PETSc.KSP().create(self.comm)
-        ksp.setOptionsPrefix(prefix)
-        ksp.setOperators(A)
-        ksp.setType("preonly")
-        pc = ksp.getPC()
-        if self.comm.size == 1:
-            pc.setType("cholesky")
-            pc.setFactorSolverType("petsc")
-            pc.setFactorOrdering("natural")  # the storage is in nested-dissection order
-        else:
-            pc.setType("lu")
-            pc.setFactorSolverType("mumps")
-        ksp.setFromOptions()
-        return ksp
-
-    def in_dof_order(self, A: PETSc.Mat) -> PETSc.Mat:
-        """A stored matrix as an AIJ matrix in dof order (a new matrix), i.e. as dolfinx_mpc
-        assembles it."""
-        if self.comm.size > 1:
-            return A.copy()
-        aij = A.convert("aij", PETSc.Mat())
-        inverse = PETSc.IS().createGeneral(
-            np.argsort(self.order).astype(PETSc.IntType), comm=self.comm
-        )
-        out = aij.permute(inverse, inverse)
-        aij.destroy()
-        inverse.destroy()
-        return out
+    return np.linalg.det(Fg) * L.T @ C.reshape(4, 4) @ L
 
 
 class CellSolver:
-    """Periodic unit-cell solver, reusable for many (Fg, E, nu) on one geometry.
+    """Periodic unit-cell solver, reusable for many (Fg, E, nu, fibres) on one geometry.
+
+    With ``fibres`` the walls are meshed split along the corner bisectors, one part per mid-line
+    segment family (their tensors differ), and ``solve`` takes a fibre stiffness and director;
+    without, the walls are one part and isotropic (the paper's cell, unchanged).
 
     Args:
         cell: the honeycomb parameters.
@@ -275,6 +136,7 @@ class CellSolver:
         shape: fundamental domain, ``"hexagon"`` or ``"parallelogram"``.
         origin: lower-left corner of the parallelogram.
         degree: Lagrange degree of the displacement (P2 resolves wall bending; P1 locks).
+        fibres: mesh and assemble for fibre-reinforced walls.
     """
 
     def __init__(
@@ -285,11 +147,13 @@ class CellSolver:
         shape: str = "hexagon",
         origin: tuple[float, float] = (0.0, 0.0),
         degree: int = 2,
+        fibres: bool = False,
     ) -> None:
         self.cell = cell
         self.shape = shape
         self.comm = comm
-        self.unit_cell = build_unit_cell_mesh(cell, resolution, comm, shape, origin)
+        self.fibres = fibres
+        self.unit_cell = build_unit_cell_mesh(cell, resolution, comm, shape, origin, fibres=fibres)
         mesh = self.unit_cell.mesh
         self.V = fem.VectorFunctionSpace(mesh, ("Lagrange", degree))
         tol = 1e-3 * self.unit_cell.h
@@ -300,9 +164,11 @@ class CellSolver:
         self.bcs = [fem.dirichletbc(np.zeros(2, dtype=PETSc.ScalarType), pinned, self.V)]
         self.mpc = periodic_constraint(self.V, self.unit_cell.domain, self.bcs, tol)
 
-        dx = ufl.Measure("dx", domain=mesh, subdomain_data=self.unit_cell.cell_tags)(
-            CELL_TAGS["walls"]
-        )
+        tags = self.unit_cell.wall_tags
+        parts = ufl.Measure("dx", domain=mesh, subdomain_data=self.unit_cell.cell_tags)
+        dxs = [parts(tag) for tag in tags]
+        self.dx = dxs[0] if len(dxs) == 1 else parts(tags)
+        """The measure of all the walls."""
         ds = ufl.Measure("ds", domain=mesh, subdomain_data=self.unit_cell.facet_tags)
         self._Fg = fem.Constant(mesh, np.eye(2, dtype=PETSc.ScalarType))
         self._E = fem.Constant(mesh, PETSc.ScalarType(1.0))
@@ -310,12 +176,31 @@ class CellSolver:
         self._S = fem.Constant(mesh, np.zeros((2, 2), dtype=PETSc.ScalarType))
         z, phi = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
         self._z = fem.Function(self.mpc.function_space)
-        # The operator that ``A`` equals after ``solve`` (for the same Fg, E, nu): the
+        self.fibre_coefficients = None
+        """:class:`~plantgrowth.forms.elasticity.Fibres` of the last solve (fibred solvers)."""
+        if fibres:
+            self.fibre_coefficients = Fibres(
+                fem.Constant(mesh, PETSc.ScalarType(0.0)),
+                fem.Constant(mesh, np.array([1.0, 0.0], dtype=PETSc.ScalarType)),
+                self._tangent_field(),
+            )
+        # The operator that ``A`` equals after ``solve`` (for the same Fg, E, nu, fibres): the
         # definition, against which the tests check the basis.
-        self.bilinear_form = fem.form(wall_bilinear_form(z, phi, self._Fg, self._E, self._nu, dx))
+        self.bilinear_form = fem.form(
+            wall_bilinear_form(
+                z, phi, self._Fg, self._E, self._nu, self.dx, self.fibre_coefficients
+            )
+        )
 
         self.area = cell.area
-        self.wall_area = self._integrate(fem.form(fem.Constant(mesh, 1.0) * dx))
+        areas = [self._integrate(fem.form(fem.Constant(mesh, 1.0) * dx)) for dx in dxs]
+        self.part_fractions = np.array(areas) / self.area
+        """|Y_f| / |Y| of each wall part f (one part, or the three segment families)."""
+        self.wall_area = (
+            areas[0]
+            if len(areas) == 1
+            else self._integrate(fem.form(fem.Constant(mesh, 1.0) * self.dx))
+        )
         self.P2_matrix = None
         if shape == "hexagon":
             x = ufl.SpatialCoordinate(mesh)
@@ -332,11 +217,36 @@ class CellSolver:
             )
             self.P2_matrix = -M / self.area
 
-        self.basis = GradientBasis(self.V, self.mpc, self.bcs, dx)
+        self.basis = GradientBasis(self.V, self.mpc, self.bcs, dxs)
         self._A = self.basis.diagonal.duplicate(copy=True)  # stored as the basis stores
         self.ksp = self.basis.factorization(self._A, "plantgrowth_cell_")
         self._rhs, self._x = self._A.createVecLeft(), self._A.createVecRight()
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
+
+    def _tangent_field(self) -> fem.Function:
+        """DG0 field of the reference tangent t of each wall cell's segment family."""
+        T = fem.Function(fem.VectorFunctionSpace(self.unit_cell.mesh, ("DG", 0)))
+        tags = self.unit_cell.cell_tags
+        values = T.x.array.reshape(-1, 2)
+        for tag, t in zip(self.unit_cell.wall_tags, self.cell.wall_tangents(), strict=True):
+            cells = tags.indices[tags.values == tag]
+            values[T.function_space.dofmap.list.array[cells]] = t
+        T.x.scatter_forward()
+        return T
+
+    def wall_tensors(
+        self, Fg: np.ndarray, E: float, nu: float, fibre_stiffness: float, fibre_angle: float
+    ) -> list[np.ndarray]:
+        """The wall tensor C_w (2, 2, 2, 2) of each wall part: the isotropic one, or for fibred
+        walls ``C_iso + E_f q t_g x t_g x t_g x t_g`` per segment family (E_f =
+        fibre_stiffness * E, m at ``fibre_angle`` degrees)."""
+        C = isotropic_tensor(E, nu)
+        if not self.fibres:
+            if fibre_stiffness != 0.0:
+                raise ValueError("fibre_stiffness > 0 needs a CellSolver built with fibres=True")
+            return [C]
+        m = director(fibre_angle)
+        return [C + fibre_tensor(Fg, t, m, fibre_stiffness * E) for t in self.cell.wall_tangents()]
 
     @property
     def A(self) -> PETSc.Mat:
@@ -350,18 +260,18 @@ class CellSolver:
         return self.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
 
     def _gradient_integrals(self, loads: np.ndarray) -> np.ndarray:
-        """Solve ``A z = reduced @ w`` for each column w of ``loads`` (4, k); returns (4, k)
-        ``int_{Y_w} grad(z)_p`` of the back-substituted solutions (the last one stays in
-        ``self._z``)."""
-        rhs = self.basis.reduced @ loads
+        """Solve ``A z = sum_f reduced[f] @ w_f`` for each column of ``loads`` (parts, 4, k);
+        returns (parts, 4, k) ``int_{Y_f} grad(z)_p`` of the back-substituted solutions over
+        each wall part (the last one stays in ``self._z``)."""
+        rhs = sum(reduced @ w for reduced, w in zip(self.basis.reduced, loads, strict=True))
         integrals = np.zeros_like(loads)
-        for k in range(loads.shape[1]):
+        for k in range(loads.shape[2]):
             self._rhs.array[:] = rhs[:, k]
             self.ksp.solve(self._rhs, self._x)
             self._z.x.array[self.basis.order] = self._x.array_r
             self._z.x.scatter_forward()
             self.mpc.backsubstitution(self._z.vector)
-            integrals[:, k] = self._z.vector.array_r @ self.basis.full
+            integrals[:, :, k] = self._z.vector.array_r @ self.basis.full
         return self.comm.allreduce(integrals, op=MPI.SUM)
 
     def solve(
@@ -371,8 +281,11 @@ class CellSolver:
         nu: float = 0.3,
         pressure: bool = True,
         strain_averages: bool = True,
+        fibre_stiffness: float = 0.0,
+        fibre_angle: float = 0.0,
     ) -> CellResult:
-        """Homogenize for the growth tensor Fg and wall moduli (E, nu).
+        """Homogenize for the growth tensor Fg and wall moduli (E, nu), and for a fibred solver
+        the fibre stiffness E_f / E and the director angle (degrees from x1, grown frame).
 
         Returns E_hom ([maacro_E]) and, when asked for, K_hom ([maacro_K], the pressure problem
         [UCw_weak]) and the strain averages dbar[w^ij], dbar[v] (needed by the strain law only);
@@ -383,25 +296,38 @@ class CellSolver:
         self._Fg.value[:] = Fg
         self._E.value = E
         self._nu.value = nu
-        self.basis.matrix(stiffness_weights(Fg, E, nu), self._A)
+        walls = self.wall_tensors(Fg, E, nu, fibre_stiffness, fibre_angle)
+        if self.fibres:
+            self.fibre_coefficients.stiffness.value = fibre_stiffness * E
+            self.fibre_coefficients.director.value[:] = director(fibre_angle)
+        self.basis.matrix([tensor_weights(Fg, C) for C in walls], self._A)
         self.ksp.setOperators(self._A)
         self.ksp.setUp()  # numeric factorization only: the pattern never changes
 
-        wall = isotropic_tensor(E, nu)
-        wall_b = [np.einsum("klmn,mn->kl", wall, unit_strain(i, j)) for i, j in STRAIN_PROBLEMS]
-        # right-hand sides -int Jg X : grad(phi) G, X = E[b_ij] and I, as moment weights
-        X = np.stack([x.ravel() for x in wall_b + [np.eye(2)] * pressure], axis=1)
+        # C_f[b_ij] per part f and problem s; right-hand sides -int Jg X : grad(phi) G with
+        # X = C_f[b_ij] and I, as moment weights of each part
+        wall_b = np.array(
+            [[np.einsum("klmn,mn->kl", C, unit_strain(i, j)) for i, j in STRAIN_PROBLEMS]
+             for C in walls]
+        )  # fmt: skip
+        columns = [[x.ravel() for x in list(b) + [np.eye(2)] * pressure] for b in wall_b]
+        X = np.stack([np.stack(part, axis=1) for part in columns])
         L = growth_map(Fg)
         integrals = L @ self._gradient_integrals(-np.linalg.det(Fg) * L.T @ X)
-        grad_g = integrals.T.reshape(-1, 2, 2)  # int_{Y_w} grad(z) Fg^{-1}, one per problem
-        dbar = 0.5 * (grad_g + grad_g.transpose(0, 2, 1)) / self.area
-        stress = np.einsum("klmn,smn->skl", wall, dbar)
+        # int_{Y_f} grad(z) Fg^{-1}, one per part and problem
+        grad_g = integrals.transpose(0, 2, 1).reshape(len(walls), -1, 2, 2)
+        dbar_parts = 0.5 * (grad_g + grad_g.transpose(0, 1, 3, 2)) / self.area
+        dbar = dbar_parts.sum(axis=0)
+        stress = sum(
+            np.einsum("klmn,smn->skl", C, d) for C, d in zip(walls, dbar_parts, strict=True)
+        )
+        wall_mean = np.einsum("f,fskl->skl", self.part_fractions, wall_b)  # mean of C_w[b_ij]
 
         phi_w = self.wall_area / self.area
         E_hom = np.zeros((2, 2, 2, 2))
         dbar_w = np.zeros((2, 2, 2, 2)) if strain_averages else None
         for s, (i, j) in enumerate(STRAIN_PROBLEMS):
-            E_hom[i, j] = E_hom[j, i] = phi_w * wall_b[s] + stress[s]
+            E_hom[i, j] = E_hom[j, i] = wall_mean[s] + stress[s]
             if strain_averages:
                 dbar_w[i, j] = dbar_w[j, i] = dbar[s]
         K_hom = stress[3] if pressure else None
@@ -410,16 +336,33 @@ class CellSolver:
         return CellResult(E_hom, K_hom, dbar_w, dbar_v, phi_w, self.P2_matrix, self.ndofs, seconds)
 
 
+def check_fibres(fibre_stiffness: object, fibre_angle: object, names: tuple[str, str]) -> tuple:
+    """E_f / E finite and >= 0, the director angle finite (degrees); errors name ``names``."""
+    return (
+        check_number(names[0], fibre_stiffness, 0.0, np.inf, low_open=False),
+        check_number(names[1], fibre_angle, -np.inf, np.inf),
+    )
+
+
 def cell_properties(
     l1: float, l2: float, theta: float, w: float, E: float, nu: float, Fg: object,
     resolution: int | None, comm: MPI.Comm, resolution_name: str = "resolution",
+    fibre_stiffness: float = 0.0, fibre_angle: float = 0.0,
+    fibre_names: tuple[str, str] = ("fibre_stiffness", "fibre_angle"),
 ) -> dict:  # fmt: skip
-    """E_hom (six components), K_hom, the orthotropic moduli, phi_w, ndofs and seconds of one
-    honeycomb cell (docs/model.md sections 2-3) at the growth tensor ``Fg`` (2x2), checked first
-    (errors name the argument; the resolution as ``resolution_name``)."""
+    """E_hom (six components), K_hom, the orthotropic moduli, phi_w, ndofs, seconds and the
+    strain averages dbar_w, dbar_v of one honeycomb cell (docs/model.md sections 2-3) at the
+    growth tensor ``Fg`` (2x2), with fibre-reinforced walls when ``fibre_stiffness`` > 0, checked
+    first (errors name the argument; the resolution as ``resolution_name``, the fibre
+    parameters as ``fibre_names``)."""
     E, nu = check_wall_material(E, nu)
     Fg = np.array(check_growth_tensor("Fg", Fg))
+    fibre_stiffness, fibre_angle = check_fibres(fibre_stiffness, fibre_angle, fibre_names)
     resolution = DEFAULT_RESOLUTION if resolution is None else resolution
     cell = HoneycombCell(l1, l2, theta, w)
     mesh_size(cell, resolution, resolution_name)
-    return CellSolver(cell, resolution, comm).solve(Fg, E, nu).summary()
+    fibres = fibre_stiffness > 0.0
+    result = CellSolver(cell, resolution, comm, fibres=fibres).solve(
+        Fg, E, nu, fibre_stiffness=fibre_stiffness, fibre_angle=fibre_angle
+    )
+    return {**result.summary(), **result.strain_averages()}

@@ -27,7 +27,7 @@ costs microseconds and the cells of a fine mesh can each ask their own.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,6 +110,8 @@ class LatticeSurrogate:
         segments: slices of the packed vector measured separately (E_hom, K_hom, ...).
         comm: ranks that share the queries and the lattice solves.
         scheduler: deals the lattice solves to the ranks (default: a new one on ``comm``).
+        group: the solver (mesh) a table's points are solved on, ``group(table)`` (default:
+            the table less its last entry, nu).
     """
 
     def __init__(
@@ -119,8 +121,10 @@ class LatticeSurrogate:
         segments: Sequence[slice],
         comm: MPI.Comm,
         scheduler: CellScheduler | None = None,
+        group: Callable[[tuple], Hashable] = lambda table: table[:-1],
     ) -> None:
         self._solve = solve
+        self._group = group
         self.scheduler = scheduler or CellScheduler(comm)
         self.tolerance = tolerance
         self.segments = tuple(segments)
@@ -148,12 +152,12 @@ class LatticeSurrogate:
 
     def _solve_points(self, points: list[Point]) -> int:
         """Solve the lattice points missing on any rank (collective: ``points`` are this
-        rank's); each point's solver is its table's geometry (the table less nu)."""
+        rank's); each point's solver is its table's group (by default the table less nu)."""
         wanted = set().union(*self.comm.allgather(set(points)))
         missing = sorted(wanted - self.values.keys())
         self.values.update(
             self.scheduler.solve_all(
-                missing, lambda p: p[0][:-1],
+                missing, lambda p: self._group(p[0]),
                 lambda p: self._solve(p[0], stretch(np.array(p[1]) * (H0 / STEP))),
             )
         )  # fmt: skip

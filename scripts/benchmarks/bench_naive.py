@@ -233,7 +233,8 @@ def basis_seconds(resolution: int, repeats: int = 5) -> float:
 
     from plantgrowth.meshes.honeycomb import HoneycombCell
     from plantgrowth.meshes.unit_cell import CELL_TAGS
-    from plantgrowth.unitcell.solver import CellSolver, GradientBasis
+    from plantgrowth.unitcell.gradient_basis import GradientBasis
+    from plantgrowth.unitcell.solver import CellSolver
 
     solver = CellSolver(HoneycombCell(), resolution, MPI.COMM_SELF)
     cell_tags = solver.unit_cell.cell_tags
@@ -241,7 +242,7 @@ def basis_seconds(resolution: int, repeats: int = 5) -> float:
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        GradientBasis(solver.V, solver.mpc, solver.bcs, dx)
+        GradientBasis(solver.V, solver.mpc, solver.bcs, [dx])
         times.append(time.perf_counter() - start)
     return statistics.median(times)
 

@@ -12,7 +12,6 @@ reused for every g. Writes the full summary of every point (``pg.cell``'s keys, 
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 import time
@@ -22,7 +21,7 @@ import numpy as np
 from mpi4py import MPI
 
 import plantgrowth as pg
-from plantgrowth.base.machine import machine_description
+from plantgrowth.base.machine import write_study_json
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.unitcell.solver import DEFAULT_RESOLUTION, CellSolver
 
@@ -101,12 +100,8 @@ def main(argv: list[str] | None = None) -> int:
         "thickness": thickness,
         "growth": growth,
         "seconds": seconds,
-        "machine": machine_description(),
     }
-    result["script_seconds"] = time.perf_counter() - start
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
-    print(f"wrote {args.out} in {result['script_seconds']:.1f} s")
+    write_study_json(args.out, result, start)
     return 0
 
 
