@@ -6,7 +6,7 @@ random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, si
 numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
 the tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the
 mesh) and named parameters (undefined, shadowing x1, x2, s, pi or a function), bad fibre walls
-and feedback (and valid ones, which the runner refuses), zip sweeps whose lists differ in
+and feedback (and valid micro ones, which the runner refuses), zip sweeps whose lists differ in
 length), bad command lines and output paths that cannot be written. Every case
 must end with exit code 2 and a one-line ``plantgrowth: error: ...`` naming the field
 (``Case.expect``), before anything is written.
@@ -805,11 +805,11 @@ def _bad_fibres(rng: random.Random, scene: dict):
     """``[walls]`` and ``[feedback]``: wrong types, NaN/inf, a negative fibre_stiffness, an
     angle beyond 1e6 degrees, an unknown cue, a bad rate, missing keys, feedback without fibres,
     a fibre angle without fibre_stiffness (or the reverse), an expression out of range inside
-    the tissue, and a valid fibred scene, which the runner refuses (the models do not read
-    fibres yet)."""
+    the tissue, the output field fibre_direction without a director, and a valid fibred scene
+    of the micro model, which the runner refuses (the micro model does not read fibres yet)."""
     what = rng.choice(["wrong_type", "nonfinite", "negative", "huge_angle", "cue", "rate",
                        "missing", "no_fibres", "angle_alone", "stiffness_alone", "interior",
-                       "refused"])  # fmt: skip
+                       "refused", "field_alone"])  # fmt: skip
     scene.pop("loads", None)  # so that compare reaches the fibre checks
     walls: dict = {"fibre_stiffness": rng.uniform(0.1, 5.0), "fibre_angle": rng.uniform(-90, 90)}
     feedback: dict = {"cue": rng.choice(["stress", "strain"]), "rate": rng.uniform(0.0, 2.0)}
@@ -856,10 +856,17 @@ def _bad_fibres(rng: random.Random, scene: dict):
         walls = rng.choice([{}, {"fibre_stiffness": 0.0}])
         expect = ("feedback:", "no fibres")
     elif what == "refused":
+        scene["model"] = rng.choice(["micro", "both"])
+        for extent in ("width", "height"):  # a micro tissue's extent is its cells'
+            scene.get("tissue", {}).pop(extent, None)
         expect = (
             "feedback" if "feedback" in scene else "walls.fibre_stiffness",
             "not yet supported",
         )
+    elif what == "field_alone":
+        walls = rng.choice([{}, {"fibre_stiffness": 0.0, "fibre_angle": walls["fibre_angle"]}])
+        scene.setdefault("output", {})["fields"] = ["u", "fibre_direction"]
+        expect = ("output.fields", "fibre_direction")
     if walls:
         scene["walls"] = walls
     return scene, expect

@@ -1,7 +1,8 @@
 """The fibre keys of a scene (``[walls] fibre_stiffness, fibre_angle``, ``[feedback] cue,
 rate``): parsed and checked in plantgrowth/scene/, round-tripped through the resolved
-scene.toml, varied by sweeps, and refused by the runner's set-up (the macro and micro models do
-not read them yet) before anything is written.
+scene.toml, varied by sweeps, and refused by the runner's set-up where no model reads them yet
+(the micro model and compare; [feedback] everywhere) before anything is written (the macro
+model's runs with fibres: test_macro_fibres.py).
 
 In-process CLI calls run ``main`` on every rank (valid under mpirun: every rank must fail the
 same way). The one run that goes through (``fibre_stiffness = 0``, the paper's walls) is tiny:
@@ -132,7 +133,7 @@ def test_bad_fibre_keys_are_named_errors(tables, fragment):
 
 def test_an_expression_out_of_range_is_named_where_the_run_uses_it():
     """A fibre field given as an expression is checked at every place of the mesh, like the
-    other fields (scene/places.py), before the runner refuses the fibres."""
+    other fields (scene/places.py), before the runner runs (or refuses) the fibres."""
     scene = parse_scene(
         tomllib.loads(TINY) | {"walls": {"fibre_stiffness": {"expr": "x1 - 3"}, "fibre_angle": 0}}
     )
@@ -168,24 +169,25 @@ def test_a_sweep_varies_the_fibre_keys(tmp_path):
         load_sweep(tmp_path / "bad.toml")
 
 
-# --- the runner refuses fibres, before anything is written --------------------------------------
+# --- the runner refuses fibres where no model reads them yet, before anything is written -------
+
+MICRO = 'model = "micro"\n'
+REFUSED = [
+    (MICRO, "[walls]\nfibre_stiffness = 0.5\nfibre_angle = 90\n", "walls.fibre_stiffness",
+     "not yet supported by the micro model"),
+    (MICRO, '[walls]\nfibre_stiffness = {expr = "where(x1 < 2, 1, 0)"}\nfibre_angle = 0\n',
+     "walls.fibre_stiffness", "not yet supported by the micro model"),
+    ("", "[walls]\nfibre_stiffness = 0\nfibre_angle = 0\n[feedback]\ncue = 'stress'\nrate = 1\n",
+     "feedback", "not yet supported by the models"),
+]  # fmt: skip
 
 
-@pytest.mark.parametrize(
-    "extra, key",
-    [
-        ("[walls]\nfibre_stiffness = 0.5\nfibre_angle = 90\n", "walls.fibre_stiffness"),
-        ('[walls]\nfibre_stiffness = {expr = "where(x1 < 2, 1, 0)"}\nfibre_angle = 0\n',
-         "walls.fibre_stiffness"),
-        ("[walls]\nfibre_stiffness = 0\nfibre_angle = 0\n[feedback]\ncue = 'stress'\nrate = 1\n",
-         "feedback"),
-    ],
-)  # fmt: skip
+@pytest.mark.parametrize("top, extra, key, fragment", REFUSED)
 @pytest.mark.parametrize("command", ["run", "validate", "compare", "sweep"])
-def test_fibres_are_refused_before_anything_is_written(extra, key, command, tmp_path_factory,
-                                                       capsys):  # fmt: skip
+def test_fibres_are_refused_before_anything_is_written(top, extra, key, fragment, command,
+                                                       tmp_path_factory, capsys):  # fmt: skip
     directory = shared_dir(tmp_path_factory, "refused")
-    write(directory / "fibres.toml", TINY + extra)
+    write(directory / "fibres.toml", top + TINY + extra)
     write(directory / "sweep.toml", 'base = "fibres.toml"\n[vary]\n"growth.eta" = [0.5, 1]\n')
     out = directory / "out"
     argv = {
@@ -197,20 +199,35 @@ def test_fibres_are_refused_before_anything_is_written(extra, key, command, tmp_
     code, _, err = call(argv, capsys)
     assert code == 2
     if RANK0:
-        assert err.startswith(f"plantgrowth: error: {key}: fibre-reinforced walls")
-        assert "not yet supported by the macro and micro models" in err
+        assert err.startswith(f"plantgrowth: error: {key}: "), err
+        assert fragment in err
         assert len(err.splitlines()) == 1 and "Traceback" not in err
         assert sorted(p.name for p in directory.iterdir()) == ["fibres.toml", "sweep.toml"]
         if command == "sweep":
             assert "run_0000 (growth.eta = 0.5)" in err
 
 
+def test_compare_refuses_a_fibred_macro_scene(tmp_path_factory, capsys):
+    """The macro model reads fixed fibre directors; plantgrowth compare (micro beside it) does
+    not yet, and says so before writing anything."""
+    directory = shared_dir(tmp_path_factory, "compare_refused")
+    write(directory / "fibres.toml", TINY + "[walls]\nfibre_stiffness = 2\nfibre_angle = 30\n")
+    code, _, err = call(
+        ["compare", directory / "fibres.toml", "--nx", "2", "-o", directory / "out"], capsys
+    )
+    assert code == 2
+    if RANK0:
+        assert "(plantgrowth compare)" in err and "not yet supported by the micro model" in err
+        assert sorted(p.name for p in directory.iterdir()) == ["fibres.toml"]
+
+
 def test_refusal_names_the_source():
-    scene = _scene(walls=FIBRES)
+    scene = _scene(walls=FIBRES, model="micro")
     with pytest.raises(SceneError, match=r"isotropic walls \(in sweep\.toml: run_0001\)$"):
         refuse_fibres(scene, " (in sweep.toml: run_0001)")
     refuse_fibres(_scene())  # no fibres: nothing to refuse
     refuse_fibres(_scene(walls={"fibre_stiffness": 0.0, "fibre_angle": 10.0}))
+    refuse_fibres(_scene(walls=FIBRES))  # the macro model reads fixed directors
 
 
 def test_walls_of_zero_fibre_stiffness_run_as_the_paper_s(tmp_path_factory, capsys):

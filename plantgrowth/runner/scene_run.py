@@ -46,21 +46,29 @@ def checked_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> Macro
             check_macro_places(domain.scene, *domain.places(), comm)
         if nx is not None or scene.model in ("micro", "both"):
             check_micro_places(scene, scene.micro_nx if nx is None else nx)
-    refuse_fibres(scene)
+    refuse_fibres(scene, compare=nx is not None)
     return domain
 
 
-def refuse_fibres(scene: Scene, source: str = "") -> None:
-    """SceneError if the scene has fibred walls (``walls.fibre_stiffness`` other than the
-    constant 0) or ``[feedback]``: the macro and micro models do not read them yet, so a run
-    stops here, after the scene's values are checked and before anything is written.
-    ``source`` (e.g. a sweep's run) is appended to the message."""
-    fibred = scene.walls is not None and scene.walls.fibred
-    if fibred or scene.feedback is not None:
-        key = "feedback" if scene.feedback is not None else "walls.fibre_stiffness"
+def refuse_fibres(scene: Scene, source: str = "", compare: bool = False) -> None:
+    """SceneError if the scene has a fibre director (fibred walls, ``walls.fibre_stiffness``
+    other than the constant 0, or ``[feedback]``) where no model reads it yet: the micro model
+    (``model = "micro"`` or ``"both"``) and ``plantgrowth compare`` (``compare``); and
+    ``[feedback]`` anywhere (the macro model reads fixed directors). A run stops here, after the
+    scene's values are checked and before anything is written. ``source`` (e.g. a sweep's run)
+    is appended to the message."""
+    if not scene.has_director:
+        return
+    if scene.feedback is not None:
         raise SceneError(
-            f"{key}: fibre-reinforced walls and their feedback are not yet supported by the "
-            "macro and micro models: remove [feedback], and remove [walls] or set "
+            "feedback: the fibre director's feedback is not yet supported by the models: remove "
+            f"[feedback] to run fixed fibre directors{source}"
+        )
+    if compare or scene.model != "macro":
+        where = "plantgrowth compare" if compare else f'model = "{scene.model}"'
+        raise SceneError(
+            f"walls.fibre_stiffness: fibre-reinforced walls are not yet supported by the micro "
+            f'model ({where}): run model = "macro", or remove [walls] or set '
             f"walls.fibre_stiffness = 0, to run the paper's isotropic walls{source}"
         )
 

@@ -55,12 +55,18 @@ HELD_COLUMNS = ["held_force_1", "held_force_2"]
 (plantgrowth.models.macro.supports)."""
 
 
+FIBRE_COLUMNS = ["fibre_order", "fibre_angle_mean"]
+"""Appended for a scene with a fibre director (fibred walls or ``[feedback]``): the director
+field's order and mean angle (plantgrowth.models.fibres.fibre_statistics)."""
+
+
 def summary_columns(scene: Scene) -> list[str]:
     """The columns of a scene's summary.csv."""
     newton = NEWTON_COLUMNS if scene.kinematics == "finite" else []
     loads = LOAD_COLUMNS if scene.loads and scene.pinned else []
     held = HELD_COLUMNS if scene.supports else []
-    return SUMMARY_COLUMNS + newton + loads + held + region_columns(scene.regions)
+    fibres = FIBRE_COLUMNS if scene.has_director else []
+    return SUMMARY_COLUMNS + newton + loads + held + fibres + region_columns(scene.regions)
 
 
 class Interrupted(Exception):

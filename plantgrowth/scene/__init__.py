@@ -67,7 +67,8 @@ inclined wall length l2 = 1)::
                                # g1, x1 >= 0; zero vector where G is isotropic), "stress_direction"
                                # (same for sigma_hom; micro: the cells' mean wall stress),
                                # "elastic_strain" (largest principal |strain|: eps_el, or Ee;
-                               # micro: each cell's wall mean), "elastic_strain_tensor".
+                               # micro: each cell's wall mean), "elastic_strain_tensor",
+                               # "fibre_direction" (macro, the fibre director; needs [walls]).
                                # Micro runs write u, Fg, G, cell_id and the growth outputs
                                # listed, plus cells.csv and cells.xdmf (cell outlines)
     every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has
@@ -107,9 +108,9 @@ inclined wall length l2 = 1)::
     [feedback]                 # the director turns toward the cue's principal direction (none
     cue = "stress"             # by default; needs both walls keys): "stress" | "strain"
     rate = 0.5                 # k >= 0 in da/dt = -(k A / 2) sin(2 (a - a_Q)) (models/fibres.py)
-                               # The models do not read [walls] and [feedback] yet: runs refuse
-                               # fibre_stiffness other than 0 and [feedback]
-                               # (plantgrowth/runner/scene_run.py)
+                               # The macro model reads [walls] (output "fibre_direction", the
+                               # director); runs refuse fibred micro scenes, compare, and
+                               # [feedback] (plantgrowth/runner/scene_run.py)
 
 The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
 holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is

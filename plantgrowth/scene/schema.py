@@ -98,6 +98,12 @@ class Scene:
                 "walls.fibre_stiffness (E_f / E, >= 0) and walls.fibre_angle (the director at "
                 "t = 0, degrees from x1), or remove [feedback]"
             )
+        if "fibre_direction" in self.output.fields and not self.has_director:
+            raise SceneError(
+                "output.fields: fibre_direction is the fibre director, but the scene has none: "
+                "give walls.fibre_stiffness (E_f / E, > 0) and walls.fibre_angle (degrees from "
+                "x1), or remove fibre_direction"
+            )
         self.P1.check("pressure.P1", *RANGES["pressure.P1"])
         for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
             if isinstance(f, Field) and f.width != self.tissue.width:
@@ -142,6 +148,13 @@ class Scene:
         """Each held edge (``[supports]``) -> the components of u held at zero there (0: u1, 1:
         u2; docs/model.md section 4)."""
         return {e: held_edge(e, kind, self.tissue, self.loads) for e, kind in self.supports.items()}
+
+    @property
+    def has_director(self) -> bool:
+        """Whether the run carries a fibre director (docs/fibres.md): fibred walls
+        (``walls.fibre_stiffness`` other than the constant 0), or ``[feedback]`` turning one."""
+        walls = self.walls
+        return walls is not None and (walls.fibred or self.feedback is not None)
 
     @property
     def pinned(self) -> bool:

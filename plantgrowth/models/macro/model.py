@@ -9,6 +9,9 @@ nodes (spacing H) around it, combined with their P1 weights at its midpoint (one
 those are constant). On the exact path (``cell_tolerance = 0``, the validation mode) as in the
 paper: Fg projected to the coarse nodes, cell problems there (distinct inputs only), the
 tensors P1-interpolated to the fine cells.
+
+Fibred walls (``[walls]``, docs/fibres.md): the director angle is a state variable per fine cell
+(:mod:`plantgrowth.models.macro.director`), passed to the cell problems with the nodes' E_f / E.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude,
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.macro.boundary import Boundary
 from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
+from plantgrowth.models.macro.director import MacroDirector
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.models.macro.resolution import field_sampling
@@ -130,7 +134,15 @@ class MacroModel:
             problem.K is not None, self.strain_averages, comm, scene.accuracy.cell_tolerance,
         )  # fmt: skip
         self.out = _Outputs(problem, scene.output.fields)
-        self.outputs = self.out.functions
+        self.director = None  # fibred walls: the director per fine cell, E_f / E per node
+        if scene.has_director:
+            self.director = MacroDirector(
+                scene.walls, problem.mesh, problem.midpoints[:, :2], nodes, scene.output.fields
+            )
+        self.outputs = self.out.functions + (
+            [] if self.director is None or self.director.function is None
+            else [self.director.function]
+        )  # fmt: skip
         self.side_output = coarse_output(self.grid, scene.output.fields)
         self.cell_table = None  # per-cell rows (cells.csv): micro only
         self.output_space = problem.V
@@ -162,18 +174,22 @@ class MacroModel:
         diagnostics.stop_if(diagnostics.growth_problems(Fg, points), self.comm)
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
-        """Fg and G of the fine cells with their midpoints, gathered on rank 0 in the written
-        mesh's cell order."""
+        """Fg and G (and the fibre director) of the fine cells with their midpoints, gathered on
+        rank 0 in the written mesh's cell order."""
         n = self.problem.n_owned
-        parts = [self.problem.midpoints[:n, :2], Fg[:n].reshape(n, 4), G[:n].reshape(n, 4)]
-        midpoints, Fg_all, G_all = (self._gather.cell_values(p) for p in parts)
+        parts = {"midpoints": self.problem.midpoints[:n, :2], "Fg": Fg[:n].reshape(n, 4),
+                 "G": G[:n].reshape(n, 4)}  # fmt: skip
+        if self.director is not None:
+            parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
+        gathered = {key: self._gather.cell_values(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         if self.comm.rank != 0:
             return None
-        return {"midpoints": midpoints, "Fg": Fg_all, "G": G_all} | newton
+        return gathered | newton
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint."""
+        """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint (and the
+        fibre director, which the model keeps)."""
         distance, index = cKDTree(state["midpoints"]).query(self.problem.midpoints[:, :2])
         tolerance = 1e-9 * max(self.problem.bounding_box)
         matches = np.max(distance, initial=0.0) <= tolerance
@@ -181,26 +197,37 @@ class MacroModel:
             matches = (
                 restore_dofs(self.problem.newton.guess_functions, state, tolerance) and matches
             )
+        if self.director is not None:
+            matches = matches and "fibre_angle" in state
         if not matches:
             raise RunError("the saved state does not match this mesh: was the scene changed?")
+        if self.director is not None:
+            self.director.angle = state["fibre_angle"][index].reshape(-1)
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def cell_tensors(self, Fg: np.ndarray) -> NodeTensors:
         """The homogenized tensors of every fine cell of this rank (ghosts too) at the cells'
         growth tensors Fg (n_cells, 2, 2)."""
+        director = self.director
         if self.per_cell:
             points = self.problem.midpoints[:, :2]
+            fibres = None if director is None else (director.stiffness, director.angle)
             tensors = self.homogenizer.homogenize(
-                self.geometry, self.E, self.nu_nodes, Fg, self._W_active
+                self.geometry, self.E, self.nu_nodes, Fg, self._W_active, fibres
             )
         else:
             n_owned, problem = self.problem.n_owned, self.problem
+            W_owned = self.W[:n_owned]
             Fg_nodes = project_to_nodes(
-                self.W[:n_owned], problem.areas, Fg[:n_owned].reshape(-1, 4), self.comm
+                W_owned, problem.areas, Fg[:n_owned].reshape(-1, 4), self.comm
             )[self.active]
             points = self.grid.nodes[self.active]
+            fibres = None if director is None else (
+                director.stiffness,
+                director.angles_at_nodes(W_owned, problem.areas, self.active, self.comm),
+            )  # fmt: skip
             tensors = self.homogenizer.homogenize(
-                self.geometry, self.E, self.nu_nodes, Fg_nodes.reshape(-1, 2, 2)
+                self.geometry, self.E, self.nu_nodes, Fg_nodes.reshape(-1, 2, 2), fibres=fibres
             )
         diagnostics.stop_if(diagnostics.stiffness_problems(tensors.C, points), self.comm)
         return tensors if self.per_cell else self._to_cells(tensors)
@@ -274,6 +301,8 @@ class MacroModel:
             problem.set_cell_values(self.out.eps, eps_hom)
         self.out.growth.fill(G, sigma, problem.set_cell_values)
         self.out.strain.fill(eps_el, problem.set_cell_values)
+        if self.director is not None:
+            self.director.fill(problem.set_cell_values)
         if self.side_output.fields:
             self._fill_coarse_E_hom(C)
         t3 = time.perf_counter()
@@ -311,6 +340,7 @@ class MacroModel:
             "u2_max": u2_max,
             "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
             **self.regions.measures(current, G[:n], self.strain_magnitudes),
+            **({} if self.director is None else self.director.measures(areas, comm)),
         }
 
 

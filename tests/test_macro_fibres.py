@@ -1,0 +1,266 @@
+"""Fibre-reinforced walls in the macro model (docs/fibres.md; docs/model.md, fibre-reinforced
+walls): the director per fine cell, its cell problems on both paths, the output field
+``fibre_direction``, summary.csv's ``fibre_order``/``fibre_angle_mean``, resume and mpirun.
+
+Small scenes: h = 0.35 to 0.5, H = 1 or 2, P2 cell meshes with one element across a wall, at most
+three steps. Tolerances: ROUND_OFF as in test_macro_exact_solutions.py (the macro LU's relative
+error on these 10^3 dofs, measured <= 1e-11, and the independent cell solve repeats the run's own
+to round-off); serial against mpirun 1e-8 as in test_macro_run.py (only the macro LU and the
+order of the reductions differ).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from cli_helpers import RANK0, shared_dir, write
+from mpi4py import MPI
+
+from plantgrowth.base.errors import SceneError
+from plantgrowth.base.tensors import voigt_matrix
+from plantgrowth.models import growth
+from plantgrowth.models.fibres import reduce_angle
+from plantgrowth.models.macro.model import MacroModel, macro_model
+from plantgrowth.runner.output import StateFile
+from plantgrowth.runner.timeloop import run_model, summary_columns
+from plantgrowth.scene import parse_scene
+from plantgrowth.unitcell.solver import CellSolver
+
+ROUND_OFF = 1e-9  # LU round-off of the macro and cell solves (module docstring)
+COMM = MPI.COMM_WORLD
+FIBRES = {"fibre_stiffness": 5.0, "fibre_angle": 90.0}
+
+
+def _scene(walls: dict | None = None, **tables):
+    data = {
+        "tissue": {"h": 0.35, "H": 1.0},
+        "pressure": {"P1": 0.001},
+        "growth": {"law": "strain", "eta": 1.5},
+        "time": {"t_max": 3.0, "dt": 1.0},
+        "accuracy": {"cell_resolution": 1, "key_tolerance": 1e-12, "cell_tolerance": 0.0},
+        "output": {"fields": ["u", "fibre_direction"] if walls else ["u"]},
+    }
+    for key, table in tables.items():
+        data[key] = data.get(key, {}) | table
+    return parse_scene(data | ({"walls": walls} if walls else {}))
+
+
+def _relative(a: np.ndarray, b: np.ndarray) -> float:
+    """max |a - b| / max |b| over all ranks."""
+    error = COMM.allreduce(float(np.abs(a - b).max(initial=0.0)), op=MPI.MAX)
+    return error / COMM.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
+
+
+def _two_steps(model: MacroModel) -> tuple[np.ndarray, np.ndarray] | None:
+    """G of the second step (after one exp step of dt = 1) and u then, gathered on rank 0 in
+    the mesh's canonical order (two meshes of one scene may be partitioned differently)."""
+    Fg = model.initial_growth()
+    G = model.step(Fg).G
+    G = model.step(growth.advance(Fg, G, 1.0, "exp")).G
+    n = model.problem.n_owned
+    gather = model._gather
+    return gather.cell_values(G[:n].reshape(n, 4)), gather.function(model.problem.u)
+
+
+# --- consequence (1): fibre_stiffness = 0 is the paper's model ----------------------------------
+
+
+@pytest.mark.parametrize("cell_tolerance", [0.0, 1e-3])
+def test_zero_fibre_stiffness_reproduces_the_isotropic_run(cell_tolerance):
+    """A fibre_stiffness field that is 0 throughout the tissue (an expression, so the run takes
+    the fibred code path: director, fibres passed to the cell problems) gives the isotropic
+    run's G and u to round-off, on the exact path and the surrogate's, in a scene whose Fg and
+    E vary (the gradient of E)."""
+    tables = dict(material={"E": {"from": 0.5, "to": 2.0}},
+                  accuracy={"cell_tolerance": cell_tolerance})  # fmt: skip
+    plain = macro_model(_scene(**tables), COMM)
+    zero = {"fibre_stiffness": {"expr": "where(x1 < 100, 0, 1)"}, "fibre_angle": 30.0}
+    fibred = macro_model(_scene(zero, **tables), COMM)
+    assert fibred.director is not None and plain.director is None
+    (G0, u0), (G1, u1) = _two_steps(plain), _two_steps(fibred)
+    if RANK0:
+        assert np.abs(G0).max() > 1e-3  # the scene grows
+        assert np.abs(G1 - G0).max() <= 1e-12 * np.abs(G0).max()
+        assert np.abs(u1 - u0).max() <= 1e-12 * np.abs(u0).max()
+
+
+# --- consequence (4): homogeneous, unloaded tissue ----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def fibred_cell():
+    """The fibred reference cell's tensors at Fg = I (E = 1, nu = 0.3, E_f / E = 5, a = 90),
+    solved on COMM_SELF independently of the run."""
+    scene = _scene(FIBRES)
+    solver = CellSolver(scene.cell.at(0.0, 0.0), 1, MPI.COMM_SELF, fibres=True)
+    return solver.solve(np.eye(2), 1.0, 0.3, fibre_stiffness=5.0, fibre_angle=90.0)
+
+
+def _expected_strain_rate(r, P1: float, eta: float) -> np.ndarray:
+    """Consequence (4): G = eta [eps_hom / phi_w]_+ with eps_el = E_hom^{-1} ((1 - phi_w) I -
+    K_hom) P1 (Voigt, engineering shear) and eps_hom from the cell's strain averages."""
+    s = ((1.0 - r.phi_w) * np.eye(2) - r.K_hom) * P1
+    e = np.linalg.solve(voigt_matrix(r.E_hom), [s[0, 0], s[1, 1], s[0, 1]])
+    eps_el = np.array([[[e[0], 0.5 * e[2]], [0.5 * e[2], e[1]]]])
+    phi = np.array([r.phi_w])
+    eps_hom = growth.homogenized_strain(eps_el, phi, r.dbar_w[None], r.dbar_v[None], np.array([P1]))
+    return growth.growth_rate(eps_hom, phi, np.array([eta]), np.array([0.0]), 1.0)[0]
+
+
+@pytest.mark.parametrize("cell_tolerance", [0.0, 1e-3])
+def test_homogeneous_strain_law_grows_fastest_across_the_fibres(fibred_cell, cell_tolerance):
+    """Consequence (4) through the scene keys: every fine cell's G is the formula's from the
+    fibred cell's own tensors, to the solvers' round-off (the surrogate at Fg = I sits on a
+    lattice point: exact), and the tissue grows fastest across the fibres (a = 90: along x1)."""
+    model = macro_model(_scene(FIBRES, accuracy={"cell_tolerance": cell_tolerance}), COMM)
+    G = model.step(model.initial_growth()).G
+    expected = _expected_strain_rate(fibred_cell, 0.001, 1.5)
+    print(f"G = {expected.tolist()}, run's relative error {_relative(G, expected[None]):.2e}")
+    assert _relative(G, expected[None]) <= ROUND_OFF
+    assert expected[0, 0] > 1.5 * expected[1, 1] > 0.0  # measured 3.3 times faster along x1
+    assert abs(expected[0, 1]) <= ROUND_OFF * expected[0, 0]  # orthotropic (consequence 3)
+
+
+@pytest.mark.parametrize("kinematics", ["linear", "finite"])
+def test_homogeneous_stress_law_grows_isotropically(kinematics):
+    """Under the stress law sigma_hom = (1 - phi_w) P1 I whatever the walls (docs/model.md
+    section 4), so a fibred tissue still grows isotropically: G = g I in every cell, to
+    round-off (finite kinematics: Newton is converged to its residual tolerance, 1e-10
+    relative, far below the 1e-9 asked)."""
+    scene = _scene(FIBRES, growth={"law": "stress", "eta": 1.5}).replace(kinematics=kinematics)
+    model = macro_model(scene, COMM)
+    G = model.step(model.initial_growth()).G
+    g = G[:, 0, 0]
+    assert COMM.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN) > 0.0
+    assert _relative(G, g[:, None, None] * np.eye(2)[None]) <= ROUND_OFF
+    g_max = COMM.allreduce(float(g.max(initial=-np.inf)), op=MPI.MAX)
+    assert _relative(g, np.full_like(g, g_max)) <= ROUND_OFF
+
+
+# --- output field, summary columns --------------------------------------------------------------
+
+
+def test_fibre_direction_is_the_director_per_fine_cell():
+    """fibre_direction holds m = (cos a, sin a) of the scene's angle field at each fine cell's
+    midpoint (a linear field: the cells see different angles), a reduced to (-90, 90] (an axis:
+    the written vector never points to x1 < 0)."""
+    walls = {"fibre_stiffness": 2.0, "fibre_angle": {"from": -60.0, "to": 120.0}}
+    model = macro_model(_scene(walls, accuracy={"cell_tolerance": 1e-3}), COMM)
+    model.step(model.initial_growth())
+    problem = model.problem
+    m = problem.cell_values(model.director.function)
+    x1 = problem.midpoints[: problem.n_cells, 0]
+    a = np.radians(reduce_angle(-60.0 + 180.0 * x1 / problem.bounding_box[0]))
+    low = COMM.allreduce(float(x1.min()), op=MPI.MIN)
+    high = COMM.allreduce(float(x1.max()), op=MPI.MAX)
+    assert high - low > 0.9 * problem.bounding_box[0]  # angles on both sides of 90 degrees
+    assert np.allclose(m, np.column_stack([np.cos(a), np.sin(a)]), rtol=0, atol=1e-12)
+
+
+def test_fibre_columns_and_field_only_for_fibred_scenes():
+    assert "fibre_order" not in summary_columns(_scene())
+    assert summary_columns(_scene(FIBRES))[-2:] == ["fibre_order", "fibre_angle_mean"]
+    with pytest.raises(SceneError, match=r"^output\.fields: fibre_direction is the fibre"):
+        _scene(output={"fields": ["fibre_direction"]})
+
+
+# --- resume and mpirun ----------------------------------------------------------------------------
+
+RESUMED = """\
+[tissue]
+h = 0.5
+H = 2.0
+[material]
+E = {from = 0.5, to = 2.0}
+[pressure]
+P1 = 0.001
+[growth]
+law = "strain"
+[time]
+t_max = 3
+dt = 1
+[accuracy]
+cell_resolution = 1
+[walls]
+fibre_stiffness = {from = 1.0, to = 5.0, along = "x2"}
+fibre_angle = {from = -45.0, to = 90.0}
+[output]
+fields = ["u", "fibre_direction"]
+precision = "float64"
+"""
+
+
+def _rows(path: Path) -> list[dict[str, float]]:
+    with open(path) as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+NOT_COMPARED = ("n_cell_solves", "residual")  # the cache restarts empty; round-off
+
+
+def test_resume_equals_an_uninterrupted_fibred_run(tmp_path_factory):
+    """Stopped after step 1 and resumed, the run's summary rows (but NOT_COMPARED) and its saved
+    director equal the uninterrupted run's to 1e-10 relative, as in test_interruptions.py: the
+    same arithmetic from the same saved float64 state (a surrogate answer depends only on exact
+    lattice solves); under mpirun each model's mesh may be partitioned differently, so the LU's
+    round-off (~1e-14) remains."""
+    directory = shared_dir(tmp_path_factory, "fibre_resume")
+    scene = parse_scene(tomllib.loads(RESUMED))
+    straight, stopped = directory / "straight", directory / "stopped"
+    for outdir in (straight, stopped):
+        if RANK0:
+            outdir.mkdir()
+        COMM.barrier()
+    run_model(macro_model(scene, COMM), scene, straight, COMM)
+    run_model(macro_model(scene, COMM), scene, stopped, COMM, n_steps=1)
+    run_model(macro_model(scene, COMM), scene, stopped, COMM, resume=True)
+    COMM.barrier()  # rank 0 writes state.h5 after the others have finished the last step
+    angles = [StateFile(d, COMM).read(3)["fibre_angle"] for d in (straight, stopped)]
+    assert np.array_equal(*angles)  # a fixed director: restored, not recomputed
+    if RANK0:
+        a, b = _rows(straight / "summary.csv"), _rows(stopped / "summary.csv")
+        assert len(a) == len(b) == 4
+        for x, y in zip(a, b, strict=True):
+            for column, value in x.items():
+                if not column.startswith("seconds") and column not in NOT_COMPARED:
+                    assert y[column] == pytest.approx(value, rel=1e-10, abs=1e-300), column
+        assert 0.0 < a[-1]["fibre_order"] < 1.0  # the director field varies
+
+
+@pytest.mark.skip_in_parallel
+@pytest.mark.parametrize("cell_tolerance", [0.0])
+def test_mpirun_reproduces_the_serial_fibred_run(tmp_path, cell_tolerance):
+    """``mpirun -n 2 plantgrowth run`` against the serial run of a fibred scene (varying
+    stiffness and angle), every summary column to 1e-8 (module docstring), the same cell
+    solves."""
+    mpirun = shutil.which("mpirun")
+    if mpirun is None:
+        pytest.skip("mpirun not found")
+    text = RESUMED.replace("[accuracy]\n", f"[accuracy]\ncell_tolerance = {cell_tolerance}\n")
+    write(tmp_path / "scene.toml", text)
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1",
+               OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PLANTGROWTH_CACHE_DIR="off")  # fmt: skip
+    plantgrowth = str(Path(sys.executable).parent / "plantgrowth")
+    rows = []
+    for ranks in (1, 2):
+        outdir = tmp_path / f"ranks{ranks}"
+        command = [mpirun, "-n", str(ranks), plantgrowth, "run", str(tmp_path / "scene.toml"),
+                   "-o", str(outdir)]  # fmt: skip
+        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=300)
+        assert done.returncode == 0, done.stderr
+        rows.append(_rows(outdir / "summary.csv"))
+    serial, parallel = rows
+    assert len(serial) == len(parallel) == 4
+    for a, b in zip(serial, parallel, strict=True):
+        assert a["n_cell_solves"] == b["n_cell_solves"]
+        for column in a:
+            if not column.startswith("seconds"):
+                assert b[column] == pytest.approx(a[column], rel=1e-8, abs=1e-14), column
