@@ -17,8 +17,9 @@ exchanged with one ``allgather``.
 
 With ``cell_tolerance > 0`` the growth state goes through :mod:`plantgrowth.unitcell.surrogate`
 instead (rotation split off exactly, the stretch interpolated on lattices refined to the
-tolerance; a fibred table is one (geometry, nu, fibre_stiffness, a - rotation angle): the cell
-problem for (R U, m) is the one for (U, R^T m) rotated by R),
+tolerance; a fibred table is one (geometry, nu, fibre_stiffness) and node of the angle lattice
+of a - rotation angle, interpolated between nodes (:mod:`plantgrowth.unitcell.director_lattice`):
+the cell problem for (R U, m) is the one for (U, R^T m) rotated by R),
 backed by the on-disk cache of :mod:`plantgrowth.unitcell.cache`; every ``CHECK_EVERY``-th call
 also solves one of its queries exactly and logs the surrogate's error there. A lookup costs
 microseconds, so each fine cell can ask with its own Fg and E; only the cell geometry and nu,
@@ -29,6 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -37,7 +39,7 @@ from mpi4py import MPI
 
 from plantgrowth.base.tensors import rotate2, rotate4, rotate_voigt, voigt_matrix
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.unitcell import surrogate
+from plantgrowth.unitcell import director_lattice, surrogate
 from plantgrowth.unitcell.cache import CellCache, cache_root
 from plantgrowth.unitcell.scheduler import CellScheduler
 from plantgrowth.unitcell.solver import CellResult, CellSolver
@@ -156,9 +158,15 @@ class Homogenizer:
         extra = dict(fibre_stiffness=fibre[0], fibre_angle=fibre[1]) if fibred else {}
         return _pack(solver.solve(Fg, 1.0, nu, self.pressure, self.strain_averages, **extra))
 
-    def _solve_stretch(self, table: tuple, U: np.ndarray) -> np.ndarray:
-        values = np.array(table, dtype=float) * self.tol
-        fibre = tuple(values[5:7]) if len(table) > 5 else (0.0, 0.0)
+    def _solve_stretch(self, table: tuple, U: np.ndarray, angle: float | None = None) -> np.ndarray:
+        """A table's cell problem at the stretch U: an isotropic table (geometry, nu), or a
+        fibred one (geometry, nu, fibre_stiffness) at its angle-lattice node's angle (its 7th
+        entry, :data:`director_lattice.ANGLE_STEP` degrees each) or at ``angle``."""
+        values = np.array(table[:6], dtype=float) * self.tol
+        fibre = (0.0, 0.0)
+        if len(table) > 5:
+            node = None if len(table) < 7 else table[6] * director_lattice.ANGLE_STEP
+            fibre = (values[5], node if angle is None else angle)
         return self._solve_exact(tuple(values[:4]), values[4], U, fibre)
 
     def homogenize(
@@ -210,18 +218,17 @@ class Homogenizer:
         self.seconds_last_call = time.perf_counter() - start
         return tensors
 
-    def _tables(self, rows: np.ndarray) -> tuple[list[tuple], np.ndarray]:
-        """The distinct rounded (geometry, nu, fibre_stiffness, reduced angle) ``rows`` as
-        tables (the fibre entries dropped where fibre_stiffness is 0: isotropic tables keep their
-        keys) and each row's index among them; their lattices loaded from the cache
-        (collective: every rank loads the tables any rank asks for)."""
-        unique, inverse = np.unique(rows, axis=0, return_inverse=True)
-        tables = [tuple(row[:5]) if row[5] == 0 else tuple(row) for row in unique.tolist()]
+    def _evaluate(self, tables: list[tuple], which: np.ndarray, s: np.ndarray) -> surrogate.Answer:
+        """Collective: the stretch surrogate's answers (``tables[which[k]]`` at ``s[k]``), the
+        tables' lattices first loaded from the cache (every rank loads the tables any rank asks
+        for) and the newly solved points saved to it."""
         wanted = set().union(*self.comm.allgather(set(tables)))
         for table in sorted(wanted - self._loaded):
             self.surrogate.add(self.cache.load(table))
             self._loaded.add(table)
-        return tables, inverse.ravel()
+        answer = self.surrogate.evaluate(tables, which, s)
+        self.cache.save(self.surrogate.take_new_points())
+        return answer
 
     def _interpolate(
         self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray, weights,
@@ -229,25 +236,32 @@ class Homogenizer:
     ) -> NodeTensors:  # fmt: skip
         """The surrogate's answer at this rank's points: for each point and each table its
         nodes weigh (merged: a table met at several nodes is asked once), the stretch
-        interpolated, then combined with the weights, scaled by E and rotated exactly (a
-        fibred table at the director turned back by the rotation)."""
+        interpolated (and, for a fibred table, the director's angle turned back by the rotation:
+        :mod:`plantgrowth.unitcell.director_lattice`), then combined with the weights, scaled by
+        E and rotated exactly."""
         n = len(Fg)
         R, s = surrogate.split_growth(Fg)
         turn = np.degrees(np.arctan2(R[:, 1, 0], R[:, 0, 0]))
+        b = (fibres[1] - turn) % 180.0  # the director in the stretch's frame, per point
         W = weights.tocoo()
-        stiffness = fibres[0][W.col]
-        angle = np.where(stiffness > 0.0, (fibres[1][W.row] - turn[W.row]) % 180.0, 0.0)
-        node = np.column_stack([geometry, nu])[W.col]
-        rows = np.round(np.column_stack([node, stiffness, angle]) / self.tol).astype(np.int64)
-        rows[rows[:, 5] == 0, 6] = 0  # no fibres: no angle
-        tables, entry_table = self._tables(rows)
-        pairs = sp.csr_matrix((W.data, (W.row, entry_table)), shape=(n, len(tables)))
+        node = np.column_stack([geometry, nu, fibres[0]])[W.col]
+        rows = np.round(node / self.tol).astype(np.int64)
+        unique, entry_table = np.unique(rows, axis=0, return_inverse=True)
+        # isotropic tables (fibre_stiffness 0) keep the paper's keys
+        tables = [tuple(row[:5]) if row[5] == 0 else tuple(row) for row in unique.tolist()]
+        pairs = sp.csr_matrix((W.data, (W.row, entry_table.ravel())), shape=(n, len(tables)))
         pairs.sum_duplicates()
         pairs.eliminate_zeros()
         point = np.repeat(np.arange(n), np.diff(pairs.indptr))
-        answer = self.surrogate.evaluate(tables, pairs.indices, s[point])
-        self.cache.save(self.surrogate.take_new_points())
-        self.solves_last_call = answer.solves + self._check(tables, pairs.indices, s[point], answer)
+        which, s_q, b_q = pairs.indices, s[point], b[point]
+        answer = director_lattice.interpolate_angles(
+            self._evaluate, self.surrogate.relative_difference, self.surrogate.tolerance,
+            self.comm, tables, which, s_q, b_q,
+        )  # fmt: skip
+        self.solves_last_call = answer.solves + self._check(
+            lambda k: self._solve_stretch(tables[which[k]], surrogate.stretch(s_q[k]), b_q[k]),
+            s_q, answer,
+        )  # fmt: skip
         combine = sp.csr_matrix((pairs.data, (point, np.arange(len(point)))), (n, len(point)))
         tensors = self._unpack(combine @ answer.values, E)
         rotated = {"C": rotate_voigt(R, tensors.C)}
@@ -266,11 +280,12 @@ class Homogenizer:
         return NodeTensors(*(None if p[0] is None else np.concatenate(p) for p in joined))
 
     def _check(
-        self, tables: list[tuple], which: np.ndarray, s: np.ndarray, answer: surrogate.Answer
+        self, exact: Callable[[int], np.ndarray], s: np.ndarray, answer: surrogate.Answer
     ) -> int:
-        """Every CHECK_EVERY-th call: one random interpolated query (over all ranks' queries,
-        ``tables[which[k]]`` at ``s[k]``) solved exactly by the rank that holds it, the error
-        logged. Returns the number of exact solves made (the same on every rank)."""
+        """Every CHECK_EVERY-th call: one random interpolated query (over all ranks' queries;
+        this rank's k-th at stretch ``s[k]``, its exact values ``exact(k)``, at its own stretch
+        and director angle) solved exactly by the rank that holds it, the error logged. Returns
+        the number of exact solves made (the same on every rank)."""
         self._calls += 1
         flags = self.comm.allgather(answer.interpolated)
         candidates = np.flatnonzero(np.concatenate(flags))
@@ -281,8 +296,8 @@ class Homogenizer:
         found = None
         if self.comm.rank == owner:
             local = k - sum(len(f) for f in flags[:owner])
-            exact = self._solve_stretch(tables[which[local]], surrogate.stretch(s[local]))
-            found = (self.surrogate.relative_difference(answer.values[local], exact), s[local])
+            values = exact(local)
+            found = (self.surrogate.relative_difference(answer.values[local], values), s[local])
         error, where = self.comm.bcast(found, root=owner)
         self.checks += 1
         self.largest_checked_error = max(self.largest_checked_error, error)
