@@ -1,7 +1,7 @@
 """The fibre keys of a scene (``[walls] fibre_stiffness, fibre_angle``, ``[feedback] cue,
 rate``): parsed and checked in plantgrowth/scene/, round-tripped through the resolved
 scene.toml, varied by sweeps, and refused by the runner's set-up where no model reads them yet
-(the micro model and compare; [feedback] everywhere) before anything is written (the macro
+(the micro model and compare) before anything is written (the macro
 model's runs with fibres: test_macro_fibres.py).
 
 In-process CLI calls run ``main`` on every rank (valid under mpirun: every rank must fail the
@@ -177,8 +177,8 @@ REFUSED = [
      "not yet supported by the micro model"),
     (MICRO, '[walls]\nfibre_stiffness = {expr = "where(x1 < 2, 1, 0)"}\nfibre_angle = 0\n',
      "walls.fibre_stiffness", "not yet supported by the micro model"),
-    ("", "[walls]\nfibre_stiffness = 0\nfibre_angle = 0\n[feedback]\ncue = 'stress'\nrate = 1\n",
-     "feedback", "not yet supported by the models"),
+    (MICRO, "[walls]\nfibre_stiffness = 0\nfibre_angle = 0\n[feedback]\ncue = 'stress'\nrate = 1\n",
+     "feedback", "not yet supported by the micro model"),
 ]  # fmt: skip
 
 
@@ -227,7 +227,8 @@ def test_refusal_names_the_source():
         refuse_fibres(scene, " (in sweep.toml: run_0001)")
     refuse_fibres(_scene())  # no fibres: nothing to refuse
     refuse_fibres(_scene(walls={"fibre_stiffness": 0.0, "fibre_angle": 10.0}))
-    refuse_fibres(_scene(walls=FIBRES))  # the macro model reads fixed directors
+    refuse_fibres(_scene(walls=FIBRES))  # the macro model reads the director
+    refuse_fibres(_scene(walls=FIBRES, feedback={"cue": "strain", "rate": 1.0}))
 
 
 def test_walls_of_zero_fibre_stiffness_run_as_the_paper_s(tmp_path_factory, capsys):

@@ -116,6 +116,10 @@ class GrowthModel(Protocol):
     def check_growth(self, Fg: np.ndarray) -> None:
         """Raise RunError (collectively) if the advanced Fg is not finite or inverted."""
 
+    def end_step(self, dt: float) -> None:
+        """Advance the model's own state other than Fg over the step dt, from the step just
+        solved (macro: the fibre director's feedback), before the step's state is saved."""
+
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
         """What --resume needs to continue after this step (global arrays, on rank 0)."""
 

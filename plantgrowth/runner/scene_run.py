@@ -53,23 +53,17 @@ def checked_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> Macro
 def refuse_fibres(scene: Scene, source: str = "", compare: bool = False) -> None:
     """SceneError if the scene has a fibre director (fibred walls, ``walls.fibre_stiffness``
     other than the constant 0, or ``[feedback]``) where no model reads it yet: the micro model
-    (``model = "micro"`` or ``"both"``) and ``plantgrowth compare`` (``compare``); and
-    ``[feedback]`` anywhere (the macro model reads fixed directors). A run stops here, after the
-    scene's values are checked and before anything is written. ``source`` (e.g. a sweep's run)
-    is appended to the message."""
-    if not scene.has_director:
-        return
-    if scene.feedback is not None:
-        raise SceneError(
-            "feedback: the fibre director's feedback is not yet supported by the models: remove "
-            f"[feedback] to run fixed fibre directors{source}"
-        )
-    if compare or scene.model != "macro":
+    (``model = "micro"`` or ``"both"``) and ``plantgrowth compare`` (``compare``). A run stops
+    here, after the scene's values are checked and before anything is written. ``source``
+    (e.g. a sweep's run) is appended to the message."""
+    if scene.has_director and (compare or scene.model != "macro"):
+        key = "feedback" if scene.feedback is not None else "walls.fibre_stiffness"
         where = "plantgrowth compare" if compare else f'model = "{scene.model}"'
         raise SceneError(
-            f"walls.fibre_stiffness: fibre-reinforced walls are not yet supported by the micro "
-            f'model ({where}): run model = "macro", or remove [walls] or set '
-            f"walls.fibre_stiffness = 0, to run the paper's isotropic walls{source}"
+            f"{key}: fibre-reinforced walls and their feedback are not yet supported by the "
+            f'micro model ({where}): run model = "macro", or remove [feedback], and remove '
+            f"[walls] or set walls.fibre_stiffness = 0, to run the paper's isotropic "
+            f"walls{source}"
         )
 
 

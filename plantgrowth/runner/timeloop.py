@@ -218,6 +218,7 @@ def run_model(
                 series.write(step, t)
                 if cells is not None:
                     cells.write_rows(table.rows(step, t))
+            model.end_step(dt)  # the state saved holds what the next step starts from
             snapshot = model.state(Fg, result.G)
             t2 = time.perf_counter()
             row = model.measures(Fg, result.G)

@@ -108,9 +108,9 @@ inclined wall length l2 = 1)::
     [feedback]                 # the director turns toward the cue's principal direction (none
     cue = "stress"             # by default; needs both walls keys): "stress" | "strain"
     rate = 0.5                 # k >= 0 in da/dt = -(k A / 2) sin(2 (a - a_Q)) (models/fibres.py)
-                               # The macro model reads [walls] (output "fibre_direction", the
-                               # director); runs refuse fibred micro scenes, compare, and
-                               # [feedback] (plantgrowth/runner/scene_run.py)
+                               # The macro model reads [walls] and [feedback] (output
+                               # "fibre_direction", the director); runs refuse them in micro
+                               # scenes and compare (plantgrowth/runner/scene_run.py)
 
 The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
 holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is

@@ -27,7 +27,7 @@ from mpi4py import MPI
 
 from plantgrowth.models import fibres
 from plantgrowth.models.macro.coarse import project_to_nodes
-from plantgrowth.scene.parts import Walls
+from plantgrowth.scene.parts import Feedback, Walls
 
 FIBRE_FIELD = "fibre_direction"
 """The output field of the director: m as (x1, x2, 0) per fine cell (ParaView's glyphs)."""
@@ -39,6 +39,7 @@ class MacroDirector:
 
     Args:
         walls: the scene's fibred walls.
+        feedback: the scene's feedback (None: a fixed director).
         mesh: the fine mesh (for the output function).
         midpoints: (n_cells, 2) the fine cells' midpoints (owned, then ghosts).
         nodes: (m, 2) the active coarse nodes.
@@ -46,9 +47,10 @@ class MacroDirector:
     """
 
     def __init__(
-        self, walls: Walls, mesh: Mesh, midpoints: np.ndarray, nodes: np.ndarray,
-        fields: tuple[str, ...],
+        self, walls: Walls, feedback: Feedback | None, mesh: Mesh, midpoints: np.ndarray,
+        nodes: np.ndarray, fields: tuple[str, ...],
     ) -> None:  # fmt: skip
+        self.feedback = feedback
         at_cells = np.broadcast_to(walls.fibre_angle(*midpoints.T), len(midpoints))
         self.angle = fibres.reduce_angle(at_cells)
         self.stiffness = np.broadcast_to(walls.fibre_stiffness(*nodes.T), len(nodes)).copy()
@@ -67,6 +69,17 @@ class MacroDirector:
         axial = np.column_stack([np.cos(two_a), np.sin(two_a)])
         mean = project_to_nodes(W_owned, areas, axial, comm)[active]
         return fibres.reduce_angle(0.5 * np.degrees(np.arctan2(mean[:, 1], mean[:, 0])))
+
+    def turn(self, Q: np.ndarray, dt: float) -> None:
+        """The feedback's exact step over dt: each cell's director turns toward the principal
+        direction of its cue tensor Q (n_cells, 2, 2) (sigma_hom or eps_hom of the step just
+        solved), ``tan(a_new - a_Q) = tan(a - a_Q) exp(-k A dt)``
+        (:func:`plantgrowth.models.fibres.turn_director`). Nothing without feedback."""
+        if self.feedback is not None:
+            q = fibres.cue(Q)
+            self.angle = fibres.turn_director(
+                self.angle, q.angle, q.anisotropy, self.feedback.rate, dt
+            )
 
     def fill(self, set_values: Callable[[fem.Function, np.ndarray], None]) -> None:
         """The output field, if asked for: m = (cos a, sin a) per fine cell (the padding to

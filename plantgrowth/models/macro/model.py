@@ -128,7 +128,10 @@ class MacroModel:
         self.eta, self.tau = scene.growth.eta(*at_cells), scene.growth.tau(*at_cells)
         # (n_cells, 2): docs/model.md section 6, P2 = -grad P1 . y
         self.grad_P1 = scene.P1.gradient(*at_cells)
-        self.strain_averages = scene.growth.law == "strain" or "eps_hom" in scene.output.fields
+        strain_cue = scene.feedback is not None and scene.feedback.cue == "strain"
+        self.strain_averages = (
+            scene.growth.law == "strain" or "eps_hom" in scene.output.fields or strain_cue
+        )
         self.homogenizer = Homogenizer(
             scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
             problem.K is not None, self.strain_averages, comm, scene.accuracy.cell_tolerance,
@@ -137,8 +140,11 @@ class MacroModel:
         self.director = None  # fibred walls: the director per fine cell, E_f / E per node
         if scene.has_director:
             self.director = MacroDirector(
-                scene.walls, problem.mesh, problem.midpoints[:, :2], nodes, scene.output.fields
-            )
+                scene.walls, scene.feedback, problem.mesh, problem.midpoints[:, :2], nodes,
+                scene.output.fields,
+            )  # fmt: skip
+        self._cue = None  # the last step's cue tensor per fine cell (feedback only)
+        self._fibre_row: dict[str, float] = {}  # the last step's fibre_order, fibre_angle_mean
         self.outputs = self.out.functions + (
             [] if self.director is None or self.director.function is None
             else [self.director.function]
@@ -204,6 +210,12 @@ class MacroModel:
         if self.director is not None:
             self.director.angle = state["fibre_angle"][index].reshape(-1)
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
+
+    def end_step(self, dt: float) -> None:
+        """The fibre director's feedback over dt from the step just solved (its cue at the
+        step's start, docs/fibres.md); nothing without feedback."""
+        if self._cue is not None:
+            self.director.turn(self._cue, dt)
 
     def cell_tensors(self, Fg: np.ndarray) -> NodeTensors:
         """The homogenized tensors of every fine cell of this rank (ghosts too) at the cells'
@@ -303,6 +315,9 @@ class MacroModel:
         self.out.strain.fill(eps_el, problem.set_cell_values)
         if self.director is not None:
             self.director.fill(problem.set_cell_values)
+            self._fibre_row = self.director.measures(problem.areas, self.comm)
+            if self.scene.feedback is not None:
+                self._cue = sigma if self.scene.feedback.cue == "stress" else eps_hom
         if self.side_output.fields:
             self._fill_coarse_E_hom(C)
         t3 = time.perf_counter()
@@ -340,7 +355,7 @@ class MacroModel:
             "u2_max": u2_max,
             "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
             **self.regions.measures(current, G[:n], self.strain_magnitudes),
-            **({} if self.director is None else self.director.measures(areas, comm)),
+            **self._fibre_row,
         }
 
 

@@ -336,6 +336,9 @@ class MicroModel:
     def check_growth(self, Fg: np.ndarray) -> None:
         diagnostics.stop_if(diagnostics.growth_problems(Fg, self.layout.centres), self.comm)
 
+    def end_step(self, dt: float) -> None:
+        """Nothing: the micro model has no state other than Fg (no fibre director yet)."""
+
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
         """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with
         finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
