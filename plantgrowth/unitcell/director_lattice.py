@@ -43,6 +43,14 @@ def angle_nodes(b: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return lower % PERIOD, (lower + steps) % PERIOD, t
 
 
+def node_tolerance(tolerance: float, weight: np.ndarray) -> np.ndarray:
+    """The relative tolerance a node's stretch interpolation is asked for, given its weight w in
+    the angle interpolant: ``tolerance / min(1, 2 w)``, at most 1. A node's error enters the
+    answer times w, so the two nodes' errors add up to at most 1.5 tolerance (two halves), and
+    a node of small weight (a director near the other node) is not refined for nothing."""
+    return np.minimum(tolerance / np.clip(2.0 * weight, 1e-300, 1.0), 1.0)
+
+
 def interpolate_angles(
     evaluate: Callable[[list[tuple], np.ndarray, np.ndarray], Answer],
     difference: Callable[[np.ndarray, np.ndarray], np.ndarray],
@@ -58,8 +66,8 @@ def interpolate_angles(
     [0, 180)); an isotropic table is asked once, as it is.
 
     Args:
-        evaluate: the stretch surrogate, ``evaluate(tables, which, s)`` (collective), a fibred
-            table's node being the table plus its angle index.
+        evaluate: the stretch surrogate, ``evaluate(tables, which, s, tolerance)``
+            (collective), a fibred table's node being the table plus its angle index.
         difference: the relative difference per row of two (n, m) value arrays.
     """
     n = len(which)
@@ -71,26 +79,27 @@ def interpolate_angles(
     plain = np.flatnonzero(~fibred)
     while True:
         # level L's nodes, then L + 1's (of which the first round also needs L's)
-        ask_tables, ask_which, ask_s, parts = [], [], [], []
+        ask_tables, ask_which, ask_s, ask_tol, parts = [], [], [], [], []
         levels = (
             (level[pending] + 1,) if coarse is not None else (level[pending], level[pending] + 1)
         )
         for lv in levels:
             lower, upper, t = angle_nodes(b[pending], lv)
             parts.append(t)
-            for node in (lower, upper):
+            for node, weight in ((lower, 1.0 - t), (upper, t)):
                 ask_which.append(np.arange(len(ask_tables), len(ask_tables) + len(pending)))
                 ask_tables += [
                     tables[w] + (int(i),) for w, i in zip(which[pending], node, strict=True)
                 ]
                 ask_s.append(s[pending])
+                ask_tol.append(node_tolerance(tolerance, weight))
         if values is None:  # the first round also answers the isotropic queries
             ask_which.append(np.arange(len(ask_tables), len(ask_tables) + len(plain)))
             ask_tables += [tables[w] for w in which[plain]]
             ask_s.append(s[plain])
-        answer = evaluate(
-            ask_tables, np.concatenate(ask_which), np.concatenate(ask_s).reshape(-1, 2)
-        )
+            ask_tol.append(np.full(len(plain), tolerance))
+        ask = (np.concatenate(ask_which), np.concatenate(ask_s).reshape(-1, 2))
+        answer = evaluate(ask_tables, *ask, np.concatenate(ask_tol))
         solves += answer.solves
         if answer.values is None:  # no rank has a query
             return Answer(np.zeros((n, 0)), estimates, interpolated, solves)

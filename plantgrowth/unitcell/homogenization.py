@@ -218,15 +218,18 @@ class Homogenizer:
         self.seconds_last_call = time.perf_counter() - start
         return tensors
 
-    def _evaluate(self, tables: list[tuple], which: np.ndarray, s: np.ndarray) -> surrogate.Answer:
-        """Collective: the stretch surrogate's answers (``tables[which[k]]`` at ``s[k]``), the
+    def _evaluate(
+        self, tables: list[tuple], which: np.ndarray, s: np.ndarray, tolerance: np.ndarray
+    ) -> surrogate.Answer:
+        """Collective: the stretch surrogate's answers (``tables[which[k]]`` at ``s[k]`` to the
+        relative ``tolerance[k]``), the
         tables' lattices first loaded from the cache (every rank loads the tables any rank asks
         for) and the newly solved points saved to it."""
         wanted = set().union(*self.comm.allgather(set(tables)))
         for table in sorted(wanted - self._loaded):
             self.surrogate.add(self.cache.load(table))
             self._loaded.add(table)
-        answer = self.surrogate.evaluate(tables, which, s)
+        answer = self.surrogate.evaluate(tables, which, s, tolerance)
         self.cache.save(self.surrogate.take_new_points())
         return answer
 

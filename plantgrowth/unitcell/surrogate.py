@@ -213,10 +213,15 @@ class LatticeSurrogate:
         columns = ((new >> 42).tolist(), i.tolist(), j.tolist())
         return [(names[k], (a, b)) for k, a, b in zip(*columns, strict=True)]
 
-    def evaluate(self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray) -> Answer:
+    def evaluate(
+        self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray,
+        tolerance: np.ndarray | None = None,
+    ) -> Answer:  # fmt: skip
         """The surrogate's answer to this rank's n queries (0 too): query k asks table
-        ``tables[which[k]]`` at ``s[k]`` (n, 2). Collective."""
+        ``tables[which[k]]`` at ``s[k]`` (n, 2), to the relative ``tolerance[k]`` (default: the
+        surrogate's own). Collective."""
         n = len(which)
+        tol = np.full(n, self.tolerance) if tolerance is None else np.asarray(tolerance)
         ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
         s = np.asarray(s, dtype=float).reshape(n, 2)
         level = np.zeros(n, dtype=np.int64)
@@ -244,7 +249,7 @@ class LatticeSurrogate:
             if values is None:
                 values = np.zeros((n, fine.shape[1]))
             estimates[pending] = self.relative_difference(coarse, fine)
-            done = (estimates[pending] <= self.tolerance) | (level[pending] + 1 == MAX_LEVEL)
+            done = (estimates[pending] <= tol[pending]) | (level[pending] + 1 == MAX_LEVEL)
             values[pending[done]] = fine[done]
             interpolated[pending[done]] = fine_w[done].max(axis=1) < 1.0
             level[pending[~done]] += 1

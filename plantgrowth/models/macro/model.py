@@ -336,7 +336,8 @@ class MacroModel:
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
         """Current area ``int det(I + grad u)``, reference-area means of G11, G22, tr G,
-        max |u_i|, min det Fg and the regions' statistics (plantgrowth/models/regions.py)."""
+        max |u_i|, min det Fg, the regions' statistics (plantgrowth/models/regions.py) and, with
+        a fibre director, fibre_order and fibre_angle_mean of the director the step used."""
         problem, comm = self.problem, self.comm
         n = problem.n_owned
         areas = problem.areas
