@@ -6,15 +6,15 @@ has its centres at ``x2 = r delta_s (l1 + s)``, ``x1 = (k + 1/2 + (r mod 2)/2) d
 bottom row is cut at x2 = 0 (symmetry plane). Each cell owns the walls between its mid-line
 hexagon and its void (so a shared wall is 2w thick and an outer wall w thick). gmsh runs on
 ``model_rank`` only; meshes are distributed over ``comm``.
+gmsh (and dolfinx's gmshio, which imports it) is imported inside the functions that mesh:
+its 0.45 s of start-up is paid only when a mesh is built (``python -X importtime``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import gmsh
 import numpy as np
-from dolfinx.io import gmshio
 from mpi4py import MPI
 
 from .honeycomb import GeometryError, HoneycombCell
@@ -111,6 +111,8 @@ class TissueLayout:
 
 
 def _add_polygon(points: np.ndarray) -> int:
+    import gmsh
+
     occ = gmsh.model.occ
     tags = [occ.addPoint(x, y, 0.0) for x, y in points]
     lines = [occ.addLine(tags[i], tags[(i + 1) % len(tags)]) for i in range(len(tags))]
@@ -118,6 +120,8 @@ def _add_polygon(points: np.ndarray) -> int:
 
 
 def _build_walls_model(layout: TissueLayout, h: float) -> None:
+    import gmsh
+
     gmsh.model.add("tissue")
     occ = gmsh.model.occ
     n = layout.n_cells
@@ -155,6 +159,8 @@ def _build_walls_model(layout: TissueLayout, h: float) -> None:
 
 
 def _build_outline_model(layout: TissueLayout, h: float) -> None:
+    import gmsh
+
     gmsh.model.add("outline")
     occ = gmsh.model.occ
     hexagons = [(2, _add_polygon(layout.hexagon(i))) for i in range(layout.n_cells)]
@@ -168,6 +174,9 @@ def _build_outline_model(layout: TissueLayout, h: float) -> None:
 
 
 def _to_dolfinx(build, comm: MPI.Comm, model_rank: int):
+    import gmsh
+    from dolfinx.io import gmshio
+
     ensure_gmsh()
     try:
         if comm.rank == model_rank:

@@ -6,6 +6,8 @@ Two fundamental domains of the same wall lattice can be meshed:
   voids), two pairs of sides. Results must not depend on the choice (a test checks it).
 Opposite sides are meshed identically (gmsh ``setPeriodic``), so periodic constraints map nodes
 onto nodes. gmsh runs on ``model_rank`` only; the mesh is distributed over ``comm``.
+gmsh (and dolfinx's gmshio, which imports it) is imported inside the functions that mesh:
+its 0.45 s of start-up is paid only when a mesh is built (``python -X importtime``).
 """
 
 from __future__ import annotations
@@ -13,9 +15,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
-import gmsh
 import numpy as np
-from dolfinx.io import gmshio
 from mpi4py import MPI
 
 from .honeycomb import GeometryError, HoneycombCell
@@ -64,6 +64,8 @@ _gmsh_state = {"initialized": False}
 
 def ensure_gmsh() -> None:
     """Initialize gmsh once per process, quietly (gmsh 4.8 has no ``isInitialized``)."""
+    import gmsh
+
     if not _gmsh_state["initialized"]:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
@@ -191,6 +193,8 @@ def _curve_on_side(ends: np.ndarray, domain: PeriodicDomain, i: int, tol: float)
 
 
 def _add_polygon(points: np.ndarray) -> int:
+    import gmsh
+
     occ = gmsh.model.occ
     tags = [occ.addPoint(x, y, 0.0) for x, y in points]
     lines = [occ.addLine(tags[i], tags[(i + 1) % len(tags)]) for i in range(len(tags))]
@@ -198,12 +202,16 @@ def _add_polygon(points: np.ndarray) -> int:
 
 
 def _curve_ends(curve: int) -> np.ndarray:
+    import gmsh
+
     ends = gmsh.model.getBoundary([(1, curve)], oriented=False)
     return np.array([gmsh.model.getValue(0, tag, [])[:2] for _, tag in ends])
 
 
 def _build_gmsh_model(cell: HoneycombCell, domain: PeriodicDomain, h: float) -> None:
     """Walls = domain minus voids, tagged, with periodic sides; meshed with size h."""
+    import gmsh
+
     gmsh.model.add("unit_cell")
     occ = gmsh.model.occ
     surface = _add_polygon(domain.polygon)
@@ -278,6 +286,9 @@ def build_unit_cell_mesh(
         origin: lower-left corner of the parallelogram (ignored for the hexagon).
         model_rank: rank that runs gmsh.
     """
+    import gmsh
+    from dolfinx.io import gmshio
+
     polygon = domain_polygon(cell, shape, origin)
     domain = periodic_domain(cell, polygon)
     h = mesh_size(cell, resolution)

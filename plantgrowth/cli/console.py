@@ -7,8 +7,10 @@ import logging
 import os
 import signal
 import sys
+from typing import TYPE_CHECKING
 
-from mpi4py import MPI
+if TYPE_CHECKING:
+    from mpi4py import MPI
 
 log = logging.getLogger("plantgrowth")
 
@@ -55,6 +57,14 @@ def discard_stdout() -> None:
         os.close(devnull)
     except (OSError, ValueError):  # not a real file (e.g. captured by pytest)
         pass
+
+
+def world() -> MPI.Comm:
+    """MPI's world communicator, starting MPI on the first call (0.3-0.5 s of MPI_Init, which
+    ``--help``, ``--version`` and a command line that fails to parse never pay)."""
+    from mpi4py import MPI
+
+    return MPI.COMM_WORLD
 
 
 def configure_logging(comm: MPI.Comm) -> None:

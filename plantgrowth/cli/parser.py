@@ -82,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="P2 elements across a wall (default: about 0.3%% error on moduli)",
     )
     cell.add_argument("--json", action="store_true", help="print one JSON object as the last line")
-    cell.set_defaults(handler=commands.cell_command)
+    cell.set_defaults(handler=commands.cell_command, solves=True)
 
     run = sub.add_parser(
         "run",
@@ -106,7 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
         "if the scene's only change is a larger time.t_max)",
     )  # fmt: skip
     run.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
-    run.set_defaults(handler=commands.run_command)
+    run.set_defaults(handler=commands.run_command, solves=True)
 
     compare = sub.add_parser(
         "compare",
@@ -138,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="stop both models after the first step (errors only; no t_max columns)",
     )
     compare.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
-    compare.set_defaults(handler=commands.compare_command)
+    compare.set_defaults(handler=commands.compare_command, solves=True)
 
     validate = sub.add_parser(
         "validate",
@@ -148,7 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
         "print a one-line summary; warnings about implausible parameters go to stderr.",
     )
     validate.add_argument("scene", type=Path, help="scene TOML file")
-    validate.set_defaults(handler=commands.validate_command)
+    validate.set_defaults(handler=commands.validate_command, solves=False)
     _add_sweep_parser(sub)
     _add_render_parser(sub)
     return parser
@@ -207,7 +207,7 @@ def _add_render_parser(sub) -> None:
     render.add_argument("--regions", action="store_true",
                         help="outline the scene's [regions] (the growth units whose reference "
                         "midpoint satisfies each condition)")  # fmt: skip
-    render.set_defaults(handler=commands.render_command)
+    render.set_defaults(handler=commands.render_command, solves=False)
 
 
 def _add_sweep_parser(sub) -> None:
@@ -254,4 +254,4 @@ def _add_sweep_parser(sub) -> None:
         help="replace an earlier sweep in DIR (only plantgrowth's files are removed); without "
         "it another sweep there is refused and the same one continued",
     )  # fmt: skip
-    sweep.set_defaults(handler=commands.sweep_command)
+    sweep.set_defaults(handler=commands.sweep_command, solves=True)
