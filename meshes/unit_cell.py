@@ -6,8 +6,8 @@ Two fundamental domains of the same wall lattice can be meshed:
   voids), two pairs of sides. Results must not depend on the choice (a test checks it).
 Opposite sides are meshed identically (gmsh ``setPeriodic``), so periodic constraints map nodes
 onto nodes. gmsh runs on ``model_rank`` only; the mesh is distributed over ``comm``.
-gmsh (and dolfinx's gmshio, which imports it) is imported inside the functions that mesh:
-its 0.45 s of start-up is paid only when a mesh is built (``python -X importtime``).
+gmsh (and dolfinx's gmshio, which imports it) is imported by the functions that mesh, through
+:func:`gmsh_api.gmsh_api`: its 0.35-0.45 s are paid only when a mesh is built.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from .gmsh_api import gmsh_api
 from .honeycomb import GeometryError, HoneycombCell
 
 CELL_TAGS = {"walls": 1}
@@ -57,19 +58,6 @@ class PeriodicDomain:
     corners: tuple[PeriodicCorner, ...]
     pin_point: np.ndarray
     """A mesh vertex on the membrane away from the periodic boundary (removes translations)."""
-
-
-_gmsh_state = {"initialized": False}
-
-
-def ensure_gmsh() -> None:
-    """Initialize gmsh once per process, quietly (gmsh 4.8 has no ``isInitialized``)."""
-    import gmsh
-
-    if not _gmsh_state["initialized"]:
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
-        _gmsh_state["initialized"] = True
 
 
 def _is_lattice_vector(cell: HoneycombCell, v: np.ndarray, tol: float) -> bool:
@@ -193,7 +181,7 @@ def _curve_on_side(ends: np.ndarray, domain: PeriodicDomain, i: int, tol: float)
 
 
 def _add_polygon(points: np.ndarray) -> int:
-    import gmsh
+    gmsh = gmsh_api()
 
     occ = gmsh.model.occ
     tags = [occ.addPoint(x, y, 0.0) for x, y in points]
@@ -202,7 +190,7 @@ def _add_polygon(points: np.ndarray) -> int:
 
 
 def _curve_ends(curve: int) -> np.ndarray:
-    import gmsh
+    gmsh = gmsh_api()
 
     ends = gmsh.model.getBoundary([(1, curve)], oriented=False)
     return np.array([gmsh.model.getValue(0, tag, [])[:2] for _, tag in ends])
@@ -210,7 +198,7 @@ def _curve_ends(curve: int) -> np.ndarray:
 
 def _build_gmsh_model(cell: HoneycombCell, domain: PeriodicDomain, h: float) -> None:
     """Walls = domain minus voids, tagged, with periodic sides; meshed with size h."""
-    import gmsh
+    gmsh = gmsh_api()
 
     gmsh.model.add("unit_cell")
     occ = gmsh.model.occ
@@ -286,13 +274,12 @@ def build_unit_cell_mesh(
         origin: lower-left corner of the parallelogram (ignored for the hexagon).
         model_rank: rank that runs gmsh.
     """
-    import gmsh
+    gmsh = gmsh_api()
     from dolfinx.io import gmshio
 
     polygon = domain_polygon(cell, shape, origin)
     domain = periodic_domain(cell, polygon)
     h = mesh_size(cell, resolution)
-    ensure_gmsh()
     try:
         if comm.rank == model_rank:
             _build_gmsh_model(cell, domain, h)

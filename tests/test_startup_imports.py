@@ -101,3 +101,35 @@ def test_a_run_builds_no_mesh_with_gmsh_once_its_cells_are_cached(tmp_path):
     assert [code for code, _, _ in runs] == [0, 0]
     assert "gmsh" in runs[0][2]
     assert not heavy(runs[1][2], {"gmsh", "matplotlib"}), heavy(runs[1][2], {"gmsh", "matplotlib"})
+
+
+PROBE = """
+import os
+from plantgrowth.cli.mpi_start import SINGLETON_MCA, world
+comm = world()
+print(comm.size, comm.allreduce(1), *(os.environ.get(k, "-") for k in SINGLETON_MCA))
+"""
+
+
+def test_a_singleton_starts_mpi_without_leaving_its_settings_behind():
+    """The isolated start works (a collective on the world) and the settings are gone from the
+    environment afterwards, so a process started later (mpirun) gets the user's."""
+    env = {k: v for k, v in ENV.items() if k not in ("OMPI_MCA_pml",)}
+    done = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, env=env,
+                          timeout=60)  # fmt: skip
+    assert done.stdout.split() == ["1", "1", "-", "-"], done.stderr
+
+
+def test_the_users_own_mpi_settings_are_kept():
+    env = dict(ENV, OMPI_MCA_pml="ob1", OMPI_MCA_ess_singleton_isolated="0")
+    done = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, env=env,
+                          timeout=60)  # fmt: skip
+    assert done.stdout.split() == ["1", "1", "0", "ob1"], done.stderr
+
+
+def test_under_a_launcher_mpi_starts_as_configured():
+    """mpirun -n 2: the ranks talk to each other (a singleton's settings would break that)."""
+    done = subprocess.run(["mpirun", "-n", "2", sys.executable, "-c", PROBE], capture_output=True,
+                          text=True, env=ENV, timeout=120)  # fmt: skip
+    lines = [line.split() for line in done.stdout.splitlines() if line[:1].isdigit()]
+    assert lines == [["2", "2", "-", "-"]] * 2, (done.stdout, done.stderr)

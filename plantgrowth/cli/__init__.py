@@ -18,13 +18,8 @@ from __future__ import annotations
 import sys
 
 from plantgrowth.base.errors import USER_ERRORS, InputError
-from plantgrowth.cli.console import (
-    QUIET,
-    configure_logging,
-    discard_stdout,
-    quiet_broken_pipe,
-    world,
-)  # fmt: skip
+from plantgrowth.cli.console import QUIET, configure_logging, discard_stdout, solver_signals
+from plantgrowth.cli.mpi_start import world
 from plantgrowth.cli.parser import build_parser
 
 __all__ = ["build_parser", "main"]
@@ -47,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
         configure_logging(comm)
         QUIET.on = getattr(args, "quiet", False)
         if args.solves:
-            quiet_broken_pipe()
+            solver_signals()
         code = args.handler(args, comm)
         sys.stdout.flush()
         return code

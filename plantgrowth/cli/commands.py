@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from plantgrowth.base.errors import USER_ERRORS, InputError, RunError
-from plantgrowth.cli.console import quiet_broken_pipe
+from plantgrowth.cli.console import solver_signals
 
 if TYPE_CHECKING:
     from mpi4py import MPI
@@ -75,7 +75,7 @@ def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     if needs_place_checks(scene):  # only then a mesh, dolfinx and PETSc
         from plantgrowth.runner.scene_run import check_used_values
 
-        quiet_broken_pipe()
+        solver_signals()
         check_used_values(scene, comm)
     warn_about(scene)
     if comm.rank == 0:
