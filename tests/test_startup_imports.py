@@ -1,7 +1,9 @@
 """Start-up loads only what a command needs (issue 23, item 4): ``--version`` and ``--help``
 neither MPI nor numpy, ``validate`` of a scene whose fields need no mesh neither dolfinx, PETSc,
 gmsh, scipy, h5py nor matplotlib, and a run whose cell values are cached no gmsh (no mesh is
-built) and no matplotlib.
+built) and no matplotlib. A command started without a launcher starts MPI isolated, leaving the
+user's environment as it was (``plantgrowth/cli/mpi_start.py``); under mpirun MPI starts as
+configured.
 
 Each command runs in a fresh process (a small runner calls ``main`` and then lists the loaded
 modules on stderr), so nothing imported by pytest or an earlier test hides a load. Subprocess
