@@ -39,6 +39,19 @@ def _version() -> str:
         return "(not installed)"
 
 
+class _Version(argparse.Action):
+    """``--version``: prints the installed version, looked up only when asked (argparse's own
+    action takes the text when the parser is built: importlib.metadata's look-up costs every
+    command 15-30 ms)."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"plantgrowth {_version()}")
+        parser.exit()
+
+
 _QUIET = _Parser(add_help=False)
 _QUIET.add_argument(
     "-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
@@ -54,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="plantgrowth", description="Multiscale plant tissue growth.", parents=[_QUIET]
     )
-    parser.add_argument("--version", action="version", version=f"plantgrowth {_version()}")
+    parser.add_argument("--version", action=_Version, help="show the version and exit")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     cell = sub.add_parser(
         "cell",
