@@ -6,7 +6,7 @@ user's environment as it was (``plantgrowth/cli/mpi_start.py``); under mpirun MP
 configured.
 
 Each command runs in a fresh process (a small runner calls ``main`` and then lists the loaded
-modules on stderr), so nothing imported by pytest or an earlier test hides a load. Subprocess
+modules in a file), so nothing imported by pytest or an earlier test hides a load. Subprocess
 tests: ``skip_in_parallel`` (the 2-rank case runs its own ``mpirun``).
 """
 
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -21,13 +22,14 @@ from cli_helpers import ENV
 
 REPO = Path(__file__).resolve().parents[1]
 RUNNER = """
-import sys
+import os, sys
 from plantgrowth.cli import main
 try:
     code = main(sys.argv[1:])
 except SystemExit as stop:  # argparse's --help and --version
     code = stop.code
-print("LOADED", *sorted(sys.modules), file=sys.stderr)
+with open(os.path.join(os.environ["LOADED_DIR"], f"{os.getpid()}.txt"), "w") as f:
+    f.write(" ".join(sorted(sys.modules)))
 sys.exit(code)
 """
 SOLVER = {"dolfinx", "dolfinx_mpc", "petsc4py.PETSc", "ufl", "basix", "gmsh", "scipy", "h5py",
@@ -40,16 +42,19 @@ pytestmark = pytest.mark.skip_in_parallel
 
 
 def loaded(argv: list[str], ranks: int = 1, env: dict | None = None) -> tuple[int, str, set]:
-    """(exit code, stdout, the loaded modules of rank 0) of ``plantgrowth argv`` in a fresh
-    process (under ``mpirun -n ranks`` if ranks > 1)."""
+    """(exit code, stdout, the modules loaded on any rank) of ``plantgrowth argv`` in a fresh
+    process (under ``mpirun -n ranks`` if ranks > 1); each process lists its modules in a file
+    of its own (on a shared stderr the ranks' long lines would interleave)."""
     command = [sys.executable, "-c", RUNNER, *argv]
     if ranks > 1:
         command = ["mpirun", "-n", str(ranks), *command]
-    done = subprocess.run(command, capture_output=True, text=True, env=env or ENV, cwd=REPO,
-                          timeout=300)  # fmt: skip
-    lists = [line.split()[1:] for line in done.stderr.splitlines() if line.startswith("LOADED")]
-    assert len(lists) == ranks, done.stderr
-    return done.returncode, done.stdout, set(lists[0])
+    with tempfile.TemporaryDirectory() as lists:
+        done = subprocess.run(command, capture_output=True, text=True, cwd=REPO, timeout=300,
+                              env=dict(env or ENV, LOADED_DIR=lists))  # fmt: skip
+        files = list(Path(lists).iterdir())
+        assert len(files) == ranks, done.stderr
+        modules = set().union(*(set(f.read_text().split()) for f in files))
+    return done.returncode, done.stdout, modules
 
 
 def heavy(modules: set, names: set) -> set:
@@ -109,7 +114,11 @@ PROBE = """
 import os
 from plantgrowth.cli.mpi_start import SINGLETON_MCA, world
 comm = world()
-print(comm.size, comm.allreduce(1), *(os.environ.get(k, "-") for k in SINGLETON_MCA))
+mine = " ".join([str(comm.size), str(comm.allreduce(1)),
+                 *(os.environ.get(k, "-") for k in SINGLETON_MCA)])
+ranks = comm.gather(mine)  # rank 0 prints them all, in one line each
+if comm.rank == 0:
+    print("\\n".join(ranks))
 """
 
 
