@@ -12,9 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-class GeometryError(ValueError):
-    """An impossible cell geometry; the message names the parameter and its valid range."""
+from .geometry_error import GeometryError
 
 
 def _check_finite_positive(name: str, value: float) -> None:

@@ -6,6 +6,8 @@ Two fundamental domains of the same wall lattice can be meshed:
   voids), two pairs of sides. Results must not depend on the choice (a test checks it).
 Opposite sides are meshed identically (gmsh ``setPeriodic``), so periodic constraints map nodes
 onto nodes. gmsh runs on ``model_rank`` only; the mesh is distributed over ``comm``.
+gmsh (and dolfinx's gmshio, which imports it) is imported by the functions that mesh, through
+:func:`gmsh_api.gmsh_api`: its 0.35-0.45 s are paid only when a mesh is built.
 """
 
 from __future__ import annotations
@@ -13,11 +15,10 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
-import gmsh
 import numpy as np
-from dolfinx.io import gmshio
 from mpi4py import MPI
 
+from .gmsh_api import gmsh_api
 from .honeycomb import GeometryError, HoneycombCell
 
 CELL_TAGS = {"walls": 1}
@@ -61,17 +62,6 @@ class PeriodicDomain:
     corners: tuple[PeriodicCorner, ...]
     pin_point: np.ndarray
     """A mesh vertex on the membrane away from the periodic boundary (removes translations)."""
-
-
-_gmsh_state = {"initialized": False}
-
-
-def ensure_gmsh() -> None:
-    """Initialize gmsh once per process, quietly (gmsh 4.8 has no ``isInitialized``)."""
-    if not _gmsh_state["initialized"]:
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
-        _gmsh_state["initialized"] = True
 
 
 def _is_lattice_vector(cell: HoneycombCell, v: np.ndarray, tol: float) -> bool:
@@ -269,6 +259,8 @@ def _curve_on_side(ends: np.ndarray, domain: PeriodicDomain, i: int, tol: float)
 
 
 def _add_polygon(points: np.ndarray) -> int:
+    gmsh = gmsh_api()
+
     occ = gmsh.model.occ
     tags = [occ.addPoint(x, y, 0.0) for x, y in points]
     lines = [occ.addLine(tags[i], tags[(i + 1) % len(tags)]) for i in range(len(tags))]
@@ -276,6 +268,8 @@ def _add_polygon(points: np.ndarray) -> int:
 
 
 def _curve_ends(curve: int) -> np.ndarray:
+    gmsh = gmsh_api()
+
     ends = gmsh.model.getBoundary([(1, curve)], oriented=False)
     return np.array([gmsh.model.getValue(0, tag, [])[:2] for _, tag in ends])
 
@@ -283,6 +277,7 @@ def _curve_ends(curve: int) -> np.ndarray:
 def _split_walls(cell: HoneycombCell, domain: PeriodicDomain, walls: list) -> list:
     """Cut the walls along the corner bisectors (mesh edges) and tag each piece by the family of
     its nearest mid-line segment (:data:`WALL_FAMILY_TAGS`); returns the pieces."""
+    gmsh = gmsh_api()
     occ = gmsh.model.occ
     lines = []
     for a, b in corner_bisectors(cell, domain.polygon):
@@ -303,6 +298,8 @@ def _split_walls(cell: HoneycombCell, domain: PeriodicDomain, walls: list) -> li
 def _build_gmsh_model(cell: HoneycombCell, domain: PeriodicDomain, h: float, fibres: bool) -> None:
     """Walls = domain minus voids, tagged (split by segment family if ``fibres``), with periodic
     sides; meshed with size h."""
+    gmsh = gmsh_api()
+
     gmsh.model.add("unit_cell")
     occ = gmsh.model.occ
     surface = _add_polygon(domain.polygon)
@@ -385,12 +382,14 @@ def build_unit_cell_mesh(
         fibres: split the walls along the corner bisectors and tag them by segment family
             (for fibre-reinforced walls); False keeps the unsplit mesh of the isotropic walls.
     """
+    gmsh = gmsh_api()
+    from dolfinx.io import gmshio
+
     polygon = domain_polygon(cell, shape, origin)
     domain = periodic_domain(cell, polygon)
     h = mesh_size(cell, resolution)
     if fibres:
         corner_bisectors(cell, polygon)  # on every rank: a GeometryError before gmsh runs
-    ensure_gmsh()
     try:
         if comm.rank == model_rank:
             _build_gmsh_model(cell, domain, h, fibres)

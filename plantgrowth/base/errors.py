@@ -10,7 +10,7 @@ import math
 from collections.abc import Callable
 from typing import TypeVar
 
-from plantgrowth.meshes.honeycomb import GeometryError
+from plantgrowth.meshes.geometry_error import GeometryError
 
 
 class InputError(ValueError):

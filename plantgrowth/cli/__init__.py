@@ -17,36 +17,37 @@ from __future__ import annotations
 
 import sys
 
-from mpi4py import MPI
-
 from plantgrowth.base.errors import USER_ERRORS, InputError
-from plantgrowth.cli.console import QUIET, configure_logging, discard_stdout, quiet_broken_pipe
+from plantgrowth.cli.console import QUIET, configure_logging, discard_stdout, solver_signals
+from plantgrowth.cli.mpi_start import world
 from plantgrowth.cli.parser import build_parser
 
 __all__ = ["build_parser", "main"]
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``plantgrowth`` command."""
-    comm = MPI.COMM_WORLD
-    configure_logging(comm)
+    """Entry point of the ``plantgrowth`` command. MPI starts once the command line has parsed
+    (``--help`` and ``--version`` print before), PETSc only for the commands that solve."""
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser()
     try:
         if not argv:
-            if comm.rank == 0:
+            if world().rank == 0:
                 parser.print_help()
             raise InputError(
                 "no command given: choose one of cell, run, compare, validate, sweep, render"
             )
         args = parser.parse_args(argv)
+        comm = world()
+        configure_logging(comm)
         QUIET.on = getattr(args, "quiet", False)
-        quiet_broken_pipe()
+        if args.solves:
+            solver_signals()
         code = args.handler(args, comm)
         sys.stdout.flush()
         return code
     except USER_ERRORS as err:
-        if comm.rank == 0:
+        if world().rank == 0:
             print(f"plantgrowth: error: {err}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # the reader of stdout is gone: nothing left to tell it

@@ -9,10 +9,13 @@ import json
 import logging
 import sys
 from pathlib import Path
-
-from mpi4py import MPI
+from typing import TYPE_CHECKING
 
 from plantgrowth.base.errors import USER_ERRORS, InputError, RunError
+from plantgrowth.cli.console import solver_signals
+
+if TYPE_CHECKING:
+    from mpi4py import MPI
 
 log = logging.getLogger("plantgrowth")
 
@@ -66,11 +69,16 @@ def render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 
 def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from plantgrowth.runner.scene_run import check_used_values, warn_about
     from plantgrowth.scene import load_scene
+    from plantgrowth.scene.places import needs_place_checks
+    from plantgrowth.scene.plausibility import warn_about
 
     scene = load_scene(args.scene)
-    check_used_values(scene, comm)
+    if needs_place_checks(scene):  # only then a mesh, dolfinx and PETSc
+        from plantgrowth.runner.scene_run import check_used_values
+
+        solver_signals()
+        check_used_values(scene, comm)
     warn_about(scene)
     if comm.rank == 0:
         print(
@@ -83,8 +91,9 @@ def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 def compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.meshes.tissue import TissueLayout, check_nx, wall_mesh_size
     from plantgrowth.models.micro.model import scene_cell
-    from plantgrowth.runner.scene_run import checked_domain, run_directory, warn_about
+    from plantgrowth.runner.scene_run import checked_domain, run_directory
     from plantgrowth.scene import load_scene
+    from plantgrowth.scene.plausibility import warn_about
     from plantgrowth.studies.compare import run_compare
 
     scene = load_scene(args.scene)

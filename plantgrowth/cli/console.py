@@ -7,8 +7,10 @@ import logging
 import os
 import signal
 import sys
+from typing import TYPE_CHECKING
 
-from mpi4py import MPI
+if TYPE_CHECKING:
+    from mpi4py import MPI
 
 log = logging.getLogger("plantgrowth")
 
@@ -86,12 +88,16 @@ def configure_logging(comm: MPI.Comm) -> None:
     log.setLevel(logging.INFO if comm.rank == 0 else logging.ERROR)
 
 
-def quiet_broken_pipe() -> None:
-    """Let a closed stdout raise BrokenPipeError (handled) instead of PETSc's SIGPIPE handler
-    aborting MPI (exit 59): initialise PETSc, then restore Python's ignored SIGPIPE."""
+def solver_signals() -> None:
+    """The signals of a command that solves. A closed stdout raises BrokenPipeError (handled)
+    instead of PETSc's SIGPIPE handler aborting MPI (exit 59): initialise PETSc, then restore
+    Python's ignored SIGPIPE. Ctrl-C outside the time loop (which stops at the end of a step)
+    stops at once and silently: SIGINT's default action, which importing gmsh used to set at
+    start-up before gmsh was imported only to build a mesh."""
     from petsc4py import PETSc  # noqa: F401  (PetscInitialize installs the signal handlers)
 
     try:
         signal.signal(signal.SIGPIPE, signal.SIG_IGN)
-    except ValueError:  # not the main thread (main() called from a thread): leave it
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+    except ValueError:  # not the main thread (main() called from a thread): leave them
         pass

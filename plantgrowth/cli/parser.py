@@ -39,6 +39,19 @@ def _version() -> str:
         return "(not installed)"
 
 
+class _Version(argparse.Action):
+    """``--version``: prints the installed version, looked up only when asked (argparse's own
+    action takes the text when the parser is built: importlib.metadata's look-up costs every
+    command 15-30 ms)."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"plantgrowth {_version()}")
+        parser.exit()
+
+
 _QUIET = _Parser(add_help=False)
 _QUIET.add_argument(
     "-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
@@ -54,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="plantgrowth", description="Multiscale plant tissue growth.", parents=[_QUIET]
     )
-    parser.add_argument("--version", action="version", version=f"plantgrowth {_version()}")
+    parser.add_argument("--version", action=_Version, help="show the version and exit")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     cell = sub.add_parser(
         "cell",
@@ -90,7 +103,7 @@ def build_parser() -> argparse.ArgumentParser:
         cell.add_argument(flag, type=float, default=0.0, metavar="X", help=text)
     cell.add_argument("--json", action="store_true", help="print one JSON object as the last "
                       "line (with the strain averages dbar_w, dbar_v)")  # fmt: skip
-    cell.set_defaults(handler=commands.cell_command)
+    cell.set_defaults(handler=commands.cell_command, solves=True)
 
     run = sub.add_parser(
         "run",
@@ -114,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
         "if the scene's only change is a larger time.t_max)",
     )  # fmt: skip
     run.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
-    run.set_defaults(handler=commands.run_command)
+    run.set_defaults(handler=commands.run_command, solves=True)
 
     compare = sub.add_parser(
         "compare",
@@ -146,7 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="stop both models after the first step (errors only; no t_max columns)",
     )
     compare.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
-    compare.set_defaults(handler=commands.compare_command)
+    compare.set_defaults(handler=commands.compare_command, solves=True)
 
     validate = sub.add_parser(
         "validate",
@@ -156,7 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
         "print a one-line summary; warnings about implausible parameters go to stderr.",
     )
     validate.add_argument("scene", type=Path, help="scene TOML file")
-    validate.set_defaults(handler=commands.validate_command)
+    validate.set_defaults(handler=commands.validate_command, solves=False)
     _add_sweep_parser(sub)
     _add_render_parser(sub)
     return parser
@@ -215,7 +228,7 @@ def _add_render_parser(sub) -> None:
     render.add_argument("--regions", action="store_true",
                         help="outline the scene's [regions] (the growth units whose reference "
                         "midpoint satisfies each condition)")  # fmt: skip
-    render.set_defaults(handler=commands.render_command)
+    render.set_defaults(handler=commands.render_command, solves=False)
 
 
 def _add_sweep_parser(sub) -> None:
@@ -262,4 +275,4 @@ def _add_sweep_parser(sub) -> None:
         help="replace an earlier sweep in DIR (only plantgrowth's files are removed); without "
         "it another sweep there is refused and the same one continued",
     )  # fmt: skip
-    sweep.set_defaults(handler=commands.sweep_command)
+    sweep.set_defaults(handler=commands.sweep_command, solves=True)

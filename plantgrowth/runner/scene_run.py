@@ -25,7 +25,7 @@ from plantgrowth.runner.rundir import check_resumable, claim
 from plantgrowth.runner.timeloop import Interrupted, run_model
 from plantgrowth.scene import Scene
 from plantgrowth.scene.places import check_macro_places, check_micro_places, needs_place_checks
-from plantgrowth.scene.plausibility import scene_warnings
+from plantgrowth.scene.plausibility import warn_about
 
 log = logging.getLogger("plantgrowth")
 
@@ -74,12 +74,6 @@ def check_used_values(scene: Scene, comm: MPI.Comm) -> None:
         checked_domain(scene, comm)
     else:
         refuse_fibres(scene)
-
-
-def warn_about(scene: Scene) -> None:
-    """Log the scene's implausible parameters as warnings (stderr and run.log, rank 0)."""
-    for text in scene_warnings(scene):
-        log.warning("warning: %s", text)
 
 
 @contextmanager

@@ -11,12 +11,16 @@ Warnings, before anything runs:
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from plantgrowth.scene.schema import Scene
 
 P1_OVER_E = (1e-5, 1e-1)
 MIN_THETA = 5.0  # degrees
+
+log = logging.getLogger("plantgrowth")
 
 
 def scene_warnings(scene: Scene) -> list[str]:
@@ -43,3 +47,9 @@ def scene_warnings(scene: Scene) -> list[str]:
             "the cell extremely compliant"
         )
     return out
+
+
+def warn_about(scene: Scene) -> None:
+    """Log the scene's implausible parameters as warnings (stderr and run.log, rank 0)."""
+    for text in scene_warnings(scene):
+        log.warning("warning: %s", text)

@@ -22,7 +22,6 @@ import time
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
-from scipy.spatial import cKDTree
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import MeshGather, dof_state, restore_dofs
@@ -196,6 +195,8 @@ class MacroModel:
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint (and the
         fibre director, which the model keeps)."""
+        from scipy.spatial import cKDTree  # here: a run that does not resume never loads it
+
         distance, index = cKDTree(state["midpoints"]).query(self.problem.midpoints[:, :2])
         tolerance = 1e-9 * max(self.problem.bounding_box)
         matches = np.max(distance, initial=0.0) <= tolerance
