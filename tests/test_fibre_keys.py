@@ -19,8 +19,9 @@ from cli_helpers import RANK0, call, shared_dir, write
 from mpi4py import MPI
 
 from plantgrowth.base.errors import SceneError
-from plantgrowth.runner.scene_run import check_used_values, refuse_fibres
+from plantgrowth.runner.scene_run import check_used_values
 from plantgrowth.scene import parse_scene
+from plantgrowth.scene.unsupported import refuse_fibres
 from plantgrowth.studies.sweep_file import load_sweep
 
 BASE = {"growth": {"law": "stress"}}

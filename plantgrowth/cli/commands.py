@@ -72,6 +72,7 @@ def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.scene import load_scene
     from plantgrowth.scene.places import needs_place_checks
     from plantgrowth.scene.plausibility import warn_about
+    from plantgrowth.scene.unsupported import refuse_fibres
 
     scene = load_scene(args.scene)
     if needs_place_checks(scene):  # only then a mesh, dolfinx and PETSc
@@ -79,6 +80,7 @@ def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
         solver_signals()
         check_used_values(scene, comm)
+    refuse_fibres(scene)
     warn_about(scene)
     if comm.rank == 0:
         print(
@@ -161,7 +163,8 @@ def run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 
 def sweep_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from plantgrowth.runner.scene_run import refuse_fibres, run_scene
+    from plantgrowth.runner.scene_run import run_scene
+    from plantgrowth.scene.unsupported import refuse_fibres
     from plantgrowth.studies.sweep import run_sweep
     from plantgrowth.studies.sweep_file import load_sweep
     from plantgrowth.studies.sweep_share import Share, dry_run

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from plantgrowth.base.errors import RunError, SceneError
+from plantgrowth.base.errors import RunError
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.model import model_on
 from plantgrowth.models.micro.model import MicroModel
@@ -26,6 +26,7 @@ from plantgrowth.runner.timeloop import Interrupted, run_model
 from plantgrowth.scene import Scene
 from plantgrowth.scene.places import check_macro_places, check_micro_places, needs_place_checks
 from plantgrowth.scene.plausibility import warn_about
+from plantgrowth.scene.unsupported import refuse_fibres
 
 log = logging.getLogger("plantgrowth")
 
@@ -48,23 +49,6 @@ def checked_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> Macro
             check_micro_places(scene, scene.micro_nx if nx is None else nx)
     refuse_fibres(scene, compare=nx is not None)
     return domain
-
-
-def refuse_fibres(scene: Scene, source: str = "", compare: bool = False) -> None:
-    """SceneError if the scene has a fibre director (fibred walls, ``walls.fibre_stiffness``
-    other than the constant 0, or ``[feedback]``) where no model reads it yet: the micro model
-    (``model = "micro"`` or ``"both"``) and ``plantgrowth compare`` (``compare``). A run stops
-    here, after the scene's values are checked and before anything is written. ``source``
-    (e.g. a sweep's run) is appended to the message."""
-    if scene.has_director and (compare or scene.model != "macro"):
-        key = "feedback" if scene.feedback is not None else "walls.fibre_stiffness"
-        where = "plantgrowth compare" if compare else f'model = "{scene.model}"'
-        raise SceneError(
-            f"{key}: fibre-reinforced walls and their feedback are not yet supported by the "
-            f'micro model ({where}): run model = "macro", or remove [feedback], and remove '
-            f"[walls] or set walls.fibre_stiffness = 0, to run the paper's isotropic "
-            f"walls{source}"
-        )
 
 
 def check_used_values(scene: Scene, comm: MPI.Comm) -> None:

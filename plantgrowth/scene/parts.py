@@ -1,6 +1,7 @@
 """The parts of a scene, frozen dataclasses each validated in ``__post_init__``: the tissue, the
-cell geometry, the material, the fibred walls and their feedback, growth, time, output, accuracy
-and solver tables, and the checks of an edge load (the key reference: :mod:`plantgrowth.scene`)."""
+cell geometry, the material, growth, time, output, accuracy and solver tables, and the checks of
+an edge load (the key reference: :mod:`plantgrowth.scene`; the fibred walls and their feedback:
+:mod:`plantgrowth.scene.walls`)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,6 @@ from plantgrowth.scene.expression import Expression, parse_expression
 from plantgrowth.scene.fields import AnyField, ExprField, Field
 from plantgrowth.scene.limits import (
     BIG,
-    CUES,
     DEFAULT_OUTPUT,
     EDGES,
     FG0_RANGE,
@@ -183,58 +183,6 @@ class Material:
     def __post_init__(self) -> None:
         self.E.check("material.E", *RANGES["material.E"])
         self.nu.check("material.nu", *RANGES["material.nu"])
-
-
-@dataclass(frozen=True)
-class Walls:
-    """Fibre-reinforced walls (docs/model.md, fibre-reinforced walls): the wall tensor
-    ``C_w = C_iso(E, nu) + E_f q (t_g x t_g x t_g x t_g)`` with ``E_f = fibre_stiffness * E``,
-    the fibre weight ``q = (m . t_g)^2`` of a wall's grown tangent t_g and the director
-    ``m = (cos a, sin a)``, ``a = fibre_angle`` (degrees from x1). Both are fields;
-    ``fibre_stiffness`` the constant 0 is the paper's isotropic walls, and only then may
-    ``fibre_angle`` be left out (there is no fibre direction to give)."""
-
-    fibre_stiffness: AnyField
-    fibre_angle: AnyField | None = None
-
-    def __post_init__(self) -> None:
-        for key, f in self.fields().items():
-            f.check(key, *RANGES[key])
-        if self.fibred and self.fibre_angle is None:
-            raise SceneError(
-                "walls.fibre_angle is required with walls.fibre_stiffness other than 0: the "
-                "fibre direction, a field of degrees from x1 (finite, |a| <= 1e6)"
-            )
-
-    @property
-    def fibred(self) -> bool:
-        """False if ``fibre_stiffness`` is the constant 0: the paper's isotropic walls."""
-        f = self.fibre_stiffness
-        return not (f.is_constant and float(f(0.0, 0.0)) == 0.0)
-
-    def fields(self) -> dict[str, AnyField]:
-        """The walls' fields by dotted key (``walls.fibre_stiffness``, ``walls.fibre_angle``)."""
-        out = {"walls.fibre_stiffness": self.fibre_stiffness}
-        return out | ({} if self.fibre_angle is None else {"walls.fibre_angle": self.fibre_angle})
-
-    def over(self, width: float, height: float) -> Walls:
-        """The fibre fields across a tissue of another extent (docs/model.md section 7)."""
-        angle = None if self.fibre_angle is None else self.fibre_angle.over(width, height)
-        return Walls(self.fibre_stiffness.over(width, height), angle)
-
-
-@dataclass(frozen=True)
-class Feedback:
-    """Mechanical feedback on the fibre director: ``da/dt = -(k A / 2) sin(2 (a - a_Q))``
-    with k = ``rate`` >= 0, a_Q the principal direction of the ``cue`` tensor ("stress":
-    sigma_hom, "strain": eps_hom) and A its anisotropy (plantgrowth/models/fibres.py)."""
-
-    cue: str
-    rate: float
-
-    def __post_init__(self) -> None:
-        choice("feedback.cue", self.cue, CUES)
-        set_fields(self, rate=in_range("feedback.rate", self.rate, 0.0, BIG, False, False))
 
 
 @dataclass(frozen=True)

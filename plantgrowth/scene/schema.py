@@ -17,10 +17,9 @@ from plantgrowth.meshes.honeycomb import GeometryError
 from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.scene import loads as edge_loads
-from plantgrowth.scene.expression import parse_expression
-from plantgrowth.scene.fields import AXES, AnyField, ExprField, Field
+from plantgrowth.scene.field_syntax import parse_field
+from plantgrowth.scene.fields import AnyField, Field
 from plantgrowth.scene.limits import (
-    CUES,
     KINEMATICS,
     LAWS,
     MAX_LENGTH,
@@ -35,7 +34,6 @@ from plantgrowth.scene.parameters import parse_parameters
 from plantgrowth.scene.parts import (
     Accuracy,
     CellGeometry,
-    Feedback,
     Growth,
     Material,
     Numerics,
@@ -43,7 +41,6 @@ from plantgrowth.scene.parts import (
     Solver,
     Time,
     Tissue,
-    Walls,
     check_edge,
     edge_load,
     held_edge,
@@ -58,10 +55,10 @@ from plantgrowth.scene.values import (
     choice,
     in_range,
     integer,
-    number,
     set_fields,
     show,
 )
+from plantgrowth.scene.walls import Feedback, Walls, feedback_from, walls_from
 
 
 @dataclass(frozen=True)
@@ -361,30 +358,6 @@ def _mesh_path(value: object, directory: Path) -> str:
     return os.path.abspath(directory / value)
 
 
-def _field(
-    key: str, raw: object, width: float, height: float, constants: dict[str, float]
-) -> AnyField:
-    """A field value: a number, {from = a, to = b[, along = "x1" | "x2"]} or {expr = "..."} (of
-    x1, x2 and the named parameters ``constants``)."""
-    if isinstance(raw, dict):
-        check_keys(raw, f"{key}.", ("from", "to", "along", "expr"))
-        if "expr" in raw:
-            if len(raw) != 1:
-                raise SceneError(f'{key}: an expression field is {{expr = "..."}} alone')
-            return ExprField(parse_expression(f"{key}.expr", raw["expr"], AXES, constants))
-        if "from" not in raw or "to" not in raw:
-            raise SceneError(f"{key}: a linear field needs both ends, {{from = a, to = b}}")
-        along = choice(f"{key}.along", raw.get("along", "x1"), AXES)
-        start, end = number(f"{key}.from", raw["from"]), number(f"{key}.to", raw["to"])
-        return Field(start, end, width, height, along)
-    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-        raise SceneError(
-            f'{key}: expected a number, {{from = a, to = b}} or {{expr = "..."}}, got '
-            f"{show(raw)}"
-        )
-    return Field(number(key, raw), number(key, raw), width, height)
-
-
 def _with_preset(tables: dict[str, dict]) -> dict[str, dict]:
     """The tables with every knob of ``accuracy.preset`` the scene leaves out filled in; the
     preset's h and H clipped to the tissue (the scene's own values are never changed)."""
@@ -450,7 +423,7 @@ def _parse(data: dict, directory: Path) -> Scene:
     tissue = Tissue(**t["tissue"])
     f = {
         section: {
-            k: _field(
+            k: parse_field(
                 f"{section}.{k}", t[section].get(k, d), tissue.width, tissue.height, constants
             )
             for k, d in kd.items()
@@ -462,7 +435,7 @@ def _parse(data: dict, directory: Path) -> Scene:
     if isinstance(Fg0 := t["growth"].get("Fg0"), list):  # tables in it are fields
         f["growth"]["Fg0"] = [
             [
-                _field(f"growth.Fg0[{i}][{j}]", x, tissue.width, tissue.height, constants)
+                parse_field(f"growth.Fg0[{i}][{j}]", x, tissue.width, tissue.height, constants)
                 if isinstance(x, dict)
                 else x
                 for j, x in enumerate(row)
@@ -490,36 +463,9 @@ def _parse(data: dict, directory: Path) -> Scene:
         parameters=constants,
         regions=parse_regions(data.get("regions", {}), constants),
         supports=dict(t["supports"]),
-        walls=_walls(data, t["walls"], tissue, constants),
-        feedback=_feedback(data, t["feedback"]),
+        walls=walls_from(data, t["walls"], tissue, constants),
+        feedback=feedback_from(data, t["feedback"]),
     )
-
-
-def _walls(data: dict, table: dict, tissue: Tissue, constants: dict[str, float]) -> Walls | None:
-    """``[walls]`` (None if the scene has none): fibre_stiffness (required) and fibre_angle,
-    fields of x1, x2 and the named parameters ``constants``."""
-    if "walls" not in data:
-        return None
-    if "fibre_stiffness" not in table:
-        raise SceneError(
-            "walls.fibre_stiffness is required in [walls]: E_f / E, a field >= 0 (0: the "
-            "paper's isotropic walls); without it the fibre direction has no effect"
-        )
-    width, height = tissue.width, tissue.height
-    return Walls(**{k: _field(f"walls.{k}", v, width, height, constants) for k, v in table.items()})
-
-
-def _feedback(data: dict, table: dict) -> Feedback | None:
-    """``[feedback]`` (None if the scene has none): cue and rate, both required."""
-    if "feedback" not in data:
-        return None
-    for key, valid in (
-        ("cue", f"one of {', '.join(map(repr, CUES))}"),
-        ("rate", "the director's turning rate k, a number >= 0"),
-    ):
-        if key not in table:
-            raise SceneError(f"feedback.{key} is required in [feedback]: {valid}")
-    return Feedback(**table)
 
 
 def load_scene(path: str | os.PathLike) -> Scene:

@@ -27,7 +27,7 @@ from mpi4py import MPI
 
 from plantgrowth.models import fibres
 from plantgrowth.models.macro.coarse import project_to_nodes
-from plantgrowth.scene.parts import Feedback, Walls
+from plantgrowth.scene.walls import Feedback, Walls
 
 FIBRE_FIELD = "fibre_direction"
 """The output field of the director: m as (x1, x2, 0) per fine cell (ParaView's glyphs)."""
