@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import ufl
 
-from .elasticity import growth_weighted_work, wall_stress
+from .elasticity import Fibres, growth_weighted_work, walls_stress
 from .macro import from_voigt, voigt
 
 
@@ -78,16 +78,17 @@ def follower_traction(u, f, psi, n, ds) -> ufl.Form:
     return current_length(u, n) * ufl.inner(f, psi) * ds
 
 
-def wall_second_piola(u, Fg, E, nu):
-    """St Venant-Kirchhoff wall stress ``S = lam tr(Ee) I + 2 mu Ee``."""
-    return wall_stress(green_lagrange_strain(u, Fg), E, nu)
+def wall_second_piola(u, Fg, E, nu, fibres: Fibres | None = None):
+    """St Venant-Kirchhoff wall stress ``S = C_w[Ee]``: ``lam tr(Ee) I + 2 mu Ee``, plus the
+    fibre part for fibred walls."""
+    return walls_stress(green_lagrange_strain(u, Fg), E, nu, Fg, fibres)
 
 
-def micro_residual(u, psi, Fg, E, nu, dx) -> ufl.Form:
+def micro_residual(u, psi, Fg, E, nu, dx, fibres: Fibres | None = None) -> ufl.Form:
     """Walls part of the micro residual, ``int Jg (Fe S) : grad(psi) Fg^{-1} dx`` (first Piola
     stress ``Jg Fe S Fg^{-T}``)."""
     Fe = elastic_deformation(u, Fg)
-    return growth_weighted_work(Fe * wall_second_piola(u, Fg, E, nu), psi, Fg, dx)
+    return growth_weighted_work(Fe * wall_second_piola(u, Fg, E, nu, fibres), psi, Fg, dx)
 
 
 def follower_pressure(u, psi, P, n, ds) -> ufl.Form:
@@ -96,9 +97,9 @@ def follower_pressure(u, psi, P, n, ds) -> ufl.Form:
     return P * ufl.inner(ufl.dot(cofactor(deformation_gradient(u)), n), psi) * ds
 
 
-def wall_stress_average_form(u, tau, Fg, E, nu, dx) -> ufl.Form:
+def wall_stress_average_form(u, tau, Fg, E, nu, dx, fibres: Fibres | None = None) -> ufl.Form:
     """``int S : tau dx`` per mesh cell (stress-based micro growth, intermediate frame)."""
-    return ufl.inner(wall_second_piola(u, Fg, E, nu), tau) * dx
+    return ufl.inner(wall_second_piola(u, Fg, E, nu, fibres), tau) * dx
 
 
 def elastic_strain_average_form(u, tau, Fg, dx) -> ufl.Form:

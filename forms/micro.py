@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import ufl
 
-from .elasticity import elastic_strain, growth_strain, growth_weighted_work, wall_stress
+from .elasticity import Fibres, elastic_strain, growth_strain, growth_weighted_work, walls_stress
 
 
-def micro_growth_rhs(psi, Fg, E, nu, dx) -> ufl.Form:
-    """Growth load ``-int Jg E[sym(Fg^{-1}) - I] : grad(psi) Fg^{-1} dx``."""
-    return -growth_weighted_work(wall_stress(growth_strain(Fg), E, nu), psi, Fg, dx)
+def micro_growth_rhs(psi, Fg, E, nu, dx, fibres: Fibres | None = None) -> ufl.Form:
+    """Growth load ``-int Jg C_w[sym(Fg^{-1}) - I] : grad(psi) Fg^{-1} dx`` (C_w isotropic
+    unless ``fibres`` are given)."""
+    return -growth_weighted_work(walls_stress(growth_strain(Fg), E, nu, Fg, fibres), psi, Fg, dx)
 
 
 def membrane_pressure_rhs(psi, Fg, P, n, ds) -> ufl.Form:
@@ -23,10 +24,10 @@ def membrane_pressure_rhs(psi, Fg, P, n, ds) -> ufl.Form:
     return -ufl.det(Fg) * P * ufl.inner(ufl.dot(ufl.inv(Fg).T, n), psi) * ds
 
 
-def wall_stress_average_form(u, tau, Fg, E, nu, dx) -> ufl.Form:
-    """``int E[eps_el] : tau dx`` with tau a DG0 tensor test function: per mesh cell, the
+def wall_stress_average_form(u, tau, Fg, E, nu, dx, fibres: Fibres | None = None) -> ufl.Form:
+    """``int C_w[eps_el] : tau dx`` with tau a DG0 tensor test function: per mesh cell, the
     integral of the wall stress (summed per biological cell for the growth law)."""
-    return ufl.inner(wall_stress(elastic_strain(u, Fg), E, nu), tau) * dx
+    return ufl.inner(walls_stress(elastic_strain(u, Fg), E, nu, Fg, fibres), tau) * dx
 
 
 def elastic_strain_average_form(u, tau, Fg, dx) -> ufl.Form:

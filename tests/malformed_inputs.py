@@ -805,11 +805,10 @@ def _bad_fibres(rng: random.Random, scene: dict):
     """``[walls]`` and ``[feedback]``: wrong types, NaN/inf, a negative fibre_stiffness, an
     angle beyond 1e6 degrees, an unknown cue, a bad rate, missing keys, feedback without fibres,
     a fibre angle without fibre_stiffness (or the reverse), an expression out of range inside
-    the tissue, the output field fibre_direction without a director, and a valid fibred scene
-    of the micro model, which the runner refuses (the micro model does not read fibres yet)."""
+    the tissue and the output field fibre_direction without a director."""
     what = rng.choice(["wrong_type", "nonfinite", "negative", "huge_angle", "cue", "rate",
                        "missing", "no_fibres", "angle_alone", "stiffness_alone", "interior",
-                       "refused", "field_alone"])  # fmt: skip
+                       "field_alone"])  # fmt: skip
     scene.pop("loads", None)  # so that compare reaches the fibre checks
     walls: dict = {"fibre_stiffness": rng.uniform(0.1, 5.0), "fibre_angle": rng.uniform(-90, 90)}
     feedback: dict = {"cue": rng.choice(["stress", "strain"]), "rate": rng.uniform(0.0, 2.0)}
@@ -837,9 +836,7 @@ def _bad_fibres(rng: random.Random, scene: dict):
     elif what == "stiffness_alone":
         walls.pop("fibre_angle")
         expect = ("walls.fibre_angle is required",)
-    if what in ("cue", "rate", "missing", "no_fibres") or (
-        what == "refused" and rng.random() < 0.5
-    ):
+    if what in ("cue", "rate", "missing", "no_fibres"):
         scene["feedback"] = feedback
     if what == "cue":
         feedback["cue"] = rng.choice(CUE_TYPOS)
@@ -855,14 +852,6 @@ def _bad_fibres(rng: random.Random, scene: dict):
     elif what == "no_fibres":
         walls = rng.choice([{}, {"fibre_stiffness": 0.0}])
         expect = ("feedback:", "no fibres")
-    elif what == "refused":
-        scene["model"] = rng.choice(["micro", "both"])
-        for extent in ("width", "height"):  # a micro tissue's extent is its cells'
-            scene.get("tissue", {}).pop(extent, None)
-        expect = (
-            "feedback" if "feedback" in scene else "walls.fibre_stiffness",
-            "not yet supported",
-        )
     elif what == "field_alone":
         walls = rng.choice([{}, {"fibre_stiffness": 0.0, "fibre_angle": walls["fibre_angle"]}])
         scene.setdefault("output", {})["fields"] = ["u", "fibre_direction"]

@@ -170,42 +170,40 @@ def test_a_sweep_varies_the_fibre_keys(tmp_path):
         load_sweep(tmp_path / "bad.toml")
 
 
-# --- the runner refuses fibres where no model reads them yet, before anything is written -------
+# --- compare refuses fibres (nothing compares them yet), before anything is written ------------
 
 MICRO = 'model = "micro"\n'
 REFUSED = [
-    (MICRO, "[walls]\nfibre_stiffness = 0.5\nfibre_angle = 90\n", "walls.fibre_stiffness",
-     "not yet supported by the micro model"),
-    (MICRO, '[walls]\nfibre_stiffness = {expr = "where(x1 < 2, 1, 0)"}\nfibre_angle = 0\n',
-     "walls.fibre_stiffness", "not yet supported by the micro model"),
+    (MICRO, "[walls]\nfibre_stiffness = 0.5\nfibre_angle = 90\n", "walls.fibre_stiffness"),
+    ("", '[walls]\nfibre_stiffness = {expr = "where(x1 < 2, 1, 0)"}\nfibre_angle = 0\n',
+     "walls.fibre_stiffness"),
     (MICRO, "[walls]\nfibre_stiffness = 0\nfibre_angle = 0\n[feedback]\ncue = 'stress'\nrate = 1\n",
-     "feedback", "not yet supported by the micro model"),
+     "feedback"),
 ]  # fmt: skip
 
 
-@pytest.mark.parametrize("top, extra, key, fragment", REFUSED)
-@pytest.mark.parametrize("command", ["run", "validate", "compare", "sweep"])
-def test_fibres_are_refused_before_anything_is_written(top, extra, key, fragment, command,
-                                                       tmp_path_factory, capsys):  # fmt: skip
+@pytest.mark.parametrize("top, extra, key", REFUSED)
+def test_compare_refuses_fibres_before_anything_is_written(top, extra, key, tmp_path_factory,
+                                                           capsys):  # fmt: skip
     directory = shared_dir(tmp_path_factory, "refused")
     write(directory / "fibres.toml", top + TINY + extra)
-    write(directory / "sweep.toml", 'base = "fibres.toml"\n[vary]\n"growth.eta" = [0.5, 1]\n')
     out = directory / "out"
-    argv = {
-        "run": ["run", directory / "fibres.toml", "-o", out],
-        "validate": ["validate", directory / "fibres.toml"],
-        "compare": ["compare", directory / "fibres.toml", "--nx", "2", "-o", out],
-        "sweep": ["sweep", directory / "sweep.toml", "-o", out],
-    }[command]
-    code, _, err = call(argv, capsys)
+    code, _, err = call(["compare", directory / "fibres.toml", "--nx", "2", "-o", out], capsys)
     assert code == 2
     if RANK0:
         assert err.startswith(f"plantgrowth: error: {key}: "), err
-        assert fragment in err
+        assert "not yet supported by plantgrowth compare" in err
         assert len(err.splitlines()) == 1 and "Traceback" not in err
-        assert sorted(p.name for p in directory.iterdir()) == ["fibres.toml", "sweep.toml"]
-        if command == "sweep":
-            assert "run_0000 (growth.eta = 0.5)" in err
+        assert sorted(p.name for p in directory.iterdir()) == ["fibres.toml"]
+
+
+@pytest.mark.parametrize("top, extra, key", REFUSED)
+def test_validate_accepts_fibred_micro_scenes(top, extra, key, tmp_path_factory, capsys):
+    """The micro model reads fibres: validate (and run) no longer refuse them."""
+    directory = shared_dir(tmp_path_factory, "accepted")
+    write(directory / "fibres.toml", top + TINY + extra)
+    code, _, err = call(["validate", directory / "fibres.toml"], capsys)
+    assert code == 0, err
 
 
 def test_compare_refuses_a_fibred_macro_scene(tmp_path_factory, capsys):
@@ -218,14 +216,15 @@ def test_compare_refuses_a_fibred_macro_scene(tmp_path_factory, capsys):
     )
     assert code == 2
     if RANK0:
-        assert "(plantgrowth compare)" in err and "not yet supported by the micro model" in err
+        assert "not yet supported by plantgrowth compare" in err
         assert sorted(p.name for p in directory.iterdir()) == ["fibres.toml"]
 
 
 def test_refusal_names_the_source():
     scene = _scene(walls=FIBRES, model="micro")
     with pytest.raises(SceneError, match=r"isotropic walls \(in sweep\.toml: run_0001\)$"):
-        refuse_fibres(scene, " (in sweep.toml: run_0001)")
+        refuse_fibres(scene, " (in sweep.toml: run_0001)", compare=True)
+    refuse_fibres(scene)  # the micro model reads the director
     refuse_fibres(_scene())  # no fibres: nothing to refuse
     refuse_fibres(_scene(walls={"fibre_stiffness": 0.0, "fibre_angle": 10.0}))
     refuse_fibres(_scene(walls=FIBRES))  # the macro model reads the director

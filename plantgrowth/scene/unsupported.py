@@ -8,16 +8,15 @@ from plantgrowth.scene import Scene
 
 def refuse_fibres(scene: Scene, source: str = "", compare: bool = False) -> None:
     """SceneError if the scene has a fibre director (fibred walls, ``walls.fibre_stiffness``
-    other than the constant 0, or ``[feedback]``) where no model reads it yet: the micro model
-    (``model = "micro"`` or ``"both"``) and ``plantgrowth compare`` (``compare``). A run stops
+    other than the constant 0, or ``[feedback]``) where nothing reads it yet: ``plantgrowth
+    compare`` (``compare``; the macro and micro models each run fibred scenes). A run stops
     here, after the scene's values are checked and before anything is written. ``source``
     (e.g. a sweep's run) is appended to the message."""
-    if scene.has_director and (compare or scene.model != "macro"):
+    if scene.has_director and compare:
         key = "feedback" if scene.feedback is not None else "walls.fibre_stiffness"
-        where = "plantgrowth compare" if compare else f'model = "{scene.model}"'
         raise SceneError(
-            f"{key}: fibre-reinforced walls and their feedback are not yet supported by the "
-            f'micro model ({where}): run model = "macro", or remove [feedback], and remove '
-            f"[walls] or set walls.fibre_stiffness = 0, to run the paper's isotropic "
-            f"walls{source}"
+            f"{key}: fibre-reinforced walls and their feedback are not yet supported by "
+            f'plantgrowth compare: run model = "both" to run the macro and micro models side '
+            f"by side, or remove [feedback], and remove [walls] or set walls.fibre_stiffness "
+            f"= 0, to compare the paper's isotropic walls{source}"
         )

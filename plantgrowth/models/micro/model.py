@@ -32,6 +32,7 @@ from plantgrowth.models import diagnostics, growth
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
+from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.outlines import CellOutlines
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
@@ -83,9 +84,18 @@ class MicroModel:
         self.u = fem.Function(self.V, name="u")
         self.Fg = fem.Function(T0, name="Fg")
         E, nu, P = (fem.Function(Q0) for _ in range(3))
-        self._set(E, scene.material.E(*centres))
+        E_cells = np.broadcast_to(scene.material.E(*centres), layout.n_cells)
+        self._set(E, E_cells)
         self._set(nu, scene.material.nu(*centres))
         self._set(P, self.pressure)
+        self.director = None  # fibred walls: the director per cell (docs/fibres.md)
+        fibres = None
+        if scene.has_director:
+            self.director = MicroDirector(
+                scene.walls, scene.feedback, layout, msh, self.cell_id, E_cells, self._set
+            )
+            fibres = self.director.fibres
+        self._fibres = fibres
 
         dx = ufl.dx(domain=msh)
         ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
@@ -96,16 +106,18 @@ class MicroModel:
         self.finite = scene.kinematics == "finite"
         self.stability = WallStability(self.u, self.Fg, E, nu, self.finite)
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
-        rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx)
+        rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx, fibres)
         if np.any(self.pressure != 0.0):
             rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
-        self.a = fem.form(wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx))
+        self.a = fem.form(
+            wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx, fibres)
+        )
         self.L = fem.form(rhs)
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
         if self.finite:  # the linear solve above is Newton's predictor
-            residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx)
+            residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx, fibres)
             load = None
             if np.any(self.pressure != 0.0):
                 load = finite_forms.follower_pressure(self.u, psi, P, n, membrane)
@@ -115,7 +127,7 @@ class MicroModel:
                 load, self._newton_floor, self.stability.smallest, predictor=self._linear_solve,
             )  # fmt: skip
         driving = (
-            self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx)
+            self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx, fibres)
             if scene.growth.law == "stress"
             else self.forms.elastic_strain_average_form(self.u, tau_test, self.Fg, dx)
         )
@@ -156,6 +168,7 @@ class MicroModel:
         self.strain_magnitudes = np.zeros(len(layout.centres))  # the last step's, per cell
         self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
         self.cell_table = self.outlines  # cells.csv
+        self.outlines.fibred = self.director is not None
         self._E, self._nu = E, nu
         self._deformation_det = MeshSamples(
             ufl.det(ufl.Identity(2) + ufl.grad(self.u)), msh, det_degree(self.u)
@@ -247,6 +260,10 @@ class MicroModel:
         self.last_G = G
         self._set(self.G_out, G)
         self.outlines.update(G, *self._cell_geometry())
+        if self.director is not None:
+            self.outlines.fibre_angle = self.director.angle  # the director this step used
+            if self.director.feedback is not None:
+                self._cue = self._cue_means(means)
         if self.growth_fields.functions:
             stress = None
             if self.growth_fields.needs_stress:
@@ -307,7 +324,9 @@ class MicroModel:
         tau = ufl.TestFunction(self.Fg.function_space)
         dx = ufl.dx(domain=self.mesh)
         return fem.form(
-            micro_forms.wall_stress_average_form(self.u, tau, self.Fg, self._E, self._nu, dx)
+            micro_forms.wall_stress_average_form(
+                self.u, tau, self.Fg, self._E, self._nu, dx, self._fibres
+            )
         )
 
     def _stress_means(self) -> np.ndarray:
@@ -336,22 +355,53 @@ class MicroModel:
     def check_growth(self, Fg: np.ndarray) -> None:
         diagnostics.stop_if(diagnostics.growth_problems(Fg, self.layout.centres), self.comm)
 
+    def _cue_means(self, means: np.ndarray) -> np.ndarray:
+        """(n_cells, 2, 2) the feedback's cue: each cell's own-wall average of the wall stress
+        or of the elastic strain (the growth law's ``means`` where law and cue agree)."""
+        cue = self.director.feedback.cue
+        if cue != self.scene.growth.law:
+            means = self._cell_means(
+                self._cue_stress_form if cue == "stress" else self._wall_strain_form
+            )
+        return means.reshape(-1, 2, 2)
+
+    @cached_property
+    def _cue_stress_form(self) -> fem.Form:
+        """Per mesh cell ``int C_w[eps_el] dx`` (finite kinematics: S) for a stress cue under
+        another growth law (compiled on first use)."""
+        tau = ufl.TestFunction(self.Fg.function_space)
+        dx = ufl.dx(domain=self.mesh)
+        return fem.form(
+            self.forms.wall_stress_average_form(
+                self.u, tau, self.Fg, self._E, self._nu, dx, self._fibres
+            )
+        )
+
     def end_step(self, dt: float) -> None:
-        """Nothing: the micro model has no state other than Fg (no fibre director yet)."""
+        """The fibre director's feedback over dt from the step just solved (its cue at the
+        step's start, docs/fibres.md); nothing without feedback."""
+        if self.director is not None and self.director.feedback is not None:
+            self.director.turn(self._cue, dt)
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
         """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with
         finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
         newton = dof_state(self.newton.guess_functions) if self.finite else {}
-        return {"Fg": Fg, "G": G} | newton if self.comm.rank == 0 else None
+        director = {} if self.director is None else {"fibre_angle": self.director.angle}
+        return {"Fg": Fg, "G": G} | director | newton if self.comm.rank == 0 else None
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         matches = state["Fg"].shape == (self.layout.n_cells, 2, 2)
         if self.finite:
             tolerance = 1e-9 * max(self.layout.bounding_box)
             matches = restore_dofs(self.newton.guess_functions, state, tolerance) and matches
+        if self.director is not None:
+            angle = state.get("fibre_angle")
+            matches = matches and angle is not None and angle.size == self.layout.n_cells
         if not matches:
             raise RunError("the saved state does not match this tissue: was the scene changed?")
+        if self.director is not None:
+            self.director.restore(state["fibre_angle"])
         return state["Fg"], state["G"]
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:

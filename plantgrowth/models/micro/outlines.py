@@ -87,7 +87,14 @@ class CellOutlines:
         u: the wall displacement (evaluated at the polygons' vertices by :meth:`update`).
     """
 
-    columns = CELL_COLUMNS
+    fibred = False
+    """Whether cells.csv has the column ``fibre_angle`` (fibred scenes)."""
+    fibre_angle: np.ndarray | None = None
+    """(n,) the director angles (degrees) the last step used (fibred scenes)."""
+
+    @property
+    def columns(self) -> list[str]:
+        return CELL_COLUMNS + (["fibre_angle"] if self.fibred else [])
 
     def __init__(self, layout: TissueLayout, u: fem.Function) -> None:
         loops = [layout.hexagon(i) for i in range(layout.n_cells)]
@@ -123,10 +130,11 @@ class CellOutlines:
         area, centroid = self.area, self.centroid
         trG, anisotropy = principal.trace(self.G), principal.anisotropy(self.G)
         direction = principal.principal_direction(self.G)
+        angle = self.fibre_angle if self.fibred else ()
         return [
-            dict(zip(CELL_COLUMNS, (
+            dict(zip(self.columns, (
                 step, t, i, *self.centroid_ref[i], *centroid[i], self.area_ref[i], area[i],
-                trG[i], anisotropy[i], *direction[i],
+                trG[i], anisotropy[i], *direction[i], *angle[i : i + 1],
             ), strict=True))
             for i in range(len(self.polygons))
         ]  # fmt: skip
