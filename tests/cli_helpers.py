@@ -8,11 +8,13 @@ environment Open MPI needs as root, and the live processes of a run.
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mpi4py import MPI
 
@@ -30,6 +32,45 @@ def shared_dir(factory, name: str) -> Path:
     """A fresh temporary directory, made on rank 0, the same path on every rank."""
     comm = MPI.COMM_WORLD
     return comm.bcast(factory.mktemp(name) if comm.rank == 0 else None, root=0)
+
+
+def stopped_and_straight_runs(build, scene, directory: Path) -> list[np.ndarray]:
+    """Runs ``scene`` (a model made by ``build(scene, comm)``) uninterrupted into
+    ``directory/straight`` and stopped after step 1 then resumed into ``directory/stopped``
+    (collective); returns the saved ``fibre_angle`` of the last step, 3, of both."""
+    from plantgrowth.runner.output import StateFile
+    from plantgrowth.runner.timeloop import run_model
+
+    comm = MPI.COMM_WORLD
+    straight, stopped = directory / "straight", directory / "stopped"
+    for outdir in (straight, stopped):
+        if comm.rank == 0:
+            outdir.mkdir()
+        comm.barrier()
+    run_model(build(scene, comm), scene, straight, comm)
+    run_model(build(scene, comm), scene, stopped, comm, n_steps=1)
+    run_model(build(scene, comm), scene, stopped, comm, resume=True)
+    comm.barrier()  # rank 0 writes state.h5 after the others have finished the last step
+    return [StateFile(d, comm).read(3)["fibre_angle"] for d in (straight, stopped)]
+
+
+def serial_and_mpirun_runs(scene: Path) -> list[Path]:
+    """``mpirun -n 1`` and ``-n 2 plantgrowth run scene`` (no unit-cell cache) into
+    ``ranks1``, ``ranks2`` beside the scene; their output directories (skips without mpirun)."""
+    mpirun = shutil.which("mpirun")
+    if mpirun is None:
+        pytest.skip("mpirun not found")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1",
+               OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PLANTGROWTH_CACHE_DIR="off")  # fmt: skip
+    plantgrowth = str(Path(sys.executable).parent / "plantgrowth")
+    outdirs = []
+    for ranks in (1, 2):
+        outdir = scene.parent / f"ranks{ranks}"
+        command = [mpirun, "-n", str(ranks), plantgrowth, "run", str(scene), "-o", str(outdir)]
+        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=300)
+        assert done.returncode == 0, done.stderr
+        outdirs.append(outdir)
+    return outdirs
 
 
 def write(path: Path, text: str) -> None:

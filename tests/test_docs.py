@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from plantgrowth.base.tensors import VOIGT_NAMES
-from plantgrowth.models.micro.outlines import CELL_COLUMNS
+from plantgrowth.models.micro.outlines import CELL_COLUMNS, FIBRE_CELL_COLUMNS
 from plantgrowth.runner import timeloop
 from plantgrowth.scene.limits import OUTPUT_FIELDS
 from plantgrowth.studies import compare
@@ -173,7 +173,7 @@ def written_fields() -> set[str]:
 
 TABLES = {
     "`summary.csv`": summary_columns,
-    "`cells.csv`": lambda: set(CELL_COLUMNS),
+    "`cells.csv`": lambda: set(CELL_COLUMNS + FIBRE_CELL_COLUMNS),
     "`compare.csv`": lambda: set(compare.COLUMNS),
     "`sweep.csv`": sweep_columns,
     "Fields:": written_fields,

@@ -12,16 +12,18 @@ order of the reductions differ).
 from __future__ import annotations
 
 import csv
-import os
-import shutil
-import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import RANK0, shared_dir, write
+from cli_helpers import (
+    RANK0,
+    serial_and_mpirun_runs,
+    shared_dir,
+    stopped_and_straight_runs,
+    write,
+)
 from mpi4py import MPI
 
 from plantgrowth.base.errors import SceneError
@@ -30,7 +32,6 @@ from plantgrowth.models import growth
 from plantgrowth.models.fibres import cue as fibres_cue
 from plantgrowth.models.fibres import reduce_angle
 from plantgrowth.models.macro.model import MacroModel, macro_model
-from plantgrowth.runner.output import StateFile
 from plantgrowth.runner.timeloop import run_model, summary_columns
 from plantgrowth.scene import parse_scene
 from plantgrowth.unitcell.solver import CellSolver
@@ -289,15 +290,7 @@ def test_resume_equals_an_uninterrupted_fibred_run(tmp_path_factory):
     directory = shared_dir(tmp_path_factory, "fibre_resume")
     scene = parse_scene(tomllib.loads(RESUMED + FEEDBACK))
     straight, stopped = directory / "straight", directory / "stopped"
-    for outdir in (straight, stopped):
-        if RANK0:
-            outdir.mkdir()
-        COMM.barrier()
-    run_model(macro_model(scene, COMM), scene, straight, COMM)
-    run_model(macro_model(scene, COMM), scene, stopped, COMM, n_steps=1)
-    run_model(macro_model(scene, COMM), scene, stopped, COMM, resume=True)
-    COMM.barrier()  # rank 0 writes state.h5 after the others have finished the last step
-    angles = [StateFile(d, COMM).read(3)["fibre_angle"] for d in (straight, stopped)]
+    angles = stopped_and_straight_runs(macro_model, scene, directory)
     # serial: the same arithmetic, exactly; mpirun: the LU's round-off in the cue, divided by the
     # cue's anisotropy in its angle a_Q (nearly isotropic strains), measured 2.3e-8 degrees
     margin = 0.0 if COMM.size == 1 else 1e-7
@@ -321,24 +314,11 @@ def test_mpirun_reproduces_the_serial_fibred_run(tmp_path, cell_tolerance, feedb
     """``mpirun -n 2 plantgrowth run`` against the serial run of a fibred scene (varying
     stiffness and angle), every summary column to 1e-8 (module docstring), the same cell
     solves."""
-    mpirun = shutil.which("mpirun")
-    if mpirun is None:
-        pytest.skip("mpirun not found")
     text = RESUMED.replace("[accuracy]\n", f"[accuracy]\ncell_tolerance = {cell_tolerance}\n")
     text += feedback
     write(tmp_path / "scene.toml", text)
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1",
-               OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PLANTGROWTH_CACHE_DIR="off")  # fmt: skip
-    plantgrowth = str(Path(sys.executable).parent / "plantgrowth")
-    rows = []
-    for ranks in (1, 2):
-        outdir = tmp_path / f"ranks{ranks}"
-        command = [mpirun, "-n", str(ranks), plantgrowth, "run", str(tmp_path / "scene.toml"),
-                   "-o", str(outdir)]  # fmt: skip
-        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=300)
-        assert done.returncode == 0, done.stderr
-        rows.append(_rows(outdir / "summary.csv"))
-    serial, parallel = rows
+    outdirs = serial_and_mpirun_runs(tmp_path / "scene.toml")
+    serial, parallel = (_rows(outdir / "summary.csv") for outdir in outdirs)
     assert len(serial) == len(parallel) == 4
     for a, b in zip(serial, parallel, strict=True):
         assert a["n_cell_solves"] == b["n_cell_solves"]

@@ -28,7 +28,7 @@ from plantgrowth.forms import micro as micro_forms
 from plantgrowth.forms.elasticity import wall_bilinear_form
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
 from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
-from plantgrowth.models import diagnostics, growth
+from plantgrowth.models import diagnostics, fibres, growth
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
@@ -89,13 +89,13 @@ class MicroModel:
         self._set(nu, scene.material.nu(*centres))
         self._set(P, self.pressure)
         self.director = None  # fibred walls: the director per cell (docs/fibres.md)
-        fibres = None
+        wall_fibres = None
         if scene.has_director:
             self.director = MicroDirector(
                 scene.walls, scene.feedback, layout, msh, self.cell_id, E_cells, self._set
             )
-            fibres = self.director.fibres
-        self._fibres = fibres
+            wall_fibres = self.director.fibres
+        self._fibres = wall_fibres
 
         dx = ufl.dx(domain=msh)
         ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
@@ -106,18 +106,18 @@ class MicroModel:
         self.finite = scene.kinematics == "finite"
         self.stability = WallStability(self.u, self.Fg, E, nu, self.finite)
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
-        rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx, fibres)
+        rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx, wall_fibres)
         if np.any(self.pressure != 0.0):
             rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
         self.a = fem.form(
-            wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx, fibres)
+            wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx, wall_fibres)
         )
         self.L = fem.form(rhs)
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
         if self.finite:  # the linear solve above is Newton's predictor
-            residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx, fibres)
+            residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx, wall_fibres)
             load = None
             if np.any(self.pressure != 0.0):
                 load = finite_forms.follower_pressure(self.u, psi, P, n, membrane)
@@ -127,7 +127,7 @@ class MicroModel:
                 load, self._newton_floor, self.stability.smallest, predictor=self._linear_solve,
             )  # fmt: skip
         driving = (
-            self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx, fibres)
+            self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx, wall_fibres)
             if scene.growth.law == "stress"
             else self.forms.elastic_strain_average_form(self.u, tau_test, self.Fg, dx)
         )
@@ -407,10 +407,17 @@ class MicroModel:
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:
         """Area enclosed by the deformed outer boundary; means of G weighted by the cells'
         reference (hexagon) areas; max |u_i|; min det Fg; the regions' statistics (their areas:
-        cells.csv's deformed cell areas)."""
+        cells.csv's deformed cell areas); with a director, fibre_order and fibre_angle_mean of
+        the director the step used (weights: the hexagon areas)."""
         weights = self.hexagon_area / self.hexagon_area.sum()
         g11, g22 = float(weights @ G[:, 0, 0]), float(weights @ G[:, 1, 1])
         u1_max, u2_max = max_abs_components(self.u, self.comm)
+        fibre_row = {}
+        if self.director is not None:  # per-cell values are the same on every rank
+            order, mean = fibres.fibre_statistics(
+                self.outlines.fibre_angle, self.hexagon_area, MPI.COMM_SELF
+            )
+            fibre_row = {"fibre_order": order, "fibre_angle_mean": mean}
         area = self.comm.allreduce(fem.assemble_scalar(self.enclosed_area), op=MPI.SUM)
         return {
             "area": area,
@@ -421,4 +428,5 @@ class MicroModel:
             "u2_max": u2_max,
             "det_Fg_min": float(np.linalg.det(Fg).min()),
             **self.regions.measures(self.outlines.area, G, self.strain_magnitudes),
+            **fibre_row,
         }

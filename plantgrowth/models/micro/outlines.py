@@ -27,6 +27,8 @@ CELL_COLUMNS = [
     "step", "t", "cell", "x1_ref", "x2_ref", "x1", "x2", "area_ref", "area",
     "trG", "growth_anisotropy", "growth_direction_1", "growth_direction_2",
 ]  # fmt: skip
+FIBRE_CELL_COLUMNS = ["fibre_angle"]
+"""cells.csv's columns of fibred scenes: the director angle (degrees) the step used."""
 
 
 def polygon_centroids(points: np.ndarray, polygons: list[np.ndarray]) -> tuple[np.ndarray, ...]:
@@ -94,7 +96,7 @@ class CellOutlines:
 
     @property
     def columns(self) -> list[str]:
-        return CELL_COLUMNS + (["fibre_angle"] if self.fibred else [])
+        return CELL_COLUMNS + (FIBRE_CELL_COLUMNS if self.fibred else [])
 
     def __init__(self, layout: TissueLayout, u: fem.Function) -> None:
         loops = [layout.hexagon(i) for i in range(layout.n_cells)]

@@ -1,0 +1,236 @@
+"""Fibre-reinforced walls in the micro model (docs/fibres.md; docs/model.md, fibre-reinforced
+walls): a director per cell, each half of a shared wall with its own cell's tensor, the cell's
+own-wall averages as the feedback's cue, the director in the checkpoint and in cells.csv.
+
+Models are built in process on COMM_WORLD; per-cell values (G, the director) are replicated on
+every rank, so the checks hold unchanged under mpirun. Small tissues (Nx <= 16), one P2 element
+across a wall. ROUND_OFF: the micro LU's relative round-off on these <= 10^4 dofs (measured
+~1e-11 in test_micro.py, whose ROUND_OFF this is).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+from cli_helpers import (
+    RANK0,
+    serial_and_mpirun_runs,
+    shared_dir,
+    stopped_and_straight_runs,
+    write,
+)
+from mpi4py import MPI
+
+from plantgrowth.models import fibres, growth
+from plantgrowth.models.macro.model import macro_model
+from plantgrowth.models.micro.model import MicroModel
+from plantgrowth.runner.timeloop import run_model
+from plantgrowth.scene import parse_scene
+from plantgrowth.scene.toml_text import dict_to_toml
+
+COMM = MPI.COMM_WORLD
+ROUND_OFF = 1e-8  # module docstring
+FIBRES = {"fibre_stiffness": 5.0, "fibre_angle": 90.0}
+ZERO = {"fibre_stiffness": {"expr": "0 * x1"}, "fibre_angle": 45.0}
+"""Fibres of stiffness 0 given as an expression: the run takes the fibred code path."""
+
+
+def _data(walls: dict | None = None, **tables) -> dict:
+    data = {"model": "micro", "growth": {"law": "strain"}, "time": {"t_max": 3, "dt": 1}}
+    data["micro"] = {"nx": 4, "resolution": 1}
+    for name, entries in tables.items():
+        data[name] = data.get(name, {}) | entries
+    return data | ({"walls": walls} if walls else {})
+
+
+def _steps(model: MicroModel, n: int) -> list[np.ndarray]:
+    """G of n steps of length 1 (exp integrator), the director turned after each."""
+    Fg, out = model.initial_growth(), []
+    for _ in range(n):
+        G = model.step(Fg).G
+        model.end_step(1.0)
+        out.append(G)
+        Fg = growth.advance(Fg, G, 1.0, "exp")
+    return out
+
+
+# --- consequence (1): fibre_stiffness = 0 is the paper's micro model ----------------------------
+
+
+@pytest.mark.parametrize("kinematics", ["linear", "finite"])
+def test_zero_fibre_stiffness_reproduces_the_isotropic_micro_run(kinematics):
+    """E_f = 0 through the fibred code path (director, tangents, C_w, a turning director) gives
+    the isotropic run's G over two steps and its summary measures, to the LU's round-off."""
+    common = {"kinematics": kinematics}
+    feedback = {"feedback": {"cue": "stress", "rate": 1.0}}
+    plain = MicroModel(parse_scene(_data() | common), COMM)
+    fibred = MicroModel(parse_scene(_data(ZERO) | common | feedback), COMM)
+    assert fibred.director is not None and plain.director is None
+    G_plain, G_fibred = _steps(plain, 2), _steps(fibred, 2)
+    scale = np.abs(G_plain[-1]).max()
+    assert scale > 0.0
+    for a, b in zip(G_plain, G_fibred, strict=True):
+        assert np.abs(a - b).max() <= ROUND_OFF * scale
+    Fg = plain.initial_growth()
+    rows = plain.measures(Fg, G_plain[-1]), fibred.measures(Fg, G_fibred[-1])
+    for key in ("area", "u1_max", "u2_max"):
+        assert rows[1][key] == pytest.approx(rows[0][key], rel=ROUND_OFF)
+    assert np.any(fibred.director.angle != 45.0)  # the director turned, to no effect
+
+
+# --- homogeneous fibred tissue against the macro formula ----------------------------------------
+
+
+@pytest.fixture(scope="module")
+def macro_rate() -> np.ndarray:
+    """The macro model's G at t = 0 of the same homogeneous fibred tissue (consequence (4),
+    checked against the cell's own tensors in test_macro_fibres.py); cell_resolution 4 so that
+    the cell problem's discretisation error (~1e-3) is below the micro boundary layer's."""
+    data = _data(FIBRES, tissue={"h": 0.5, "H": 1.0})
+    data |= {"model": "macro", "accuracy": {"cell_tolerance": 0.0, "cell_resolution": 4}}
+    data.pop("micro")
+    model = macro_model(parse_scene(data), COMM)
+    return model.step(model.initial_growth()).G[0]
+
+
+def test_homogeneous_fibred_tissue_grows_across_the_fibres_toward_the_macro_rate(macro_rate):
+    """a = 90, E_f / E = 5, strain law: the micro tissue grows faster across the fibres (x1)
+    than along them, and its mean rates approach the macro formula's like 1 / Nx, the cut and
+    free boundary layers' share of the cells. Measured relative errors (g11, g22): Nx = 4:
+    (5.1%, 29%), 8: (2.6%, 15%), 16: (1.3%, 7.5%): each halves; the margins ask at least
+    1.6 per doubling and the measured g11 / g22 of at least 2.7 (macro: 3.35) to exceed 2."""
+    errors = []
+    for nx in (4, 8, 16):
+        model = MicroModel(parse_scene(_data(FIBRES)), COMM, nx)
+        Fg = model.initial_growth()
+        row = model.measures(Fg, model.step(Fg).G)
+        g = np.array([row["growth_rate_11"], row["growth_rate_22"]])
+        assert g[0] > 2.0 * g[1] > 0.0
+        errors.append(np.abs(g / np.diag(macro_rate) - 1.0))
+        print(f"Nx = {nx}: micro {g}, macro {np.diag(macro_rate)}, errors {errors[-1]}")
+    for coarse, fine in zip(errors, errors[1:], strict=False):
+        assert np.all(fine * 1.6 <= coarse)
+    assert np.all(errors[-1] < [0.02, 0.1])
+
+
+# --- feedback ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("cue", ["stress", "strain"])
+def test_each_director_turns_toward_its_own_wall_cue(cue):
+    """With E_f = 0 the director does not act on the mechanics, so its cue is the isotropic
+    run's: each cell's own-wall average of the wall stress or elastic strain (computed here from
+    a run without fibres). Over three steps of dt = 1 each director follows the exact step
+    ``tan(a_new - a_Q) = tan(a - a_Q) exp(-k A dt)`` to 1e-9 degrees (the cue's round-off
+    ~1e-11 divided by its smallest anisotropy here, ~1e-3) and never moves away from a_Q."""
+    rate = 2.0
+    plain = MicroModel(parse_scene(_data()), COMM)
+    fibred = MicroModel(parse_scene(_data(ZERO, feedback={"cue": cue, "rate": rate})), COMM)
+    form = plain._wall_stress_form if cue == "stress" else plain._wall_strain_form
+    Fg, expected = plain.initial_growth(), np.full(plain.layout.n_cells, 45.0)
+    for _ in range(3):
+        G = plain.step(Fg).G
+        q = fibres.cue(plain._cell_means(form).reshape(-1, 2, 2))
+        fibred.step(Fg)
+        fibred.end_step(1.0)
+        before = expected
+        expected = fibres.turn_director(before, q.angle, q.anisotropy, rate, 1.0)
+        assert np.abs(fibres.reduce_angle(fibred.director.angle - expected)).max() <= 1e-9
+        closer = np.abs(fibres.reduce_angle(expected - q.angle))
+        assert np.all(closer <= np.abs(fibres.reduce_angle(before - q.angle)) + 1e-12)
+        Fg = growth.advance(Fg, G, 1.0, "exp")
+    assert np.abs(expected - 45.0).max() > 1.0  # the directors did turn
+
+
+# --- resume, cells.csv and mpirun -------------------------------------------------------------
+
+RESUMED = _data(
+    {"fibre_stiffness": {"from": 1.0, "to": 5.0, "along": "x2"},
+     "fibre_angle": {"from": -45.0, "to": 80.0}},
+    material={"E": {"from": 0.5, "to": 2.0}},
+    feedback={"cue": "strain", "rate": 2.0},
+    output={"precision": "float64"},
+)  # fmt: skip
+"""A fibred tissue of varying stiffness and angle whose directors turn (a strain cue)."""
+
+
+NOT_COMPARED = ("residual", "newton_residual")
+"""The solvers' residuals: round-off itself."""
+
+
+def _rows(path: Path) -> list[dict[str, float]]:
+    with open(path) as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def test_resume_equals_an_uninterrupted_fibred_micro_run(tmp_path_factory):
+    """Stopped after step 1 and resumed, the run equals the uninterrupted one: the saved
+    director and every summary column but the timings and residuals to 1e-10 relative
+    (test_interruptions.py's margin: the same arithmetic from the same float64 state); under
+    mpirun each model's mesh may be partitioned differently, so the LU's round-off remains
+    (1e-8, as serial against mpirun, measured 1.0e-10 in u1_max); cells.csv has the director the
+    step used, the scene's angle at the cell centres at step 0."""
+    directory = shared_dir(tmp_path_factory, "micro_fibre_resume")
+    scene = parse_scene(RESUMED)
+    straight, stopped = directory / "straight", directory / "stopped"
+    angles = stopped_and_straight_runs(MicroModel, scene, directory)
+    margin = 1e-10 if COMM.size == 1 else 1e-8
+    assert np.abs(angles[0] - angles[1]).max() <= margin * 90.0
+    model = MicroModel(scene, COMM)  # collective: for the initial director below
+    if not RANK0:
+        return
+    a, b = _rows(straight / "summary.csv"), _rows(stopped / "summary.csv")
+    assert len(a) == len(b) == 4
+    for x, y in zip(a, b, strict=True):
+        for column, value in x.items():
+            if not column.startswith("seconds") and column not in NOT_COMPARED:
+                assert y[column] == pytest.approx(value, rel=margin, abs=1e-300), column
+    assert abs(a[-1]["fibre_angle_mean"] - a[1]["fibre_angle_mean"]) > 1e-3  # it turned
+    cells = _rows(straight / "cells.csv")
+    first = [r for r in cells if r["step"] == 0]
+    # the fields span the micro tissue (MicroModel.scene)
+    initial = fibres.reduce_angle(model.scene.walls.fibre_angle(*model.layout.centres.T))
+    assert np.abs(np.array([r["fibre_angle"] for r in first]) - initial).max() <= 1e-12
+    last = np.array([r["fibre_angle"] for r in cells if r["step"] == 3])
+    assert np.abs(last - initial).max() > 1e-3
+
+
+def test_isotropic_micro_cells_csv_has_no_fibre_column(tmp_path_factory):
+    directory = shared_dir(tmp_path_factory, "micro_plain_cells")
+    if RANK0:
+        (directory / "out").mkdir()
+    COMM.barrier()
+    scene = parse_scene(_data(time={"t_max": 1}))
+    run_model(MicroModel(scene, COMM), scene, directory / "out", COMM)
+    if RANK0:
+        with open(directory / "out" / "cells.csv") as f:
+            header = next(csv.reader(f))
+        assert (
+            "fibre_angle" not in header
+            and "fibre_order" not in _rows(directory / "out" / "summary.csv")[0]
+        )
+
+
+@pytest.mark.skip_in_parallel
+@pytest.mark.parametrize("kinematics", ["linear", "finite"])
+def test_mpirun_reproduces_the_serial_fibred_micro_run(tmp_path, kinematics):
+    """``mpirun -n 2 plantgrowth run`` against the serial run: every summary and cells.csv
+    column but the timings and the solvers' residuals (round-off itself) to 1e-8 relative (only
+    the LU and the order of the sums differ, as in test_micro.py)."""
+    write(tmp_path / "scene.toml", dict_to_toml(RESUMED | {"kinematics": kinematics}))
+    tables = [
+        (_rows(outdir / "summary.csv"), _rows(outdir / "cells.csv"))
+        for outdir in serial_and_mpirun_runs(tmp_path / "scene.toml")
+    ]
+    # cells.csv's growth_anisotropy, growth_direction and fibre_angle are differences of
+    # nearly equal principal values: G's and the cue's round-off (~1e-11 relative) divided by
+    # their anisotropy (>= 1e-3 here), so an absolute 1e-8 there
+    for (serial, parallel), absolute in zip(zip(*tables, strict=True), (1e-14, 1e-8), strict=True):
+        assert len(serial) == len(parallel) > 0
+        for a, b in zip(serial, parallel, strict=True):
+            for column in a:
+                if not column.startswith("seconds") and column not in NOT_COMPARED:
+                    assert b[column] == pytest.approx(a[column], rel=1e-8, abs=absolute), column
