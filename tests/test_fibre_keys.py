@@ -1,11 +1,10 @@
 """The fibre keys of a scene (``[walls] fibre_stiffness, fibre_angle``, ``[feedback] cue,
 rate``): parsed and checked in plantgrowth/scene/, round-tripped through the resolved
-scene.toml, varied by sweeps, and refused by the runner's set-up where no model reads them yet
-(the micro model and compare) before anything is written (the macro
-model's runs with fibres: test_macro_fibres.py).
+scene.toml, varied by sweeps, and accepted for every model (the runs with fibres:
+test_macro_fibres.py, test_micro_fibres.py).
 
 In-process CLI calls run ``main`` on every rank (valid under mpirun: every rank must fail the
-same way). The one run that goes through (``fibre_stiffness = 0``, the paper's walls) is tiny:
+same way). The one run here (``fibre_stiffness = 0``, the paper's walls) is tiny:
 h = 0.5, cell_resolution 1, one step.
 """
 
@@ -21,7 +20,6 @@ from mpi4py import MPI
 from plantgrowth.base.errors import SceneError
 from plantgrowth.runner.scene_run import check_used_values
 from plantgrowth.scene import parse_scene
-from plantgrowth.scene.unsupported import refuse_fibres
 from plantgrowth.studies.sweep_file import load_sweep
 
 BASE = {"growth": {"law": "stress"}}
@@ -170,69 +168,30 @@ def test_a_sweep_varies_the_fibre_keys(tmp_path):
         load_sweep(tmp_path / "bad.toml")
 
 
-# --- compare refuses fibres (nothing compares them yet), before anything is written ------------
+# --- every command reads fibres: macro, micro, both --------------------------------------------
 
 MICRO = 'model = "micro"\n'
-REFUSED = [
-    (MICRO, "[walls]\nfibre_stiffness = 0.5\nfibre_angle = 90\n", "walls.fibre_stiffness"),
-    ("", '[walls]\nfibre_stiffness = {expr = "where(x1 < 2, 1, 0)"}\nfibre_angle = 0\n',
-     "walls.fibre_stiffness"),
-    (MICRO, "[walls]\nfibre_stiffness = 0\nfibre_angle = 0\n[feedback]\ncue = 'stress'\nrate = 1\n",
-     "feedback"),
-]  # fmt: skip
+STEP = '[walls]\nfibre_stiffness = {expr = "where(x1 < 2, 1, 0)"}\nfibre_angle = 0\n'
+FEEDBACK = "[walls]\nfibre_stiffness = 0\nfibre_angle = 0\n[feedback]\ncue = 'stress'\nrate = 1\n"
+FIBRED = [
+    (MICRO, "[walls]\nfibre_stiffness = 0.5\nfibre_angle = 90\n"),
+    ('model = "both"\n', STEP),
+    (MICRO, FEEDBACK),
+]
 
 
-@pytest.mark.parametrize("top, extra, key", REFUSED)
-def test_compare_refuses_fibres_before_anything_is_written(top, extra, key, tmp_path_factory,
-                                                           capsys):  # fmt: skip
-    directory = shared_dir(tmp_path_factory, "refused")
-    write(directory / "fibres.toml", top + TINY + extra)
-    out = directory / "out"
-    code, _, err = call(["compare", directory / "fibres.toml", "--nx", "2", "-o", out], capsys)
-    assert code == 2
-    if RANK0:
-        assert err.startswith(f"plantgrowth: error: {key}: "), err
-        assert "not yet supported by plantgrowth compare" in err
-        assert len(err.splitlines()) == 1 and "Traceback" not in err
-        assert sorted(p.name for p in directory.iterdir()) == ["fibres.toml"]
-
-
-@pytest.mark.parametrize("top, extra, key", REFUSED)
-def test_validate_accepts_fibred_micro_scenes(top, extra, key, tmp_path_factory, capsys):
-    """The micro model reads fibres: validate (and run) no longer refuse them."""
+@pytest.mark.parametrize("top, extra", FIBRED)
+def test_validate_accepts_fibred_micro_scenes(top, extra, tmp_path_factory, capsys):
+    """The micro model reads fibres and feedback: validate (and run, sweep, compare) accept
+    them."""
     directory = shared_dir(tmp_path_factory, "accepted")
     write(directory / "fibres.toml", top + TINY + extra)
     code, _, err = call(["validate", directory / "fibres.toml"], capsys)
     assert code == 0, err
 
 
-def test_compare_refuses_a_fibred_macro_scene(tmp_path_factory, capsys):
-    """The macro model reads fixed fibre directors; plantgrowth compare (micro beside it) does
-    not yet, and says so before writing anything."""
-    directory = shared_dir(tmp_path_factory, "compare_refused")
-    write(directory / "fibres.toml", TINY + "[walls]\nfibre_stiffness = 2\nfibre_angle = 30\n")
-    code, _, err = call(
-        ["compare", directory / "fibres.toml", "--nx", "2", "-o", directory / "out"], capsys
-    )
-    assert code == 2
-    if RANK0:
-        assert "not yet supported by plantgrowth compare" in err
-        assert sorted(p.name for p in directory.iterdir()) == ["fibres.toml"]
-
-
-def test_refusal_names_the_source():
-    scene = _scene(walls=FIBRES, model="micro")
-    with pytest.raises(SceneError, match=r"isotropic walls \(in sweep\.toml: run_0001\)$"):
-        refuse_fibres(scene, " (in sweep.toml: run_0001)", compare=True)
-    refuse_fibres(scene)  # the micro model reads the director
-    refuse_fibres(_scene())  # no fibres: nothing to refuse
-    refuse_fibres(_scene(walls={"fibre_stiffness": 0.0, "fibre_angle": 10.0}))
-    refuse_fibres(_scene(walls=FIBRES))  # the macro model reads the director
-    refuse_fibres(_scene(walls=FIBRES, feedback={"cue": "strain", "rate": 1.0}))
-
-
 def test_walls_of_zero_fibre_stiffness_run_as_the_paper_s(tmp_path_factory, capsys):
-    """fibre_stiffness = 0 is the paper's model: not refused, and it writes the walls into the
+    """fibre_stiffness = 0 is the paper's model: it runs, and it writes the walls into the
     resolved scene.toml it runs."""
     directory = shared_dir(tmp_path_factory, "zero")
     write(directory / "zero.toml", TINY + "[walls]\nfibre_stiffness = 0\nfibre_angle = 15\n")

@@ -72,7 +72,6 @@ def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.scene import load_scene
     from plantgrowth.scene.places import needs_place_checks
     from plantgrowth.scene.plausibility import warn_about
-    from plantgrowth.scene.unsupported import refuse_fibres
 
     scene = load_scene(args.scene)
     if needs_place_checks(scene):  # only then a mesh, dolfinx and PETSc
@@ -80,7 +79,6 @@ def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
         solver_signals()
         check_used_values(scene, comm)
-    refuse_fibres(scene)
     warn_about(scene)
     if comm.rank == 0:
         print(
@@ -164,7 +162,6 @@ def run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 def sweep_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.runner.scene_run import run_scene
-    from plantgrowth.scene.unsupported import refuse_fibres
     from plantgrowth.studies.sweep import run_sweep
     from plantgrowth.studies.sweep_file import load_sweep
     from plantgrowth.studies.sweep_share import Share, dry_run
@@ -173,8 +170,6 @@ def sweep_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     sweep = load_sweep(args.sweep)
     if args.dry_run:
         return dry_run(sweep, share, comm)
-    for run in sweep.runs:  # before the sweep claims DIR
-        refuse_fibres(run.scene, f" (in {args.sweep}: {run.label})")
     if args.overwrite and share.elements > 1:
         raise InputError(
             "--overwrite cannot be given to a job-array element (the elements share DIR): "

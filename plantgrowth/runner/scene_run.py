@@ -26,7 +26,6 @@ from plantgrowth.runner.timeloop import Interrupted, run_model
 from plantgrowth.scene import Scene
 from plantgrowth.scene.places import check_macro_places, check_micro_places, needs_place_checks
 from plantgrowth.scene.plausibility import warn_about
-from plantgrowth.scene.unsupported import refuse_fibres
 
 log = logging.getLogger("plantgrowth")
 
@@ -47,17 +46,14 @@ def checked_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> Macro
             check_macro_places(domain.scene, *domain.places(), comm)
         if nx is not None or scene.model in ("micro", "both"):
             check_micro_places(scene, scene.micro_nx if nx is None else nx)
-    refuse_fibres(scene, compare=nx is not None)
     return domain
 
 
 def check_used_values(scene: Scene, comm: MPI.Comm) -> None:
     """Collective: the checks of :func:`checked_domain`, building a mesh only when a field must
-    be checked at its places (``plantgrowth validate``), and :func:`refuse_fibres`."""
+    be checked at its places (``plantgrowth validate``)."""
     if needs_place_checks(scene):
         checked_domain(scene, comm)
-    else:
-        refuse_fibres(scene)
 
 
 @contextmanager
