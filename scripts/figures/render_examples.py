@@ -22,24 +22,13 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-
-import plantgrowth as pg  # noqa: E402
+from render_biology import reached_t_max  # noqa: E402  (scripts/figures/, next to this file)
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLES = REPO / "scenes" / "examples"
 PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
 PICTURES = {"soft_disc": ("trG", ["--regions"]), "held_and_pulled": ("elastic_strain", [])}
 """Scene stem: (the field drawn at its last step, further render options)."""
-
-
-def complete(scene: Path, run: Path) -> bool:
-    """Whether ``run`` holds the scene's last step (its summary reaches t_max)."""
-    try:
-        t = pg.read_results(run).summary["t"]
-    except (pg.InputError, OSError):
-        return False
-    t_max = pg.load_scene(scene).time.t_max
-    return len(t) > 0 and t[-1] >= t_max - 1e-9 * max(1.0, t_max)
 
 
 def plot_sweep(table: Path, picture: Path) -> None:
@@ -65,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     for stem, (field, options) in PICTURES.items():
         scene, run = EXAMPLES / f"{stem}.toml", args.results / stem
-        if not complete(scene, run):
+        if not reached_t_max(scene, run):
             subprocess.run([PLANTGROWTH, "run", str(scene), "-o", str(run), "--overwrite", "-q"],
                            check=True)  # fmt: skip
         subprocess.run(
