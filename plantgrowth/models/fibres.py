@@ -73,6 +73,13 @@ def turn_director(
     return np.where(factor == 1.0, a_old, reduce_angle(cue_angle + d_new))
 
 
+def follow_cue(angle: np.ndarray, Q: np.ndarray, rate: float, dt: float) -> np.ndarray:
+    """The director angles (n,) after one feedback step toward their cue tensors Q (n, 2, 2):
+    :func:`turn_director` with the angle and anisotropy of :func:`cue`."""
+    q = cue(Q)
+    return turn_director(angle, q.angle, q.anisotropy, rate, dt)
+
+
 def director(angle: np.ndarray) -> np.ndarray:
     """(n, 2) unit director m = (cos a, sin a) of the angles a (n,) in degrees."""
     radians = np.radians(np.asarray(angle, dtype=float))

@@ -76,10 +76,7 @@ class MacroDirector:
         solved), ``tan(a_new - a_Q) = tan(a - a_Q) exp(-k A dt)``
         (:func:`plantgrowth.models.fibres.turn_director`). Nothing without feedback."""
         if self.feedback is not None:
-            q = fibres.cue(Q)
-            self.angle = fibres.turn_director(
-                self.angle, q.angle, q.anisotropy, self.feedback.rate, dt
-            )
+            self.angle = fibres.follow_cue(self.angle, Q, self.feedback.rate, dt)
 
     def fill(self, set_values: Callable[[fem.Function, np.ndarray], None]) -> None:
         """The output field, if asked for: m = (cos a, sin a) per fine cell (the padding to

@@ -95,10 +95,7 @@ class MicroDirector:
         ``tan(a_new - a_Q) = tan(a - a_Q) exp(-k A dt)``
         (:func:`plantgrowth.models.fibres.turn_director`). Nothing without feedback."""
         if self.feedback is not None:
-            q = fibres.cue(Q)
-            self.angle = fibres.turn_director(
-                self.angle, q.angle, q.anisotropy, self.feedback.rate, dt
-            )
+            self.angle = fibres.follow_cue(self.angle, Q, self.feedback.rate, dt)
             self._fill()
 
     def restore(self, angle: np.ndarray) -> None:
