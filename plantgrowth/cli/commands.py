@@ -52,7 +52,8 @@ def render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
                 raise InputError(f"--dpi = {args.dpi} is out of range: an integer in [10, 1200]")
             written = render(args.directory, args.field, args.output, args.time,
                              args.component, args.force, dpi=args.dpi, vmin=args.vmin,
-                             vmax=args.vmax, regions=args.regions)  # fmt: skip
+                             vmax=args.vmax, regions=args.regions,
+                             fibres=args.fibres)  # fmt: skip
             outcome = ("done", f"wrote {written}")
         except USER_ERRORS as err:
             outcome = ("error", str(err))

@@ -228,6 +228,11 @@ def _add_render_parser(sub) -> None:
     render.add_argument("--regions", action="store_true",
                         help="outline the scene's [regions] (the growth units whose reference "
                         "midpoint satisfies each condition)")  # fmt: skip
+    render.add_argument("--fibres", action="store_true",
+                        help="draw the fibre director on top as headless glyphs (macro: the "
+                        "written fibre_direction, on a regular grid of cells; micro: one per "
+                        "cell from cells.csv's fibre_angle), turned by the elastic deformation "
+                        "F Fg^-1 into the drawn tissue")  # fmt: skip
     render.set_defaults(handler=commands.render_command, solves=False)
 
 

@@ -26,7 +26,7 @@ def frame_times(times: list[float]) -> list[float]:
 
 def write_animation(
     series: ResultSeries, name: str, component: str | None, times: list[float], view: View,
-    title: str | None, output: Path, dpi: int, regions: bool = False,
+    title: str | None, output: Path, dpi: int, regions: bool = False, fibres: bool = False,
 ) -> None:  # fmt: skip
     """The GIF ``output`` of ``name`` at ``times`` (a frame each, at most MAX_FRAMES); a given
     ``title`` gets each frame's time appended. The figure is sized once, on the frame whose
@@ -37,10 +37,11 @@ def write_animation(
         return None if title is None else f"{title}, t = {t:g}"
 
     longest = max(frames, key=lambda t: len(title_at(t) or f"{t:g}"))
-    fig = draw(series, name, longest, component, title_at(longest), view, regions=regions)
+    fig = draw(series, name, longest, component, title_at(longest), view, regions=regions,
+               fibres=fibres)  # fmt: skip
     writer = PillowWriter(fps=FPS)
     with writer.saving(fig, str(output), dpi):
         for t in frames:
-            draw(series, name, t, component, title_at(t), view, fig, regions)
+            draw(series, name, t, component, title_at(t), view, fig, regions, fibres)
             fig.canvas.draw()  # the layout's second pass (see render.fit_height)
             writer.grab_frame()

@@ -55,3 +55,25 @@ def bad_component(name: str, kind: str, component: str | None, valid: tuple[str,
         f"--component = {component!r} is invalid for the {kind} field {name}: one of "
         f"{', '.join(valid)}{arrows}"
     )
+
+
+def missing_fibres(series: ResultSeries, micro: bool, has_director: bool) -> str:
+    """``--fibres`` on a run that wrote no director: what is missing and the scene key that
+    writes it (macro: ``[output] fields`` with fibre_direction, once the run has a director;
+    without a director: ``[walls] fibre_stiffness``)."""
+    text = f"--fibres: {series.directory} has no fibre director to draw"
+    if micro:
+        return (
+            f"{text} (its cells.csv has no fibre_angle column): a micro run writes it when the "
+            "scene has fibres: give it [walls] fibre_stiffness and fibre_angle (or [feedback]) "
+            "and run it again"
+        )
+    if has_director:
+        return (
+            f"{text} (it wrote {', '.join(series.names)}): its scene has a director but did not "
+            'write it: add "fibre_direction" to the scene\'s [output] fields and run it again'
+        )
+    return (
+        f"{text}: its scene has no fibres: give it [walls] fibre_stiffness and fibre_angle (or "
+        '[feedback]), add "fibre_direction" to its [output] fields and run it again'
+    )

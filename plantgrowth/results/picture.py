@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 
 from plantgrowth.results.animate import ANIMATION_DPI, write_animation
+from plantgrowth.results.fibre_glyphs import check_fibres
 from plantgrowth.results.render import (
     ALL_TIMES,
     check_limits,
@@ -25,12 +26,14 @@ def render(
     directory: Path, name: str, output: Path, time: float | str | None = None,
     component: str | None = None, force: bool = False, title: str | None = None,
     dpi: int | None = None, vmin: float | None = None, vmax: float | None = None,
-    regions: bool = False,
+    regions: bool = False, fibres: bool = False,
 ) -> Path:  # fmt: skip
     """Draw ``name`` of the run in ``directory`` at the written time nearest ``time`` (default
     the last) into the picture ``output`` (.png, .pdf, .svg), or at every written time
     (``time = "all"``) into the animation ``output`` (.gif); colours in [vmin, vmax] (default:
-    the values' range); returns ``output``. RenderError on bad input."""
+    the values' range); with ``fibres``, the fibre director's glyphs on top
+    (:mod:`plantgrowth.results.fibre_glyphs`); returns ``output``. InputError (RenderError) on
+    bad input, before anything is written."""
     directory, output = Path(directory), Path(output)
     animation = time == ALL_TIMES
     check_limits(vmin, vmax)
@@ -38,13 +41,16 @@ def render(
     series = open_run(directory)
     times = pick_times(series, time)
     view = plan_view(series, name, component, times, vmin, vmax)
+    if fibres:
+        check_fibres(series)
     tmp = output.with_name(f".{output.stem}.tmp{output.suffix}")
     try:
         if animation:
             write_animation(series, name, component, times, view, title, tmp,
-                            dpi or ANIMATION_DPI, regions)  # fmt: skip
+                            dpi or ANIMATION_DPI, regions, fibres)  # fmt: skip
         else:
-            fig = draw(series, name, times[0], component, title, view, regions=regions)
+            fig = draw(series, name, times[0], component, title, view, regions=regions,
+                       fibres=fibres)  # fmt: skip
             fig.savefig(tmp, dpi=dpi or 150, format=output.suffix.lower()[1:])
         os.replace(tmp, output)
     finally:

@@ -1,10 +1,11 @@
 """``plantgrowth render DIR --field NAME [--time T|all] [--component K] [--vmin A --vmax B]
--o FILE [--force]``.
+-o FILE [--force] [--regions] [--fibres]``.
 
 Draws one written field of a finished (or still running) run on the deformed tissue, x + u(t),
 with matplotlib's Agg canvas (no display needed): scalars and tensor components as colours per
 cell (or node), vectors as arrows with a scale key (directions as headless bars: an axis has no
-sign), the initial outline dashed and, for micro runs, the cells' outlines (cells.xdmf). FILE is
+sign), the initial outline dashed and, for micro runs, the cells' outlines (cells.xdmf); with
+``--fibres`` the fibre director's glyphs on top (:mod:`plantgrowth.results.fibre_glyphs`). FILE is
 a .png, .pdf or .svg picture, or with ``--time all`` a .gif animation over the written times
 (:mod:`plantgrowth.results.animate`); the pictures of one request share a :class:`View` (box,
 colour range, arrow scale) so that they compare. Reads the run through
@@ -26,6 +27,7 @@ from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 
 from plantgrowth.base.errors import InputError
+from plantgrowth.results.fibre_glyphs import draw_fibres
 from plantgrowth.results.field_hints import bad_component, missing_field
 from plantgrowth.results.reader import COMPONENTS, ResultSeries, boundary_outline, read_series
 from plantgrowth.results.region_outlines import region_outlines
@@ -338,11 +340,13 @@ def _draw_regions(ax, series: ResultSeries, t: float) -> None:
 def draw(
     series: ResultSeries, name: str, t: float, component: str | None, title: str | None = None,
     view: View | None = None, fig: Figure | None = None, regions: bool = False,
+    fibres: bool = False,
 ) -> Figure:  # fmt: skip
     """The figure of one field at one written time (see the module docstring), in ``view``
     (default: this time's own) and into ``fig`` (cleared; default: a new figure sized to fit);
     with ``regions``, the outlines of the scene's regions
-    (plantgrowth/results/region_outlines.py)."""
+    (plantgrowth/results/region_outlines.py); with ``fibres``, the fibre director's glyphs
+    (plantgrowth/results/fibre_glyphs.py)."""
     view = view or plan_view(series, name, component, [t])
     fitted = fig is None
     fig = fig or new_figure(view)
@@ -386,6 +390,8 @@ def draw(
         ax.plot(*x0[np.append(loop, loop[0])].T, "k--", lw=1.0, label="initial outline (t = 0)")
     if regions:
         _draw_regions(ax, series, t)
+    if fibres:
+        draw_fibres(ax, series, t)
     ax.set_aspect("equal")
     ax.set_xlim(*view.box[:2])
     ax.set_ylim(*view.box[2:])
