@@ -73,6 +73,23 @@ def serial_and_mpirun_runs(scene: Path) -> list[Path]:
     return outdirs
 
 
+def runs_and_pictures(factory, name: str, scenes: dict[str, str]) -> tuple[dict[str, Path], Path]:
+    """Each scene (name -> TOML text) run in process on every rank into ``DIR/<name>``, and an
+    empty ``DIR/pictures``: ({name: run directory}, the pictures' directory)."""
+    directory = shared_dir(factory, name)
+    out = {}
+    for scene, text in scenes.items():
+        write(directory / f"{scene}.toml", text)
+        assert main(["run", str(directory / f"{scene}.toml"), "-o", str(directory / scene)]) == 0
+        MPI.COMM_WORLD.Barrier()
+        out[scene] = directory / scene
+    pictures = directory / "pictures"
+    if RANK0:
+        pictures.mkdir()
+    MPI.COMM_WORLD.Barrier()
+    return out, pictures
+
+
 def write(path: Path, text: str) -> None:
     """Write on rank 0 (making the parents), then let every rank see it."""
     if RANK0:

@@ -14,11 +14,10 @@ from xml.etree import ElementTree
 
 import numpy as np
 import pytest
-from cli_helpers import RANK0, call, shared_dir, write
+from cli_helpers import RANK0, call, runs_and_pictures, write
 from matplotlib.figure import Figure
 from matplotlib.image import imread
 from matplotlib.quiver import QuiverKey
-from mpi4py import MPI
 from PIL import Image
 
 from plantgrowth.results import picture as picture_module
@@ -54,21 +53,9 @@ def snapshot(directory) -> dict:
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """{"macro": DIR, "micro": DIR} and a directory for pictures."""
-    directory = shared_dir(tmp_path_factory, "render")
-    out = {}
-    for name, text in (("macro", MACRO), ("micro", MICRO), ("bare", BARE)):
-        write(directory / f"{name}.toml", text)
-        from plantgrowth.cli import main
-
-        assert main(["run", str(directory / f"{name}.toml"), "-o", str(directory / name)]) == 0
-        MPI.COMM_WORLD.Barrier()
-        out[name] = directory / name
-    pictures = directory / "pictures"
-    if RANK0:
-        pictures.mkdir()
-    MPI.COMM_WORLD.Barrier()
-    return out, pictures
+    """{"macro": DIR, "micro": DIR, "bare": DIR} and a directory for pictures."""
+    return runs_and_pictures(tmp_path_factory, "render",
+                             {"macro": MACRO, "micro": MICRO, "bare": BARE})  # fmt: skip
 
 
 @pytest.mark.parametrize(

@@ -42,8 +42,10 @@ from plantgrowth.base.errors import InputError
 from plantgrowth.results.field_hints import missing_fibres
 from plantgrowth.results.reader import ResultSeries
 
-MAX_GLYPHS = 300  # macro: about this many glyphs; on the 6.93 x 3 reference tissue, 26 x 11,
-# 0.29 inch apart in the 9-inch picture (measured), about the micro model's 0.3 inch at Nx = 16
+MAX_GLYPHS = 300  # macro: about this many glyphs. Measured on the default mesh (h = 0.1) of the
+# 6.93 x 3 reference tissue: 26 x 11 glyphs, 0.25 inch apart in the 9-inch picture, 0.17 inch
+# long (render's 600 arrows would make them 0.12 inch); the micro model at its default
+# Nx = 16 draws one per cell, 0.42 inch apart
 GLYPH_LENGTH = 0.7  # macro: of the grid's spacing, 0.3 spacing between the ends of aligned
 # neighbours; micro: of the way to the cell's outline (a regular hexagon's glyph: 1.2 to 1.4
 # sides long, 0.3 to 0.6 side from its neighbour's)
@@ -109,6 +111,7 @@ def _growth(series: ResultSeries, t: float) -> np.ndarray | None:
 def triangle_gradients(x0: np.ndarray, x: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """(M, 2, 2) F of the affine map of each triangle from ``x0`` to ``x``: F D0 = D, D's
     columns the edges from the first vertex."""
+
     def edges(p: np.ndarray) -> np.ndarray:
         corners = p[triangles]
         return np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]], axis=2)
@@ -160,8 +163,9 @@ def cell_rows(series: ResultSeries, t: float) -> dict[str, np.ndarray]:
             f"one for each of the {n} cells (a step still being written? try an earlier --time)"
         )
     rows.sort(key=lambda r: int(r["cell"]))
-    return {key: np.array([float(r[key]) for r in rows]) for key in ("x1", "x2", "area",
-                                                                      "fibre_angle")}
+    return {
+        key: np.array([float(r[key]) for r in rows]) for key in ("x1", "x2", "area", "fibre_angle")
+    }
 
 
 def cell_gradients(series: ResultSeries, t: float) -> np.ndarray:
