@@ -14,6 +14,7 @@ agree to ~1e-15; 1e-12 leaves room and still fails on any wrong F, Fg, site or l
 from __future__ import annotations
 
 import csv
+import shutil
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from matplotlib.image import imread
 from matplotlib.path import Path as PolygonPath
 from PIL import Image
 
+from plantgrowth.base.errors import InputError
 from plantgrowth.results import animate as animate_module
 from plantgrowth.results import picture as picture_module
 from plantgrowth.results.fibre_glyphs import (
@@ -293,3 +295,19 @@ def test_fibres_over_time_into_a_gif(runs, model, capsys, monkeypatch):
     assert all(len(f) == len(frames[0]) for f in frames)
     assert np.abs(frames[3] - frames[1]).max() > 1e-4  # the sites moved with the tissue
     assert not list(pictures.glob(".*"))
+
+
+def test_a_step_still_being_written_is_refused_not_drawn(runs, tmp_path):
+    """cells.csv without all the rows of the time asked for (a run writing that step): a named
+    error suggesting an earlier --time, not glyphs for some of the cells."""
+    dirs, _ = runs
+    copy = tmp_path / "micro"
+    shutil.copytree(dirs["micro"], copy)  # each rank its own copy
+    lines = (copy / "cells.csv").read_text().splitlines(keepends=True)
+    (copy / "cells.csv").write_text("".join(lines[:-3]))
+    series = read_series(copy)
+    with pytest.raises(InputError, match=r"^--fibres: .*cells\.csv has 5 rows at t = 2, not one "
+                       r"for each of the 8 cells \(a step still being written\? try an earlier "
+                       r"--time\)$"):  # fmt: skip
+        draw(series, "trG", 2.0, None, fibres=True)
+    assert len(drawn_glyphs(draw(series, "trG", 1.0, None, fibres=True))[0]) == 8
