@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from matplotlib import patheffects
@@ -76,7 +77,7 @@ def _is_micro(series: ResultSeries) -> bool:
     return series.outlines is not None
 
 
-def _header(path) -> list[str]:
+def _header(path: Path) -> list[str]:
     """The first row of a CSV file ([] if there is none)."""
     if not path.is_file():
         return []
