@@ -360,6 +360,27 @@ def test_surrogate_interpolates_the_director_within_its_tolerance(reference, ang
     assert errors[0] > ROUNDING  # between nodes: interpolated
 
 
+@pytest.mark.parametrize("angle, near", [(90.03, True), (90.5, False)])
+def test_near_node_director_needs_no_finer_angle_level(reference, angle, near):
+    """A director 0.03 degrees from a node (a growth rotation's size) is answered from the two
+    level-0 nodes alone: their linear interpolant differs from the near node's value by far
+    less than the tolerance. At 0.5 degrees (beyond director_lattice.NEAR) the level-1 node
+    97.5 (and finer ones) are asked as before. Both answers are within the tolerance 1e-3 of
+    CellSolver's solve at the exact angle (the near-node rule's estimate is the Taylor
+    expansion's first-order term, which bounds the second-order error; interpolate_angles)."""
+    homogenizer = Homogenizer(1, 1e-6, True, True, MPI.COMM_WORLD, cell_tolerance=1e-3)
+    Fg = np.array([[1.08, 0.0], [0.0, 0.96]])
+    tensors = homogenizer.homogenize(
+        np.array([GEOMETRY]), np.ones(1), np.full(1, 0.3), Fg[None],
+        fibres=(np.full(1, 5.0), np.full(1, angle)),
+    )  # fmt: skip
+    asked = {t[6] * director_lattice.ANGLE_STEP for t, _ in homogenizer.surrogate.values}
+    assert {90.0, 105.0} <= asked
+    assert (asked == {90.0, 105.0}) == near
+    error = _rel(tensors.C[0], voigt_matrix(reference(Fg, 5.0, angle).E_hom))
+    assert error <= 1e-3
+
+
 def test_node_tolerance_scales_with_the_weight():
     """A node's stretch tolerance is the surrogate's over min(1, 2 w): the two nodes' weighted
     errors add up to at most 1.5 times it; a node of no weight takes any answer (1)."""

@@ -51,8 +51,33 @@ def node_tolerance(tolerance: float, weight: np.ndarray) -> np.ndarray:
     return np.minimum(tolerance / np.clip(2.0 * weight, 1e-300, 1.0), 1.0)
 
 
+NEAR = 1.0 / 256.0
+"""Largest distance to a node, as a fraction of the coarsest interval (0.06 degrees), at which
+a query may be answered without a finer angle level (:func:`interpolate_angles`)."""
+
+
+def _requests(
+    which: np.ndarray, b: np.ndarray, level: np.ndarray, tolerance: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The node requests of m queries (tables ``which``, angles ``b``) at their levels.
+
+    Returns the upper nodes' weights t (m,); per node (lower, upper: (2, m)) the index of its
+    request, -1 for a node of zero weight (it adds nothing and is not asked); and per request
+    its query, its table and node index as one integer (``table * PERIOD + node``) and its
+    tolerance (:func:`node_tolerance`).
+    """
+    lower, upper, t = angle_nodes(b, level)
+    node, weight = np.stack([lower, upper]), np.stack([1.0 - t, t])
+    asked = weight > 0.0
+    index = np.full(node.shape, -1, dtype=np.int64)
+    index[asked] = np.arange(np.count_nonzero(asked))
+    query = np.broadcast_to(np.arange(len(b)), node.shape)[asked]
+    table_node = which[query] * PERIOD + node[asked]
+    return t, index, query, table_node, node_tolerance(tolerance, weight[asked])
+
+
 def interpolate_angles(
-    evaluate: Callable[[list[tuple], np.ndarray, np.ndarray], Answer],
+    evaluate: Callable[[list[tuple], np.ndarray, np.ndarray, np.ndarray], Answer],
     difference: Callable[[np.ndarray, np.ndarray], np.ndarray],
     tolerance: float,
     comm: MPI.Comm,
@@ -65,66 +90,65 @@ def interpolate_angles(
     stretch ``s[k]`` and, for a fibred table (more than 5 entries), angle ``b[k]`` (degrees in
     [0, 180)); an isotropic table is asked once, as it is.
 
+    The first round asks each fibred query's two level-0 nodes. A query within :data:`NEAR`
+    of one of them (a fixed director turned by a growth rotation of hundredths of a degree) is
+    answered by their linear interpolant if that differs from the near node's value by at
+    most the tolerance: the difference is the first-order term of the angle's Taylor
+    expansion, which bounds the linear interpolant's second-order error (with the NEAR bound
+    that keeps it below the tolerance even if the two nodes happened to agree: h^2 |f''| / 2
+    at most about 4 per rad^2 at E_f / E = 5, measured in docs/fibres.md, gives 5e-4). Every
+    other query goes on as the lattice does: levels L and L + 1 compared, L + 1 returned.
+
     Args:
         evaluate: the stretch surrogate, ``evaluate(tables, which, s, tolerance)``
             (collective), a fibred table's node being the table plus its angle index.
         difference: the relative difference per row of two (n, m) value arrays.
     """
     n = len(which)
-    fibred = np.array([len(tables[w]) > 5 for w in which], dtype=bool).reshape(n)
+    which = np.asarray(which, dtype=np.int64).reshape(n)
+    fibred = np.array([len(table) > 5 for table in tables], dtype=bool)[which]
     level = np.zeros(n, dtype=np.int64)
     values, estimates = None, np.zeros(n)
     interpolated = np.zeros(n, dtype=bool)
     pending, coarse, solves = np.flatnonzero(fibred), None, 0
     plain = np.flatnonzero(~fibred)
     while True:
-        # level L's nodes, then L + 1's (of which the first round also needs L's)
-        ask_tables, ask_which, ask_s, ask_tol, parts = [], [], [], [], []
-        levels = (
-            (level[pending] + 1,) if coarse is not None else (level[pending], level[pending] + 1)
-        )
-        for lv in levels:
-            lower, upper, t = angle_nodes(b[pending], lv)
-            parts.append(t)
-            for node, weight in ((lower, 1.0 - t), (upper, t)):
-                ask_which.append(np.arange(len(ask_tables), len(ask_tables) + len(pending)))
-                ask_tables += [
-                    tables[w] + (int(i),) for w, i in zip(which[pending], node, strict=True)
-                ]
-                ask_s.append(s[pending])
-                ask_tol.append(node_tolerance(tolerance, weight))
+        # the first round asks level L = 0, every later one level L + 1 of the pending
+        lv = level[pending] + (coarse is not None)
+        t, index, query, table_node, tol = _requests(which[pending], b[pending], lv, tolerance)
+        names, ask_which = np.unique(table_node, return_inverse=True)
+        ask_tables = [tables[k // PERIOD] + (k % PERIOD,) for k in names.tolist()]
+        ask_s = s[pending][query]
         if values is None:  # the first round also answers the isotropic queries
-            ask_which.append(np.arange(len(ask_tables), len(ask_tables) + len(plain)))
-            ask_tables += [tables[w] for w in which[plain]]
-            ask_s.append(s[plain])
-            ask_tol.append(np.full(len(plain), tolerance))
-        ask = (np.concatenate(ask_which), np.concatenate(ask_s).reshape(-1, 2))
-        answer = evaluate(ask_tables, *ask, np.concatenate(ask_tol))
+            ask_which = np.concatenate([ask_which, len(ask_tables) + which[plain]])
+            ask_tables += list(tables)
+            ask_s = np.concatenate([ask_s, s[plain]])
+            tol = np.concatenate([tol, np.full(len(plain), tolerance)])
+        answer = evaluate(ask_tables, ask_which, ask_s.reshape(-1, 2), tol)
         solves += answer.solves
         if answer.values is None:  # no rank has a query
             return Answer(np.zeros((n, 0)), estimates, interpolated, solves)
-        m = len(pending)
-        width = answer.values.shape[1]
-        node_values = answer.values[: len(levels) * 2 * m].reshape(len(levels), 2, m, width)
-        node_interp = answer.interpolated[: len(levels) * 2 * m].reshape(len(levels), 2, m)
+        asked = len(query)
         if values is None:
-            values = np.zeros((n, width))
-            values[plain] = answer.values[len(levels) * 2 * m :]
-            estimates[plain] = answer.estimates[len(levels) * 2 * m :]
-            interpolated[plain] = answer.interpolated[len(levels) * 2 * m :]
-        mix = [
-            (1 - t)[:, None] * v[0] + t[:, None] * v[1]
-            for t, v in zip(parts, node_values, strict=True)
-        ]
-        fine = mix[-1]
-        if coarse is None:
-            coarse = mix[0]
-        estimates[pending] = difference(coarse, fine) if m else np.zeros(0)
-        done = (estimates[pending] <= tolerance) | (level[pending] + 1 == MAX_ANGLE_LEVEL)
+            values = np.zeros((n, answer.values.shape[1]))
+            values[plain] = answer.values[asked:]
+            estimates[plain] = answer.estimates[asked:]
+            interpolated[plain] = answer.interpolated[asked:]
+        # a zero-weight node (index -1) reads any row and adds 0 times it
+        node_values = answer.values[np.maximum(index, 0)]
+        fine = (1 - t)[:, None] * node_values[0] + t[:, None] * node_values[1]
+        if coarse is None:  # near a level-0 node: the linear interpolant against that node
+            nearest = np.where((t <= 0.5)[:, None], node_values[0], node_values[1])
+            estimates[pending] = difference(nearest, fine) if len(pending) else np.zeros(0)
+            done = (np.minimum(t, 1.0 - t) <= NEAR) & (estimates[pending] <= tolerance)
+        else:
+            estimates[pending] = difference(coarse, fine) if len(pending) else np.zeros(0)
+            done = (estimates[pending] <= tolerance) | (lv == MAX_ANGLE_LEVEL)
+            level[pending[~done]] += 1
         values[pending[done]] = fine[done]
-        between = (parts[-1] > 0.0) & (parts[-1] < 1.0)
-        interpolated[pending[done]] = (between | node_interp[-1].any(axis=0))[done]
-        level[pending[~done]] += 1
+        node_interp = (index >= 0) & answer.interpolated[np.maximum(index, 0)]
+        between = (t > 0.0) & (t < 1.0)
+        interpolated[pending[done]] = (between | node_interp.any(axis=0))[done]
         pending, coarse = pending[~done], fine[~done]
         if not comm.allreduce(len(pending), op=MPI.MAX):
             return Answer(values, estimates, interpolated, solves)

@@ -101,6 +101,12 @@ def _corners(s: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return points, weights
 
 
+def _combine(weights: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``sum_c weights[n, c] rows[n, c, :]`` (n, m): the interpolated values (a batched
+    product, about twice as fast as einsum at a fine mesh's query counts)."""
+    return (weights[:, None, :] @ rows)[:, 0, :]
+
+
 class LatticeSurrogate:
     """Lazily refined lattice tables of packed homogenized quantities.
 
@@ -143,11 +149,13 @@ class LatticeSurrogate:
         """Largest over the segments of ``|a - b| / |b|`` (Frobenius norms), per row of
         (n, m) arrays (or for single vectors)."""
         a2, b2 = np.atleast_2d(a), np.atleast_2d(b)
+        squared, scale2 = (a2 - b2) ** 2, b2 * b2
         out = np.zeros(len(b2))
         for seg in self.segments:
-            scale = np.linalg.norm(b2[:, seg], axis=1)
-            diff = np.linalg.norm(a2[:, seg] - b2[:, seg], axis=1)
-            out = np.maximum(out, np.divide(diff, scale, out=np.zeros_like(diff), where=scale > 0))
+            diff, scale = squared[:, seg].sum(axis=1), scale2[:, seg].sum(axis=1)
+            ratio = np.divide(diff, scale, out=np.zeros_like(diff), where=scale > 0)
+            out = np.maximum(out, ratio)
+        out = np.sqrt(out)
         return out if np.ndim(b) > 1 else float(out[0])
 
     def _solve_points(self, points: list[Point]) -> int:
@@ -243,9 +251,9 @@ class LatticeSurrogate:
             solves += added
             table = self._index()[1]
             fine_w = corners[0][1]
-            fine = np.einsum("nc,ncm->nm", fine_w, table[found[0][0]])  # bilinear values
+            fine = _combine(fine_w, table[found[0][0]])  # bilinear values
             if coarse is None:
-                coarse = np.einsum("nc,ncm->nm", corners[1][1], table[found[1][0]])
+                coarse = _combine(corners[1][1], table[found[1][0]])
             if values is None:
                 values = np.zeros((n, fine.shape[1]))
             estimates[pending] = self.relative_difference(coarse, fine)
