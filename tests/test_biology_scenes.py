@@ -21,8 +21,12 @@ from plantgrowth.results.reader import read_series
 from plantgrowth.scene.toml_text import dict_to_toml
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
-BIOLOGY = [*sorted((SCENES / "biology").glob("*.toml")), SCENES / "examples" / "soft_disc.toml"]
-"""The biology scenes and the soft disc example (its region: tests/test_regions.py)."""
+BIOLOGY = [
+    *sorted(p for p in (SCENES / "biology").glob("*.toml") if not p.stem.startswith("fibres_")),
+    SCENES / "examples" / "soft_disc.toml",
+]
+"""The biology scenes and the soft disc example (its region: tests/test_regions.py); the fibre
+scenes (``fibres_*``) are tested in test_biology_fibres.py."""
 T_MAX = 10.0
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from plantgrowth.base.tensors import from_voigt_stress, inv2, voigt_vector
+from plantgrowth.base.tensors import from_voigt_stress, inv2, voigt_matrix, voigt_vector
 
 INTEGRATORS = ("euler", "exp")
 
@@ -64,6 +64,20 @@ def growth_rate(
     """``G = clip(eta [X / phi_w - tau I]_+, -M, M)`` for X = sigma_hom or eps_hom."""
     driving = X / phi_w[:, None, None] - tau[:, None, None] * np.eye(2)
     return np.clip(eta[:, None, None] * positive_part(driving), -clamp, clamp)
+
+
+def homogeneous_strain_rate(cell, P1: float, eta: float, tau: float = 0.0) -> np.ndarray:
+    """The strain-law G (2, 2) of a homogeneous, unloaded tissue under the constant turgor P1
+    (docs/model.md section 4's exact solution; with fibred walls, consequence 4 of the fibre
+    section), from one cell's tensors (``cell``: E_hom, K_hom, phi_w, dbar_w, dbar_v, e.g. a
+    :class:`~plantgrowth.unitcell.solver.CellSolver` result): ``eps_el = E_hom^-1 ((1 - phi_w) I
+    - K_hom) P1``, eps_hom by [strain_hom], ``G = eta [eps_hom / phi_w - tau I]_+`` (no clamp)."""
+    stress = ((1.0 - cell.phi_w) * np.eye(2) - cell.K_hom) * P1
+    e = np.linalg.solve(voigt_matrix(cell.E_hom), [stress[0, 0], stress[1, 1], stress[0, 1]])
+    eps_el = np.array([[[e[0], 0.5 * e[2]], [0.5 * e[2], e[1]]]])
+    phi = np.array([cell.phi_w])
+    eps = homogenized_strain(eps_el, phi, cell.dbar_w[None], cell.dbar_v[None], np.array([P1]))
+    return growth_rate(eps, phi, np.array([eta]), np.array([tau]), np.inf)[0]
 
 
 def advance(Fg: np.ndarray, G: np.ndarray, dt: float, integrator: str) -> np.ndarray:

@@ -32,8 +32,16 @@ def reached_t_max(scene: Path, run: Path) -> bool:
     return len(t) > 0 and t[-1] >= t_max - 1e-9 * max(1.0, t_max)
 
 
+def render(run: Path, picture: Path, *options: str) -> None:
+    """``plantgrowth render RUN --field trG [OPTIONS] -o PICTURE --force``."""
+    subprocess.run([PLANTGROWTH, "render", str(run), "--field", "trG", *options,
+                    "-o", str(picture), "--force"], check=True)  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
-    scenes = sorted((REPO / "scenes" / "biology").glob("*.toml"))
+    # the fibre scenes (fibres_*) are drawn with their director glyphs by render_fibres.py
+    scenes = sorted(s for s in (REPO / "scenes" / "biology").glob("*.toml")
+                    if not s.stem.startswith("fibres_"))  # fmt: skip
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", nargs="*", choices=[s.stem for s in scenes])
     parser.add_argument("--results", type=Path, default=REPO / "results" / "biology")
@@ -47,12 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     args.out.mkdir(parents=True, exist_ok=True)
     for scene in chosen:
-        picture = args.out / f"biology_{scene.stem}.png"
-        subprocess.run(
-            [PLANTGROWTH, "render", str(args.results / scene.stem), "--field", "trG",
-             "-o", str(picture), "--force"],
-            check=True,
-        )  # fmt: skip
+        render(args.results / scene.stem, args.out / f"biology_{scene.stem}.png")
     return 0
 
 

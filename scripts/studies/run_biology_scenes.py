@@ -1,7 +1,9 @@
 """Run the example scenes of ``scenes/biology/`` (the README gallery, issue 11, item 5) into
 ``results/biology/<name>/``.
 
-One ``plantgrowth run`` per scene, as shipped (about 15 s each on one core). A run whose
+One ``plantgrowth run`` per scene, as shipped (about 15 s each on one core; the fibre scenes
+1-7 minutes on the shared 2-core machine, ``fibres_feedback_primordium`` the longest: its
+stress feedback spreads the directors, 9,453 cell solves, docs/fibres.md). A run whose
 ``summary.csv`` already reaches the scene's last step is skipped unless ``--force``; ``--jobs 2``
 runs two scenes at a time. ``scripts/figures/render_biology.py`` then draws the gallery from the
 runs. Exits non-zero if any run failed.
