@@ -70,19 +70,13 @@ class Mutant:
     replacements: tuple[tuple[str, str], ...]
 
 
-CLAMPED = (
-    "fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),",
-    "fem.dirichletbc(np.zeros(2, dtype=PETSc.ScalarType), "
-    "fem.locate_dofs_topological(self.V, 1, bottom), self.V),",
-)
-
 MUTANTS = (
     # --- forms/ --------------------------------------------------------------------------------
     Mutant(
         "cell_pressure_sign", "plantgrowth/unitcell/solver.py", "sign",
         "pressure cell problem [UCw_weak] with the unit pressure's sign flipped (v -> -v), "
         "issue 8",
-        (("wall_b + [np.eye(2)] * pressure", "wall_b + [-np.eye(2)] * pressure"),),
+        (("list(b) + [np.eye(2)] * pressure", "list(b) + [-np.eye(2)] * pressure"),),
     ),
     Mutant(
         "cell_grad_g_transposed", "plantgrowth/unitcell/solver.py", "transposition",
@@ -142,8 +136,8 @@ MUTANTS = (
     Mutant(
         "cell_average_over_walls", "plantgrowth/unitcell/solver.py", "wrong average",
         "cell averages divided by |Y_w| instead of |Y|",
-        (("grad_g.transpose(0, 2, 1)) / self.area",
-          "grad_g.transpose(0, 2, 1)) / self.wall_area"),),
+        (("grad_g.transpose(0, 1, 3, 2)) / self.area",
+          "grad_g.transpose(0, 1, 3, 2)) / self.wall_area"),),
     ),
     Mutant(
         "voigt_vector_shear_factor", "plantgrowth/base/tensors.py", "factor",
@@ -203,8 +197,8 @@ MUTANTS = (
     Mutant(
         "cell_growth_wrong_cell", "plantgrowth/unitcell/homogenization.py", "wrong index",
         "the surrogate asked at another cell's stretch (the queries' s reversed)",
-        (("answer = self.surrogate.evaluate(tables, pairs.indices, s[point])",
-          "answer = self.surrogate.evaluate(tables, pairs.indices, s[point][::-1])"),),
+        (("which, s_q, b_q = pairs.indices, s[point], b[point]",
+          "which, s_q, b_q = pairs.indices, s[point][::-1], b[point]"),),
     ),
     Mutant(
         "table_weights_dropped", "plantgrowth/unitcell/homogenization.py", "factor",
@@ -219,15 +213,22 @@ MUTANTS = (
     ),
     # --- macro problem ----------------------------------------------------------------------------
     Mutant(
-        "macro_bottom_clamped", "plantgrowth/models/macro/problem.py", "wrong boundary condition",
+        "macro_bottom_clamped", "plantgrowth/models/macro/supports.py", "wrong boundary condition",
         "macro bottom edge clamped (u = 0) instead of a symmetry plane (u2 = 0)",
-        (CLAMPED,),
+        (("self.symmetry = edge_dofs(V, boundary, boundary.symmetry, 1)",
+          "self.symmetry = edge_dofs(V, boundary, boundary.symmetry, 1)\n"
+          "        self.symmetry_u1 = edge_dofs(V, boundary, boundary.symmetry, 0)"),
+         ("return [fem.dirichletbc(zero, self.symmetry, self.V.sub(1))] + [",
+          "return [fem.dirichletbc(zero, self.symmetry, self.V.sub(1)), "
+          "fem.dirichletbc(zero, self.symmetry_u1, self.V.sub(0))] + ["),),
     ),
     # --- micro model ------------------------------------------------------------------------------
     Mutant(
         "micro_bottom_clamped", "plantgrowth/models/micro/model.py", "wrong boundary condition",
         "micro bottom walls clamped (u = 0) instead of a symmetry plane (u2 = 0)",
-        (CLAMPED,),
+        (("fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),",
+          "fem.dirichletbc(np.zeros(2, dtype=PETSc.ScalarType), "
+          "fem.locate_dofs_topological(self.V, 1, bottom), self.V),"),),
     ),
     Mutant(
         "micro_average_over_hexagon", "plantgrowth/models/micro/model.py", "wrong average",
@@ -326,6 +327,48 @@ MUTANTS = (
         "a failed linear solve of Newton's without a fallback goes on (the natural-monotonicity "
         "solve's convergence was never checked)",
         (("                diagnostics.stop_if(problems, self.comm)\n", ""),),
+    ),
+    # --- issue 22: fibre-reinforced walls and feedback (docs/model.md, fibre-reinforced walls) ---
+    # The fibre weight and the grown tangent are written twice: in numpy for the cell solver's
+    # fast path (base/tensors.py, what the macro model's tensors come from) and in UFL for the
+    # reference cell forms and the micro model (forms/elasticity.py): one mutant per place.
+    Mutant(
+        "fibre_weight_unsquared_cell", "plantgrowth/base/tensors.py", "factor",
+        "fast-path wall tensor C_iso + E_f (m . t_g) t_g^4 instead of E_f (m . t_g)^2 t_g^4 "
+        "(the cell solver's numpy fibre tensor, hence the macro model's tensors)",
+        (("q = float(m @ tg) ** 2", "q = float(m @ tg)"),),
+    ),
+    Mutant(
+        "fibre_weight_unsquared_walls", "forms/elasticity.py", "factor",
+        "UFL wall stress with the fibre weight (m . t_g) instead of (m . t_g)^2 (the reference "
+        "cell forms and the micro model's walls)",
+        (("q = ufl.inner(fibres.director, tg) ** 2", "q = ufl.inner(fibres.director, tg)"),),
+    ),
+    Mutant(
+        "fibre_reference_tangent_cell", "plantgrowth/base/tensors.py", "wrong configuration",
+        "fast-path fibre tensor along the reference tangent t instead of the grown one "
+        "t_g = Fg t / |Fg t| (weight and direction)",
+        (("tg = Fg @ t", "tg = 1.0 * t"),),
+    ),
+    Mutant(
+        "fibre_reference_tangent_walls", "forms/elasticity.py", "wrong configuration",
+        "UFL fibre stress along the reference tangent t instead of the grown one "
+        "t_g = Fg t / |Fg t| (the reference cell forms and the micro model's walls)",
+        (("Ft = ufl.dot(Fg, fibres.tangent)", "Ft = fibres.tangent"),),
+    ),
+    Mutant(
+        "feedback_smallest_direction", "plantgrowth/models/fibres.py", "wrong law or integrator",
+        "the director turns toward the cue's smallest principal direction (a_Q + 90) instead of "
+        "its largest (macro and micro feedback)",
+        (("angle = reduce_angle(np.degrees(principal.principal_angle(Q)))",
+          "angle = reduce_angle(np.degrees(principal.principal_angle(Q)) + 90.0)"),),
+    ),
+    Mutant(
+        "feedback_step_sign", "plantgrowth/models/fibres.py", "sign",
+        "the exact feedback step tan(a_new - a_Q) = tan(a - a_Q) exp(+k A dt) instead of "
+        "exp(-k A dt): the director turns away from the cue",
+        (("factor = np.exp(-rate * np.asarray(cue_anisotropy, dtype=float) * dt)",
+          "factor = np.exp(rate * np.asarray(cue_anisotropy, dtype=float) * dt)"),),
     ),
 )  # fmt: skip
 
