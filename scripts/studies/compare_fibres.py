@@ -8,9 +8,10 @@ strain law, the reference geometry):
   errors err_u1, err_u2, err_ubar, err_G and their least-squares rates in delta = 1/Nx;
 - ``feedback_a90``: ``fibres_a90_feedback.toml`` (``[feedback] cue = "stress"``, k = 0.5) up to
   t = 60 at ``--feedback-nx`` (default 4 8 16): homogeneous and traction-free, so the macro
-  director never turns and only the micro boundary cells do;
+  director never turns; the micro directors do, cell by cell (docs/fibres.md);
 - ``feedback_gradient_E``: ``fibres_gradient_E_feedback.toml``, the same with E rising along x1
-  from 0.5 to 2: the directors turn in both models.
+  from 0.5 to 2: the directors turn in both models;
+- ``single_cell``: the micro feedback's response to one turned director (:func:`single_cell`).
 
 Each compare runs in this process through the CLI (one process; run it under ``nice -n 19`` on
 a shared machine); raw runs go to ``--raw`` (default ``results/compare_fibres``, git-ignored).
@@ -30,10 +31,17 @@ import json
 import shlex
 import sys
 import time
+import tomllib
 from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
 
 from plantgrowth.base.machine import machine_description
 from plantgrowth.cli import main as plantgrowth
+from plantgrowth.models import fibres
+from plantgrowth.models.micro.model import MicroModel
+from plantgrowth.scene import parse_scene
 from plantgrowth.studies.compare import fitted_rate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -55,7 +63,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add = parser.add_argument
     add("--nx", type=int, nargs="+", default=[4, 8, 16], help="Nx of the first-step case")
     add("--feedback-nx", type=int, nargs="+", default=[4, 8, 16], help="Nx of the t = 60 cases")
-    add("--only", nargs="+", choices=list(SCENES), default=list(SCENES), help="cases to run")
+    add("--only", nargs="+", choices=[*SCENES, "single_cell"], default=[*SCENES, "single_cell"],
+        help="cases to run")  # fmt: skip
     add("--raw", type=Path, default=Path("results/compare_fibres"), help="raw run root")
     add("--json", type=Path, default=ROOT / "benchmarks/results/compare_fibres.json")
     return parser.parse_args(argv)
@@ -106,6 +115,40 @@ def run_case(name: str, nxs: list[int], raw: Path) -> dict:
     }
 
 
+def single_cell(nx: int = 8, delta: float = 1.0) -> dict:
+    """The micro feedback's response to one turned director, elastic only (Fg = I, one step of
+    dt = 1): ``feedback_a90``'s tissue at Nx with every director at 90 degrees but the cell
+    nearest the tissue's middle at 90 + delta. Each director's turn over the step minus its
+    turn when all are at 90 (the boundary's own cue), per degree of delta and unit rate k:
+    the turned cell's (> 0: it turns further, the uniform director is unstable) and its six
+    neighbours'."""
+    data = tomllib.loads(
+        (ROOT / "scenes" / "compare" / f"{SCENES['feedback_a90']}.toml").read_text()
+    )
+    data["model"] = "micro"
+    data["micro"]["nx"] = nx
+    scene = parse_scene(data)
+    model = MicroModel(scene, MPI.COMM_WORLD)
+    centres = model.layout.centres
+    middle = int(np.argmin(np.linalg.norm(centres - centres.mean(axis=0), axis=1)))
+    near = np.argsort(np.linalg.norm(centres - centres[middle], axis=1))[:7]
+    turned = []
+    for extra in (0.0, delta):
+        angle = np.full(model.layout.n_cells, 90.0)
+        angle[middle] += extra
+        model.director.restore(angle)
+        model.step(model.initial_growth())
+        model.end_step(1.0)
+        turned.append(fibres.reduce_angle(model.director.angle - angle))
+    response = (turned[1] - turned[0])[near] / (delta * scene.feedback.rate)
+    return {
+        "nx": nx, "resolution": scene.micro_resolution, "delta_degrees": delta,
+        "rate_k": scene.feedback.rate, "cell": middle, "centre": centres[middle].tolist(),
+        "turn_per_degree_per_k": round(float(response[0]), 5),
+        "neighbours_turn_per_degree_per_k": [round(float(r), 5) for r in response[1:]],
+    }  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     results = json.loads(args.json.read_text()) if args.json.is_file() else {"cases": {}}
@@ -114,7 +157,11 @@ def main(argv: list[str] | None = None) -> int:
         ["nice", "-n", "19", "python", "scripts/studies/compare_fibres.py", *(argv or sys.argv[1:])]
     )
     failed = []
-    for name in args.only:
+    if "single_cell" in args.only:
+        results["single_cell"] = single_cell()
+        print(f"single cell: {results['single_cell']}", flush=True)
+        write_results(results, args.json)
+    for name in (n for n in args.only if n in SCENES):
         nxs = args.nx if name == "first_step" else args.feedback_nx
         print(f"{name}: Nx = {nxs}", flush=True)
         entry = results["cases"][name] = run_case(name, nxs, args.raw)
@@ -133,7 +180,9 @@ def write_results(results: dict, path: Path) -> None:
         "(t = 60), err_fibre_angle_tmax the cells' RMS director difference in degrees. "
         "fitted_rates: least-squares p of e ~ delta^p over the case's Nx. last_summary_rows: "
         "each run's last summary.csv row (fibre_order, fibre_angle_mean the director the step "
-        "used)."
+        "used). single_cell: the micro feedback's response to one turned director "
+        "(single_cell's docstring in the script). study_command: the last invocation; with "
+        "--only it rewrites only the cases it names."
     )
     results["cases"] = dict(sorted(results["cases"].items()))
     path.write_text(json.dumps(results, indent=2) + "\n")
