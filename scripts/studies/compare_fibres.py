@@ -115,7 +115,7 @@ def run_case(name: str, nxs: list[int], raw: Path) -> dict:
     }
 
 
-def single_cell(nx: int = 8, delta: float = 1.0) -> dict:
+def single_cell(nx: int = 8, delta: float = 1.0, resolution: int | None = None) -> dict:
     """The micro feedback's response to one turned director, elastic only (Fg = I, one step of
     dt = 1): ``feedback_a90``'s tissue at Nx with every director at 90 degrees but the cell
     nearest the tissue's middle at 90 + delta. Each director's turn over the step minus its
@@ -127,6 +127,8 @@ def single_cell(nx: int = 8, delta: float = 1.0) -> dict:
     )
     data["model"] = "micro"
     data["micro"]["nx"] = nx
+    if resolution is not None:  # else the scene's
+        data["micro"]["resolution"] = resolution
     scene = parse_scene(data)
     model = MicroModel(scene, MPI.COMM_WORLD)
     centres = model.layout.centres
