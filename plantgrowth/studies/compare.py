@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from plantgrowth.base.gather import MeshGather
 from plantgrowth.meshes.tissue import TissueLayout
+from plantgrowth.models import fibres
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.model import model_on
 from plantgrowth.models.micro.model import MicroModel, scene_cell
@@ -37,9 +38,11 @@ COLUMNS = [
     "rate_macro_t0", "rate_micro_t0", "rate_macro_tmax", "rate_micro_tmax",
     "seconds_macro", "seconds_micro", "dofs_macro", "dofs_micro",
     "err_u1_tmax", "err_u2_tmax", "err_ubar_tmax", "err_G_tmax",
+    "err_fibre_angle_tmax", "fibre_order_macro_tmax", "fibre_order_micro_tmax",
 ]  # fmt: skip
 """The ``_tmax`` errors are the first-step ones at the last step (empty if only the first step
-ran): both models are Lagrangian on their reference meshes, so u at t_max compares as at t = 0."""
+ran): both models are Lagrangian on their reference meshes, so u at t_max compares as at t = 0.
+The fibre columns are empty without a director (a scene without fibres)."""
 
 
 @dataclass(frozen=True)
@@ -129,16 +132,48 @@ def relative_errors(u_micro: fem.Function, A: fem.Function) -> dict[str, float]:
     }
 
 
+TIE = 1e-9
+"""Relative distance within which fine cells count as equally near a point."""
+
+
+def nearest_mean(points: np.ndarray, values: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Values (n, k) of the fine cell whose midpoint (``points``) is nearest to each point x,
+    or the mean of those equally near (within :data:`TIE`): a cell centre is often a fine mesh
+    vertex, and picking one of its triangles would depend on the order the fine cells were
+    gathered in (serial against mpirun)."""
+    k = min(8, len(points))
+    distance, index = cKDTree(points).query(x, k=k)
+    distance, index = distance.reshape(len(x), k), index.reshape(len(x), k)
+    tied = distance <= distance[:, :1] * (1.0 + TIE)
+    return np.einsum("ij,ijk->ik", tied, values[index]) / tied.sum(axis=1)[:, None]
+
+
 def growth_rate_error(
     micro_G: np.ndarray, weights: np.ndarray, centres: np.ndarray, macro_G: CellSnapshot
 ) -> float:
     """Relative difference of the first-step growth rates, cell by cell:
     ``sqrt( sum_c A_c |G_c - G(x_c)|^2 / sum_c A_c |G(x_c)|^2 )`` with A_c the cells' areas and
-    G(x) the macro rate in the fine cell nearest to the cell centre x_c."""
-    G = macro_G.values[cKDTree(macro_G.points).query(centres)[1]].reshape(-1, 2, 2)
+    G(x) the macro rate in the fine cell nearest to the cell centre x_c (:func:`nearest_mean`)."""
+    G = nearest_mean(macro_G.points, macro_G.values, centres).reshape(-1, 2, 2)
     num = np.sum(weights * np.sum((micro_G - G) ** 2, axis=(1, 2)))
     den = np.sum(weights * np.sum(G**2, axis=(1, 2)))
     return float(np.sqrt(num / den)) if den > 0.0 else float(np.sqrt(num))
+
+
+def director_error(
+    micro_angle: np.ndarray, weights: np.ndarray, centres: np.ndarray, macro_angle: CellSnapshot
+) -> float:
+    """Root-mean-square difference of the fibre directors, cell by cell, in degrees:
+    ``sqrt( sum_c A_c d_c^2 / sum_c A_c )`` with ``d_c`` the angle of cell c minus the macro
+    angle in the fine cell nearest to its centre (:func:`nearest_mean` of the axial vector
+    ``(cos 2a, sin 2a)``, a director being an axis), reduced to (-90, 90]."""
+    two_a = np.radians(2.0 * macro_angle.values[:, 0])
+    axial = nearest_mean(
+        macro_angle.points, np.column_stack([np.cos(two_a), np.sin(two_a)]), centres
+    )
+    macro = 0.5 * np.degrees(np.arctan2(axial[:, 1], axial[:, 0]))
+    d = fibres.reduce_angle(micro_angle - macro)
+    return float(np.sqrt(np.sum(weights * d**2) / np.sum(weights)))
 
 
 @dataclass(frozen=True)
@@ -172,6 +207,9 @@ def compare_one(
             n = problem.n_owned
             G = problem.cell_values(model.out.G)[:n]
             snapshot["G", step] = CellSnapshot.gather(problem.midpoints[:n, :2], G, comm)
+            if model.director is not None:
+                a = model.director.angle[:n].reshape(n, 1)
+                snapshot["a", step] = CellSnapshot.gather(problem.midpoints[:n, :2], a, comm)
 
     def measure_micro(step: int, model) -> None:
         if step in measured:
@@ -182,6 +220,10 @@ def compare_one(
                     model.last_G, model.hexagon_area, layout.centres, snapshot["G", step]
                 ),
             }
+            if model.director is not None:
+                errors[step]["err_fibre_angle"] = director_error(
+                    model.director.angle, model.hexagon_area, layout.centres, snapshot["a", step]
+                )
 
     start = time.perf_counter()
     prepare_directory(outdir / "macro", comm)
@@ -204,6 +246,7 @@ def compare_one(
             nx, step, e["err_u1"], e["err_u1_pinned"], e["err_u2"], e["err_ubar"], e["err_G"],
         )  # fmt: skip
     at_tmax = errors.get(last) if last > 0 else None
+    fibred = at_tmax is not None and "err_fibre_angle" in at_tmax
     return {
         "nx": nx, "delta": 1.0 / nx, **errors[0],
         **{f"{k}_tmax": None if at_tmax is None else at_tmax[k]
@@ -214,6 +257,9 @@ def compare_one(
         "rate_micro_tmax": None if n_steps == 0 else micro_rows[-1]["growth_rate_area"],
         "seconds_macro": seconds_macro, "seconds_micro": seconds_micro,
         "dofs_macro": macro.problem.ndofs, "dofs_micro": micro.ndofs,
+        "err_fibre_angle_tmax": at_tmax["err_fibre_angle"] if fibred else None,
+        "fibre_order_macro_tmax": macro_rows[-1]["fibre_order"] if fibred else None,
+        "fibre_order_micro_tmax": micro_rows[-1]["fibre_order"] if fibred else None,
     }  # fmt: skip
 
 

@@ -1,0 +1,194 @@
+"""Micro against macro with fibre-reinforced walls and stress feedback (docs/fibres.md, "Micro
+against macro"; issue 22's Done item).
+
+Three ``plantgrowth compare`` cases of the scenes in ``scenes/compare/`` (a = 90, E_f / E = 5,
+strain law, the reference geometry):
+
+- ``first_step``: ``fibres_a90_strain.toml`` at ``--nx`` (default 4 8 16), first step only: the
+  errors err_u1, err_u2, err_ubar, err_G and their least-squares rates in delta = 1/Nx;
+- ``feedback_a90``: ``fibres_a90_feedback.toml`` (``[feedback] cue = "stress"``, k = 0.5) up to
+  t = 60 at ``--feedback-nx`` (default 4 8 16): homogeneous and traction-free, so the macro
+  director never turns; the micro directors do, cell by cell (docs/fibres.md);
+- ``feedback_gradient_E``: ``fibres_gradient_E_feedback.toml``, the same with E rising along x1
+  from 0.5 to 2: the directors turn in both models;
+- ``single_cell``: the micro feedback's response to one turned director (:func:`single_cell`).
+
+Each compare runs in this process through the CLI (one process; run it under ``nice -n 19`` on
+a shared machine); raw runs go to ``--raw`` (default ``results/compare_fibres``, git-ignored).
+``--json`` (default ``benchmarks/results/compare_fibres.json``) gets, per case, the command,
+the wall and CPU seconds, compare.csv's rows, each run's last summary row (fibre_order,
+fibre_angle_mean, area, rates) and the fitted rates, with the machine description. ``--only``
+reruns some cases and keeps the others' entries.
+
+    nice -n 19 python scripts/studies/compare_fibres.py [--only first_step] [--feedback-nx 4 8]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import shlex
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from plantgrowth.base.machine import machine_description
+from plantgrowth.cli import main as plantgrowth
+from plantgrowth.models import fibres
+from plantgrowth.models.micro.model import MicroModel
+from plantgrowth.scene import parse_scene
+from plantgrowth.studies.compare import fitted_rate
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENES = {
+    "first_step": "fibres_a90_strain",
+    "feedback_a90": "fibres_a90_feedback",
+    "feedback_gradient_E": "fibres_gradient_E_feedback",
+}
+FIRST_STEP = ("err_u1", "err_u2", "err_ubar", "err_G")
+AT_TMAX = tuple(f"{k}_tmax" for k in FIRST_STEP) + ("err_fibre_angle_tmax",)
+LAST_ROW = (
+    "step", "t", "area", "growth_rate_11", "growth_rate_22", "growth_rate_area",
+    "fibre_order", "fibre_angle_mean",
+)  # fmt: skip
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add = parser.add_argument
+    add("--nx", type=int, nargs="+", default=[4, 8, 16], help="Nx of the first-step case")
+    add("--feedback-nx", type=int, nargs="+", default=[4, 8, 16], help="Nx of the t = 60 cases")
+    add("--only", nargs="+", choices=[*SCENES, "single_cell"], default=[*SCENES, "single_cell"],
+        help="cases to run")  # fmt: skip
+    add("--raw", type=Path, default=Path("results/compare_fibres"), help="raw run root")
+    add("--json", type=Path, default=ROOT / "benchmarks/results/compare_fibres.json")
+    return parser.parse_args(argv)
+
+
+def read_rows(path: Path) -> list[dict[str, float]]:
+    """A CSV file's rows as numbers (empty cells left out)."""
+    with open(path, newline="") as f:
+        return [{k: float(v) for k, v in row.items() if v != ""} for row in csv.DictReader(f)]
+
+
+def rates(rows: list[dict[str, float]], keys: tuple[str, ...]) -> dict[str, float]:
+    """Least-squares rates p of ``e ~ delta^p`` for each key present in every row."""
+    nx = [r["nx"] for r in rows]
+    present = [k for k in keys if all(k in r for r in rows)]
+    return {k: round(fitted_rate(nx, [r[k] for r in rows]), 3) for k in present}
+
+
+def run_case(name: str, nxs: list[int], raw: Path) -> dict:
+    """One compare in this process; its rows, last summary rows, rates and seconds."""
+    scene = ROOT / "scenes" / "compare" / f"{SCENES[name]}.toml"
+    out = raw / name
+    command = ["compare", scene.relative_to(ROOT).as_posix(), "--nx", *map(str, nxs)]
+    command += ["--first-step-only"] if name == "first_step" else []
+    argv = ["compare", str(scene), *command[2:], "-o", str(out), "--overwrite", "-q"]
+    wall, cpu = time.perf_counter(), time.process_time()
+    code = plantgrowth(argv)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    rows = read_rows(out / "compare.csv") if (out / "compare.csv").is_file() else []
+    last = {
+        f"nx{nx}": {
+            model: {k: v for k, v in read_rows(out / f"nx{nx}" / model / "summary.csv")[-1].items()
+                    if k in LAST_ROW}
+            for model in ("macro", "micro")
+            if (out / f"nx{nx}" / model / "summary.csv").is_file()
+        }
+        for nx in nxs
+    }  # fmt: skip
+    return {
+        "exit_code": code,  # not 0: the Nx whose compare failed has no row (run.log says why)
+        "scene": scene.relative_to(ROOT).as_posix(),
+        "command": shlex.join(["plantgrowth", *command]),
+        "wall_seconds": round(wall, 1),
+        "cpu_seconds": round(cpu, 1),
+        "rows": rows,
+        "last_summary_rows": last,
+        "fitted_rates": rates(rows, FIRST_STEP + AT_TMAX) if len(rows) > 1 else {},
+    }
+
+
+def single_cell(nx: int = 8, delta: float = 1.0, resolution: int | None = None) -> dict:
+    """The micro feedback's response to one turned director, elastic only (Fg = I, one step of
+    dt = 1): ``feedback_a90``'s tissue at Nx with every director at 90 degrees but the cell
+    nearest the tissue's middle at 90 + delta. Each director's turn over the step minus its
+    turn when all are at 90 (the boundary's own cue), per degree of delta and unit rate k:
+    the turned cell's (> 0: it turns further, the uniform director is unstable) and its six
+    neighbours'."""
+    data = tomllib.loads(
+        (ROOT / "scenes" / "compare" / f"{SCENES['feedback_a90']}.toml").read_text()
+    )
+    data["model"] = "micro"
+    data["micro"]["nx"] = nx
+    if resolution is not None:  # else the scene's
+        data["micro"]["resolution"] = resolution
+    scene = parse_scene(data)
+    model = MicroModel(scene, MPI.COMM_WORLD)
+    centres = model.layout.centres
+    middle = int(np.argmin(np.linalg.norm(centres - centres.mean(axis=0), axis=1)))
+    near = np.argsort(np.linalg.norm(centres - centres[middle], axis=1))[:7]
+    turned = []
+    for extra in (0.0, delta):
+        angle = np.full(model.layout.n_cells, 90.0)
+        angle[middle] += extra
+        model.director.restore(angle)
+        model.step(model.initial_growth())
+        model.end_step(1.0)
+        turned.append(fibres.reduce_angle(model.director.angle - angle))
+    response = (turned[1] - turned[0])[near] / (delta * scene.feedback.rate)
+    return {
+        "nx": nx, "resolution": scene.micro_resolution, "delta_degrees": delta,
+        "rate_k": scene.feedback.rate, "cell": middle, "centre": centres[middle].tolist(),
+        "turn_per_degree_per_k": round(float(response[0]), 5),
+        "neighbours_turn_per_degree_per_k": [round(float(r), 5) for r in response[1:]],
+    }  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    results = json.loads(args.json.read_text()) if args.json.is_file() else {"cases": {}}
+    results["machine"] = machine_description()
+    results["study_command"] = shlex.join(
+        ["nice", "-n", "19", "python", "scripts/studies/compare_fibres.py", *(argv or sys.argv[1:])]
+    )
+    failed = []
+    if "single_cell" in args.only:
+        results["single_cell"] = single_cell()
+        print(f"single cell: {results['single_cell']}", flush=True)
+        write_results(results, args.json)
+    for name in (n for n in args.only if n in SCENES):
+        nxs = args.nx if name == "first_step" else args.feedback_nx
+        print(f"{name}: Nx = {nxs}", flush=True)
+        entry = results["cases"][name] = run_case(name, nxs, args.raw)
+        print(f"{name}: {entry['wall_seconds']} s wall, rates {entry['fitted_rates']}", flush=True)
+        failed += [name] if entry["exit_code"] != 0 else []
+        write_results(results, args.json)  # after each case: a later failure keeps it
+    print(f"-> {args.json}; failed: {failed or 0}")
+    return 1 if failed else 0
+
+
+def write_results(results: dict, path: Path) -> None:
+    """The JSON, cases sorted by name."""
+    results["notes"] = (
+        "One compare at a time, serial, nice -n 19, on the shared machine: seconds are upper "
+        "bounds. Errors are compare.csv's (docs/outputs.md); the _tmax ones at the last step "
+        "(t = 60), err_fibre_angle_tmax the cells' RMS director difference in degrees. "
+        "fitted_rates: least-squares p of e ~ delta^p over the case's Nx. last_summary_rows: "
+        "each run's last summary.csv row (fibre_order, fibre_angle_mean the director the step "
+        "used). single_cell: the micro feedback's response to one turned director "
+        "(single_cell's docstring in the script). study_command: the last invocation; with "
+        "--only it rewrites only the cases it names."
+    )
+    results["cases"] = dict(sorted(results["cases"].items()))
+    path.write_text(json.dumps(results, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
