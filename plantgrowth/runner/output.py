@@ -372,6 +372,7 @@ class FieldSeries:
             if self.side is not None:
                 self.indexes[self.side.index] = self._side_index()
             self._keep(keep_until)
+        self.comm.Barrier()  # the step directory exists before any rank writes into it
 
     def _write_meshes(self, points: np.ndarray, triangles: np.ndarray) -> None:
         (self.outdir / STEP_DIR).mkdir(exist_ok=True)
