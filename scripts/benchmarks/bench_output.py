@@ -1,7 +1,8 @@
 """Output seconds per step, 1 and 2 ranks, this checkout against a baseline (issue 23, item 2).
 
 What one step's output costs in a run: the step file (FieldSeries.write), the model's resume
-state (MacroModel.state) and state.h5 (StateFile.write). Each measurement builds the scene's
+state (MacroModel.state) and state.h5 (StateFile.write), wall seconds (largest over the ranks)
+and CPU seconds of the busiest rank. Each measurement builds the scene's
 macro model, solves its first step once (so the fields hold a run's values, which compress as a
 run's do) and then writes ``--writes`` steps, timing each part; the median over the writes and
 repeats is kept. Versions and rank counts are interleaved (repeat 1: this, baseline at 1 rank,
@@ -30,6 +31,10 @@ from bench_ranks import MPI_ENV
 REPO = Path(__file__).resolve().parents[2]
 PYTHON = REPO / ".venv" / "bin" / "python"
 PARTS = ("fields", "state", "state_file")
+CPU = tuple(f"cpu_{part}" for part in PARTS)
+"""The same parts in CPU seconds of the busiest rank (``time.process_time``): what the rank
+itself computes, which a loaded machine does not inflate as it does wall time (it still counts
+MPI's busy waiting)."""
 
 
 def inner(scene_path: Path, outdir: Path, writes: int, record: Path) -> None:
@@ -49,17 +54,18 @@ def inner(scene_path: Path, outdir: Path, writes: int, record: Path) -> None:
     state = StateFile(outdir, comm)
     Fg = model.initial_growth()
     G = model.step(Fg).G
-    times: dict[str, list[float]] = {part: [] for part in PARTS}
+    times: dict[str, list[float]] = {part: [] for part in PARTS + CPU}
     for step in range(writes):
-        marks = [time.perf_counter()]
+        marks = [(time.perf_counter(), time.process_time())]
         series.write(step, float(step))
-        marks.append(time.perf_counter())
+        marks.append((time.perf_counter(), time.process_time()))
         snapshot = model.state(Fg, G)
-        marks.append(time.perf_counter())
+        marks.append((time.perf_counter(), time.process_time()))
         state.write(step, float(step), snapshot)
-        marks.append(time.perf_counter())
-        for part, a, b in zip(PARTS, marks, marks[1:], strict=False):
-            times[part].append(comm.allreduce(b - a, op=MPI.MAX))
+        marks.append((time.perf_counter(), time.process_time()))
+        for k, (a, b) in enumerate(zip(marks, marks[1:], strict=False)):
+            times[PARTS[k]].append(comm.allreduce(b[0] - a[0], op=MPI.MAX))
+            times[CPU[k]].append(comm.allreduce(b[1] - a[1], op=MPI.MAX))
     if comm.rank == 0:
         dofs = model.problem.ndofs
         record.write_text(json.dumps({"dofs": dofs, "times": times}))
@@ -110,11 +116,11 @@ def main() -> None:
                         samples.setdefault(key, {}).setdefault(part, []).extend(values)
                     print(key, {p: round(statistics.median(v), 3) for p, v in
                                 result["times"].items()}, flush=True)  # fmt: skip
-    medians = {
-        key: {part: statistics.median(v) for part, v in parts.items()}
-        | {"total": statistics.median([sum(x) for x in zip(*parts.values(), strict=True)])}
-        for key, parts in samples.items()
-    }  # fmt: skip
+    medians = {}
+    for key, parts in samples.items():
+        totals = [sum(x) for x in zip(*(parts[p] for p in PARTS), strict=True)]
+        medians[key] = {p: statistics.median(v) for p, v in parts.items()}
+        medians[key]["total"] = statistics.median(totals)
     out = {"scene": str(args.scene), "fine_dofs": dofs, "baseline": args.baseline,
            "repeats": args.repeats, "writes": args.writes, "load_average": os.getloadavg(),
            "cpus": os.cpu_count(), "median_seconds": medians, "samples": samples}  # fmt: skip
