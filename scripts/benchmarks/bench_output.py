@@ -121,9 +121,12 @@ def main() -> None:
         totals = [sum(x) for x in zip(*(parts[p] for p in PARTS), strict=True)]
         medians[key] = {p: statistics.median(v) for p, v in parts.items()}
         medians[key]["total"] = statistics.median(totals)
-    out = {"scene": str(args.scene), "fine_dofs": dofs, "baseline": args.baseline,
-           "repeats": args.repeats, "writes": args.writes, "load_average": os.getloadavg(),
-           "cpus": os.cpu_count(), "median_seconds": medians, "samples": samples}  # fmt: skip
+    from plantgrowth.base.machine import machine_description
+
+    out = {"machine": machine_description(), "scene": str(args.scene), "fine_dofs": dofs,
+           "baseline": args.baseline, "repeats": args.repeats, "writes": args.writes,
+           "load_average": os.getloadavg(), "cpus": os.cpu_count(),
+           "median_seconds": medians, "samples": samples}  # fmt: skip
     args.out.write_text(json.dumps(out, indent=1) + "\n")
     print(json.dumps(medians, indent=1))
 
