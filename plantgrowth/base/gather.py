@@ -48,6 +48,18 @@ class MeshGather:
             self._cell_order = np.lexsort(renumbered.T[::-1])
             self._triangles = self._renumber[np.concatenate(triangles)][self._cell_order]
 
+    def node_positions(self) -> np.ndarray:
+        """Canonical numbers of this rank's owned nodes (with ``root=None`` only)."""
+        return self._renumber[self.global_index[: self.n_owned_nodes]]
+
+    def cell_positions(self) -> np.ndarray:
+        """Canonical numbers of this rank's owned cells (with ``root=None`` only)."""
+        counts = self.comm.allgather(self.n_owned_cells)
+        first = sum(counts[: self.comm.rank])
+        position = np.empty_like(self._cell_order)
+        position[self._cell_order] = np.arange(len(self._cell_order))
+        return position[first : first + self.n_owned_cells]
+
     def _collect(self, values: np.ndarray):
         if self.root is None:
             return self.comm.allgather(values)

@@ -4,7 +4,7 @@ fields it writes on a second mesh, and the tissue measures shared by both models
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from dolfinx import fem
@@ -12,6 +12,9 @@ from mpi4py import MPI
 
 from plantgrowth.models.elastic_strain import StrainPeak, principal_magnitude
 from plantgrowth.models.stability import Ellipticity
+
+if TYPE_CHECKING:
+    from plantgrowth.base.blocks import Block
 
 
 @dataclass
@@ -120,8 +123,9 @@ class GrowthModel(Protocol):
         """Advance the model's own state other than Fg over the step dt, from the step just
         solved (macro: the fibre director's feedback), before the step's state is saved."""
 
-    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
-        """What --resume needs to continue after this step (global arrays, on rank 0)."""
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, Block]:
+        """What --resume needs to continue after this step: this rank's blocks of the saved
+        arrays (collective; the same keys on every rank)."""
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """(Fg, G) of this rank's growth units from a saved state."""

@@ -19,8 +19,12 @@ Fields are written at t = 0, every ``output.every``-th step and at the last step
 loads) with gzip and shuffle filters; the state, written after every step, keeps float64 so
 that a resumed run continues exactly. Every file is written under a temporary name and renamed
 when complete, so a run killed at any moment (even SIGKILL) leaves every written step readable.
-Data are gathered to rank 0, which alone writes (Debian's h5py is serial). Only these names are
-ever removed (:func:`run_files`): a user's own files in the directory are left alone.
+The step files and the state are written collectively (issue 23, item 2): every rank writes its
+own block of the canonical order (:mod:`plantgrowth.base.blocks`) through HDF5's MPI-IO driver
+(Debian's ``python3-h5py-mpi``, which h5py loads under mpirun), so the arrays are the same
+whatever the number of ranks and nothing is gathered to one rank; rank 0 alone writes the small
+files (the XDMF indexes, the CSVs) and fields.h5's meshes, once. Only these names are ever
+removed (:func:`run_files`): a user's own files in the directory are left alone.
 """
 
 from __future__ import annotations
@@ -38,7 +42,8 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from plantgrowth.base.gather import MeshGather
+from plantgrowth.base.blocks import Block, CanonicalBlocks
+from plantgrowth.base.errors import RunError
 from plantgrowth.models.step import SideMesh
 
 OUTPUT_FILES = (
@@ -129,13 +134,59 @@ def last_summary_step(path: Path) -> int | None:
     return steps[-1] if steps else None
 
 
+def check_parallel_h5py(comm: MPI.Comm) -> None:
+    """Raise RunError unless h5py can write collectively on ``comm`` (one rank always can)."""
+    if comm.size > 1 and not h5py.get_config().mpi:
+        raise RunError(
+            f"h5py is built without MPI, so {comm.size} ranks cannot write their outputs: "
+            "install Debian's python3-h5py-mpi (scripts/install.sh does), or run on one rank"
+        )
+
+
 @contextmanager
-def _atomic_h5(path: Path) -> Iterator[h5py.File]:
-    """An HDF5 file written under a temporary name and renamed into place when complete."""
+def _atomic_h5(path: Path, comm: MPI.Comm = MPI.COMM_SELF) -> Iterator[h5py.File]:
+    """An HDF5 file written under a temporary name and renamed into place when complete;
+    collective on ``comm`` (more than one rank: HDF5's MPI-IO driver)."""
     tmp = temporary_path(path)
-    with h5py.File(tmp, "w") as f:
+    parallel = {"driver": "mpio", "comm": comm} if comm.size > 1 else {}
+    with h5py.File(tmp, "w", **parallel) as f:
         yield f
-    os.replace(tmp, path)
+    comm.Barrier()  # every rank's part is in the closed file
+    if comm.rank == 0:
+        os.replace(tmp, path)
+    comm.Barrier()  # a later write of the same name starts after the rename
+
+
+_COLLECTIVE = h5py.h5p.create(h5py.h5p.DATASET_XFER)
+if h5py.get_config().mpi:
+    _COLLECTIVE.set_dxpl_mpio(h5py.h5fd.MPIO_COLLECTIVE)
+
+
+def _write_block(
+    f: h5py.File, name: str, block: Block, dtype: np.dtype, compressed: bool, comm: MPI.Comm
+) -> None:
+    """Create the dataset ``name`` (collective) and write this rank's rows of it. Compressed:
+    one chunk per rank's block (HDF5's parallel filters need collective writes, which also
+    take the ranks whose block is empty)."""
+    values = np.ascontiguousarray(block.values, dtype=dtype)
+    tail = values.shape[1:]
+    shape = (block.total, *tail)
+    chunks = ((block.total + comm.size - 1) // comm.size, *tail) if compressed else None
+    filters = FIELD_FILTERS if compressed else {}
+    dataset = f.create_dataset(name, shape=shape, dtype=dtype, chunks=chunks, **filters)
+    if comm.size == 1:
+        dataset[...] = values
+        return
+    rows, zeros = len(values), (0,) * len(tail)
+    memory = h5py.h5s.create_simple((max(rows, 1), *tail))
+    space = dataset.id.get_space()
+    if rows:
+        space.select_hyperslab((block.start, *zeros), (rows, *tail))
+    else:
+        space.select_none()
+        memory.select_none()
+        values = np.zeros((1, *tail), dtype=dtype)
+    dataset.id.write(memory, space, values, dxpl=_COLLECTIVE)
 
 
 @dataclass(frozen=True)
@@ -155,25 +206,27 @@ class StateFile:
 
     Replaced atomically after every step, so it stays small whatever ``output.every`` is. Two
     steps, not one: a step's summary row is written before its state, so the newest state's row
-    exists, and the previous state still serves if summary.csv lost its last row.
+    exists, and the previous state still serves if summary.csv lost its last row. Written
+    collectively: every rank writes its blocks of the arrays (and keeps them for the next step's
+    file as the previous state).
     """
 
     def __init__(self, outdir: Path, comm: MPI.Comm) -> None:
+        check_parallel_h5py(comm)
         self.path = outdir / "state.h5"
         self.comm = comm
-        self._previous: tuple[int, float, dict[str, np.ndarray]] | None = None  # on rank 0
+        self._previous: tuple[int, float, dict[str, Block]] | None = None  # this rank's blocks
 
-    def write(self, step: int, t: float, state: dict[str, np.ndarray] | None) -> None:
-        """Save the state of (step, t) (given on rank 0; other ranks pass None)."""
-        if self.comm.rank != 0:
-            return
-        current = (step, t, state or {})
-        with _atomic_h5(self.path) as f:
-            for s, s_t, arrays in [x for x in (self._previous, current) if x is not None]:
+    def write(self, step: int, t: float, state: dict[str, Block]) -> None:
+        """Save the state of (step, t): collective, every rank gives its blocks (the same keys
+        in the same order on every rank)."""
+        current = (step, t, state)
+        with _atomic_h5(self.path, self.comm) as f:
+            for s, s_t, blocks in [x for x in (self._previous, current) if x is not None]:
                 group = f.create_group(f"step_{s:06d}")
                 group.attrs["t"] = s_t
-                for key, value in arrays.items():
-                    group[key] = value
+                for key, block in blocks.items():
+                    _write_block(group, key, block, block.values.dtype, False, self.comm)
         self._previous = current
 
     def steps(self) -> list[int]:
@@ -191,8 +244,7 @@ class StateFile:
             group = f[f"step_{step:06d}"]
             state = {key: group[key][...] for key in group}
             t = float(group.attrs["t"])
-        if self.comm.rank == 0:
-            self._previous = (step, t, state)
+        self._previous = (step, t, {k: Block.split(v, self.comm) for k, v in state.items()})
         return state
 
 
@@ -209,10 +261,6 @@ def _pad(values: np.ndarray) -> np.ndarray:
         out[:, [0, 1, 3, 4]] = values
         return out
     return values
-
-
-def _write_field(f: h5py.File, name: str, values: np.ndarray, dtype: np.dtype) -> None:
-    f.create_dataset(name, data=values, dtype=dtype, chunks=values.shape, **FIELD_FILTERS)
 
 
 @dataclass(frozen=True)
@@ -313,9 +361,10 @@ class FieldSeries:
         self.schedule = schedule
         self.dtype = np.dtype(precision)
         self.side = side if side is not None and side.fields else None
-        self.gather = MeshGather(V1)
         self.comm = V1.mesh.comm
-        points, triangles = self.gather.points(), self.gather.triangles()
+        check_parallel_h5py(self.comm)
+        self.blocks = CanonicalBlocks(V1)
+        points, triangles = self.blocks.points, self.blocks.triangles
         self.steps: list[tuple[int, float]] = []
         if self.comm.rank == 0:
             self._write_meshes(points, triangles)
@@ -323,6 +372,7 @@ class FieldSeries:
             if self.side is not None:
                 self.indexes[self.side.index] = self._side_index()
             self._keep(keep_until)
+        self.comm.Barrier()  # the step directory exists before any rank writes into it
 
     def _write_meshes(self, points: np.ndarray, triangles: np.ndarray) -> None:
         (self.outdir / STEP_DIR).mkdir(exist_ok=True)
@@ -374,18 +424,19 @@ class FieldSeries:
                 step_file(self.outdir, step).unlink()
 
     def write(self, step: int, t: float) -> None:
-        """Write all fields at (step, t): collective; rank 0 writes."""
-        values = {f.name: self.gather.function(f) for f in self.functions}
+        """Write all fields at (step, t): collective, every rank its blocks of each field; the
+        side mesh's fields, which every rank holds whole, cut into the same blocks."""
+        blocks = {f.name: self.blocks.function(f) for f in self.functions}
+        for name, (_, components) in self.side.fields.items() if self.side else ():
+            v = np.reshape(self.side.values[name], (-1, components))
+            blocks[f"{self.side.prefix}/{name}"] = Block.split(v, self.comm)
+        with _atomic_h5(step_file(self.outdir, step), self.comm) as f:
+            f.attrs["step"], f.attrs["t"] = step, t
+            for name, block in blocks.items():
+                padded = Block(_pad(block.values), block.start, block.total)
+                _write_block(f, name, padded, self.dtype, True, self.comm)
         if self.comm.rank != 0:
             return
-        path = step_file(self.outdir, step)
-        with _atomic_h5(path) as f:
-            f.attrs["step"], f.attrs["t"] = step, t
-            for name, v in values.items():
-                _write_field(f, name, _pad(v), self.dtype)
-            for name, (_, components) in self.side.fields.items() if self.side else ():
-                v = np.reshape(self.side.values[name], (-1, components))
-                _write_field(f, f"{self.side.prefix}/{name}", _pad(v), self.dtype)
         self.steps = [(s, tt) for s, tt in self.steps if s < step] + [(step, t)]
         self._write_index()
 

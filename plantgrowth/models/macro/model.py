@@ -23,8 +23,9 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from plantgrowth.base.blocks import Block, CanonicalBlocks, root_blocks
 from plantgrowth.base.errors import RunError
-from plantgrowth.base.gather import MeshGather, dof_state, restore_dofs
+from plantgrowth.base.gather import dof_state, restore_dofs
 from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS, det2
 from plantgrowth.models import diagnostics, growth, stability
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
@@ -151,7 +152,7 @@ class MacroModel:
         self.side_output = coarse_output(self.grid, scene.output.fields)
         self.cell_table = None  # per-cell rows (cells.csv): micro only
         self.output_space = problem.V
-        self._gather = MeshGather(problem.V)
+        self._blocks = CanonicalBlocks(problem.V)
         log.info(
             "macro: %d fine dofs, %d coarse nodes (%d in the tissue), terms: %s",
             problem.ndofs, len(self.grid.nodes), len(nodes), ", ".join(problem.active_terms),
@@ -178,19 +179,18 @@ class MacroModel:
         points = self.problem.midpoints[:, :2]
         diagnostics.stop_if(diagnostics.growth_problems(Fg, points), self.comm)
 
-    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
-        """Fg and G (and the fibre director) of the fine cells with their midpoints, gathered on
-        rank 0 in the written mesh's cell order."""
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, Block]:
+        """Fg and G (and the fibre director) of the fine cells with their midpoints, this rank's
+        block of them in the written mesh's cell order (finite kinematics: Newton's guess, which
+        rank 0 writes)."""
         n = self.problem.n_owned
         parts = {"midpoints": self.problem.midpoints[:n, :2], "Fg": Fg[:n].reshape(n, 4),
                  "G": G[:n].reshape(n, 4)}  # fmt: skip
         if self.director is not None:
             parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
-        gathered = {key: self._gather.cell_values(p) for key, p in parts.items()}
+        blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
-        if self.comm.rank != 0:
-            return None
-        return gathered | newton
+        return blocks | (root_blocks(newton, self.comm) if self.problem.finite else {})
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint (and the

@@ -19,6 +19,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from plantgrowth.base.blocks import Block, root_blocks
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import dof_state, restore_dofs
 from plantgrowth.base.mesh_samples import MeshSamples, det_degree
@@ -383,12 +384,13 @@ class MicroModel:
         if self.director is not None and self.director.feedback is not None:
             self.director.turn(self._cue, dt)
 
-    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, np.ndarray] | None:
+    def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, Block]:
         """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with
         finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
-        newton = dof_state(self.newton.guess_functions) if self.finite else {}
         director = {} if self.director is None else {"fibre_angle": self.director.angle}
-        return {"Fg": Fg, "G": G} | director | newton if self.comm.rank == 0 else None
+        cells = {k: Block.whole(v, self.comm) for k, v in ({"Fg": Fg, "G": G} | director).items()}
+        newton = dof_state(self.newton.guess_functions) if self.finite else {}
+        return cells | (root_blocks(newton, self.comm) if self.finite else {})
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         matches = state["Fg"].shape == (self.layout.n_cells, 2, 2)

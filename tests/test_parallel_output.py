@@ -1,0 +1,185 @@
+"""Collective parallel output (issue 23, item 2): every rank writes its own block of each step's
+fields and of the resume state, in the canonical order, and no rank gathers them.
+
+Serial and under mpirun (the file's tests are all in-process and collective). Crash safety and
+resume under ``mpirun -n 2`` are tests/test_interruptions.py's ``mpirun2`` cases (SIGKILL of a
+2-rank run, every completed step readable, --resume equal to the straight run) and
+tests/test_output_economy.py's stopped-before-its-state run, which now go through these writers.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from dolfinx import fem, mesh
+from mpi4py import MPI
+
+from plantgrowth.base import gather
+from plantgrowth.base.blocks import Block, CanonicalBlocks, block_offsets
+from plantgrowth.models.macro.model import MacroModel
+from plantgrowth.models.macro.problem import rectangle_mesh
+from plantgrowth.runner import output
+from plantgrowth.runner.output import FieldSeries, Schedule, StateFile
+from plantgrowth.runner.timeloop import run_model
+from plantgrowth.scene import parse_scene
+
+WORLD = MPI.COMM_WORLD
+ULP32 = 2.0**-23  # one float32 unit in the last place (relative)
+
+
+def small_mesh(comm: MPI.Comm = WORLD) -> mesh.Mesh:
+    """An 7 x 5 rectangle of 70 triangles, unevenly cut so the ranks own unequal parts."""
+    return mesh.create_rectangle(comm, [np.array([0.0, 0.0]), np.array([1.4, 1.0])], [7, 5])
+
+
+def p1_and_dg0(msh: mesh.Mesh) -> tuple[fem.FunctionSpace, fem.Function, fem.Function]:
+    """V1, u = (x1 + 10 x2, x1 x2) at the nodes and a DG0 tensor (its midpoint's x1, x2, 1, 2)."""
+    V1 = fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+    u = fem.Function(V1, name="u")
+    u.interpolate(lambda x: np.vstack([x[0] + 10 * x[1], x[0] * x[1]]))
+    T = fem.TensorFunctionSpace(msh, ("DG", 0), shape=(2, 2))
+    F = fem.Function(T, name="Fg")
+    F.interpolate(lambda x: np.vstack([x[0], x[1], np.ones_like(x[0]), 2 * np.ones_like(x[0])]))
+    return V1, u, F
+
+
+def dataset_names(f: h5py.File) -> list[str]:
+    """Every dataset's path in an HDF5 file."""
+    names: list[str] = []
+    f.visititems(lambda key, item: names.append(key) if isinstance(item, h5py.Dataset) else None)
+    return names
+
+
+def shared(path: Path, comm: MPI.Comm = WORLD) -> Path:
+    """``path``, created by rank 0, on every rank."""
+    if comm.rank == 0:
+        path.mkdir()
+    comm.Barrier()
+    return path
+
+
+def test_blocks_hold_the_gathered_arrays_cut_at_the_offsets():
+    """The ranks' blocks, put end to end, are exactly the arrays gathered in the canonical
+    order (values are moved, not computed: bitwise), each block at its rank's offset."""
+    V1, u, F = p1_and_dg0(small_mesh())
+    blocks, everywhere = CanonicalBlocks(V1), gather.MeshGather(V1, root=None)
+    for f in (u, F):
+        block = blocks.function(f)
+        offsets = block_offsets(block.total, WORLD.size)
+        assert block.start == offsets[WORLD.rank]
+        assert len(block.values) == offsets[WORLD.rank + 1] - offsets[WORLD.rank] > 0
+        np.testing.assert_array_equal(np.concatenate(WORLD.allgather(block.values)),
+                                      everywhere.function(f))  # fmt: skip
+    np.testing.assert_array_equal(blocks.points, everywhere.points())
+    np.testing.assert_array_equal(blocks.triangles, everywhere.triangles())
+
+
+def test_every_rank_writes_its_own_block_and_nothing_is_gathered(mpi_tmp_path, monkeypatch):
+    """A step file and the state: each dataset is written by every rank, each its block (on
+    two ranks: two disjoint non-empty parts that cover it), while any gather of MeshGather
+    fails; the file holds the gathered arrays (float32 fields: rounded once, so equal to the
+    float64 values cast)."""
+    V1, u, F = p1_and_dg0(small_mesh())
+    outdir = mpi_tmp_path
+    series = FieldSeries(outdir, V1, [u, F], Schedule(1, 1))
+    state = StateFile(outdir, WORLD)
+    written: list[tuple[str, int, int, int]] = []
+    write_block = output._write_block
+
+    def recording(f, name, block, dtype, compressed, comm):
+        key = f"{Path(f.file.filename).name}:{f.name}/{name}"
+        written.append((key, block.start, len(block.values), block.total))
+        write_block(f, name, block, dtype, compressed, comm)
+
+    def no_gather(self, values):
+        raise AssertionError("a MeshGather gather while writing")
+
+    monkeypatch.setattr(output, "_write_block", recording)
+    monkeypatch.setattr(gather.MeshGather, "_collect", no_gather)
+    series.write(0, 0.0)
+    state.write(0, 0.0, {"u": series.blocks.function(u)})
+    monkeypatch.undo()
+    parts = WORLD.allgather(written)
+    for name, _, _, total in written:
+        rows = sorted((start, n) for part in parts for key, start, n, _ in part if key == name)
+        assert len(rows) == WORLD.size and all(n > 0 for _, n in rows), (name, rows)
+        assert [s for s, _ in rows] == list(np.cumsum([0] + [n for _, n in rows])[:-1])
+        assert sum(n for _, n in rows) == total
+    everywhere = gather.MeshGather(V1, root=None)
+    u_all, F_all = everywhere.function(u), everywhere.function(F)
+    if WORLD.rank == 0:
+        with h5py.File(outdir / "fields" / "step_000000.h5", "r") as f:
+            np.testing.assert_array_equal(f["u"][:, :2], u_all.astype(np.float32))
+            np.testing.assert_array_equal(f["Fg"][:, [0, 1, 3, 4]], F_all.astype(np.float32))
+        with h5py.File(outdir / "state.h5", "r") as f:
+            np.testing.assert_array_equal(f["step_000000/u"][...], u_all)
+
+
+def test_state_keeps_the_previous_steps_blocks_and_whole_arrays(mpi_tmp_path):
+    """Two steps in state.h5, each as written; an array every rank holds (Block.whole) is
+    written once, by rank 0."""
+    state = StateFile(mpi_tmp_path, WORLD)
+    whole = np.arange(12.0).reshape(3, 2, 2)
+    split = np.arange(10.0 * WORLD.size)
+    for step in (1, 2):
+        state.write(step, step * 0.5, {"Fg": Block.whole(step * whole, WORLD),
+                                       "x": Block.split(step * split, WORLD)})  # fmt: skip
+    assert state.steps() == [1, 2]
+    for step in (1, 2):
+        saved = state.read(step)
+        np.testing.assert_array_equal(saved["Fg"], step * whole)
+        np.testing.assert_array_equal(saved["x"], step * split)
+
+
+SCENE = {
+    "tissue": {"h": 0.35, "H": 1.0},
+    "accuracy": {"cell_resolution": 1, "cell_tolerance": 0.0},
+    "growth": {"law": "stress", "eta": {"from": 0.5, "to": 2.0}},
+    "time": {"t_max": 2.0},
+}
+
+
+@pytest.mark.skipif(WORLD.size == 1, reason="compares a distributed run with a serial one")
+def test_distributed_files_equal_the_serial_run_files(mpi_tmp_path):
+    """The same scene on COMM_WORLD and on COMM_SELF (each rank its own run): fields.h5's
+    meshes are equal (the canonical order does not depend on the ranks), every step file's
+    datasets and the state equal the serial ones without any reordering, to the parallel
+    solve's round-off (LU: ~1e-14 relative, measured) carried into float32 (at most one
+    rounding flip: 2 ulp of the dataset's largest entry) and float64 (1e-10 relative)."""
+    sc = parse_scene(SCENE)
+    both = shared(mpi_tmp_path / "both")
+    run_model(MacroModel(sc, rectangle_mesh(sc, WORLD), WORLD), sc, both, WORLD)
+    alone = mpi_tmp_path / f"alone_{WORLD.rank}"
+    alone.mkdir()
+    run_model(MacroModel(sc, rectangle_mesh(sc, MPI.COMM_SELF), MPI.COMM_SELF), sc, alone,
+              MPI.COMM_SELF)  # fmt: skip
+    if WORLD.rank != 0:
+        return
+    names = [p.relative_to(alone) for p in sorted((alone / "fields").glob("*.h5"))]
+    assert len(names) == 3 and names == [p.relative_to(both) for p in
+                                         sorted((both / "fields").glob("*.h5"))]  # fmt: skip
+    with h5py.File(both / "fields.h5", "r") as a, h5py.File(alone / "fields.h5", "r") as b:
+        np.testing.assert_array_equal(a["Mesh/topology"][...], b["Mesh/topology"][...])
+        np.testing.assert_allclose(a["Mesh/geometry"][...], b["Mesh/geometry"][...], atol=1e-14)
+    for name in [*names, Path("state.h5")]:
+        with h5py.File(both / name, "r") as a, h5py.File(alone / name, "r") as b:
+            datasets = dataset_names(b)
+            assert datasets
+            for key in datasets:
+                x, y = a[key][...], b[key][...]
+                assert x.shape == y.shape and x.dtype == y.dtype, key
+                scale = max(np.abs(y).max(), 1e-300)
+                tolerance = 2 * ULP32 * scale if y.dtype == np.float32 else 1e-10 * scale
+                np.testing.assert_allclose(x, y, rtol=0, atol=tolerance, err_msg=str(key))
+
+
+def test_without_parallel_h5py_a_distributed_run_stops_with_a_named_error(monkeypatch):
+    """h5py without MPI on more than one rank: RunError naming the package; one rank runs."""
+    monkeypatch.setattr(output.h5py, "get_config", lambda: type("C", (), {"mpi": False})())
+    output.check_parallel_h5py(MPI.COMM_SELF)
+    if WORLD.size > 1:
+        with pytest.raises(output.RunError, match="python3-h5py-mpi"):
+            output.check_parallel_h5py(WORLD)
