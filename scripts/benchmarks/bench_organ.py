@@ -7,9 +7,9 @@ the same machine. Per step: the phases of summary.csv (cells, solve, growth, out
 of the step (other); medians over the steps after step 0 of all repeats (step 0 pays the first
 multigrid set-up and cell problems; start-up is outside the steps). Also the whole wall time, the
 peak memory and the largest relative difference of the summary's results (area, u, growth rates,
-every step) between the two versions. Writes benchmarks/results/organ.json with the machine and
-its load average before and after (the cell cache off, as in bench_ranks.py; 2 cores: a run measured while other jobs run is slower, and a
-2-rank run more so).
+every step) between the two versions; the cell cache is off (as in bench_ranks.py). Writes
+benchmarks/results/organ.json with the machine and its load average before and after (2 cores:
+a run measured while other jobs run is slower, and a 2-rank run more so).
 
     python scripts/benchmarks/bench_organ.py --baseline /tmp/base29venv/bin/plantgrowth
         [--t-max 3] [--repeats 2] [--ranks 2 1] [--out FILE]
