@@ -63,7 +63,7 @@ NOT_COMPARED = ("n_cell_solves", "residual")  # the cache restarts empty; round-
 RTOL = 1e-10
 ULP32 = 2.0**-23
 ITERATIVE_RTOL = 2 * 3 * MACRO_RTOL
-"""A run on CG + GAMG resumes to its solver's tolerance, not to round-off: the first step after
+"""A run on CG + BoomerAMG resumes to its solver's tolerance, not to round-off: the first step after
 the restart starts from u = 0 with a new multigrid hierarchy where the uninterrupted run started
 from the previous u with a kept one; each u is within 3 macro_rtol of the exact one
 (docs/large_tissues.md), so the two within twice that (measured: ...)."""
@@ -279,7 +279,7 @@ def test_sigkill_then_resume_on_the_iterative_solver_matches_to_its_tolerance(sc
     scene = scene_file.parent / "iterative.toml"
     scene.write_text(SCENE + '[solver]\nmacro = "iterative"\n')
     reference = serial_run(scene, "iterative_reference")
-    assert "macro solver: CG + GAMG" in (reference / "run.log").read_text()
+    assert "macro solver: CG + BoomerAMG" in (reference / "run.log").read_text()
     outdir = _kill_and_check(scene, tmp_path, 1)
     code, err = run(["run", str(scene), "--resume", str(outdir)], tmp_path)
     assert code == 0, err

@@ -7,7 +7,7 @@ the scene activates are assembled. Boundary conditions (plantgrowth/models/macro
 on the held edges (``[supports]``) and, unless a held edge holds u1, ``u1 = 0`` at the pinned
 vertex (the origin of the rectangle; removes the remaining rigid translation); the other edges
 carry the scene's tractions or none. The operator is
-symmetric positive definite after these conditions, so large systems are solved by CG + GAMG
+symmetric positive definite after these conditions, so large systems are solved by CG + BoomerAMG
 (``solver.macro``), small ones by LU; a finite-kinematics Jacobian is not (GMRES + GAMG, then
 LU where GMRES stops).
 """
@@ -29,7 +29,13 @@ from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction, grown_length
 from plantgrowth.models import growth, stability
 from plantgrowth.models.diagnostics import RESIDUAL_BOUND, TRUE_RESIDUAL_FACTOR
-from plantgrowth.models.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
+from plantgrowth.models.linear import (
+    SolveReport,
+    assemble_and_solve,
+    boomeramg_solver,
+    gamg_solver,
+    lu_solver,
+)
 from plantgrowth.models.macro.boundary import Boundary, pinned_vertices, rectangle_boundary
 from plantgrowth.models.macro.edge_loads import FORCE_LENGTH_RTOL, EdgeLoads
 from plantgrowth.models.macro.supports import HeldEdges
@@ -208,11 +214,11 @@ class MacroProblem:
         if self.solver != "iterative":
             return "LU"
         newton = ", Newton: GMRES + GAMG (LU where GMRES stops)" if self.finite else ""
-        return "CG + GAMG" + newton
+        return "CG + BoomerAMG" + newton
 
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
         if self.solver == "iterative":  # warm: from the previous step's u
-            return gamg_solver(A, self.V, PREFIX, self.rtol, MACRO_MAX_IT, warm=True)
+            return boomeramg_solver(A, self.mesh.comm, PREFIX, self.rtol, MACRO_MAX_IT, True)
         return lu_solver(A, self.mesh.comm, PREFIX)
 
     def _jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
