@@ -62,11 +62,12 @@ STEP_DATASETS = ("u", "Fg", "G", "sigma_hom", "coarse/E1111", "coarse/E2212")
 NOT_COMPARED = ("n_cell_solves", "residual")  # the cache restarts empty; round-off
 RTOL = 1e-10
 ULP32 = 2.0**-23
-ITERATIVE_RTOL = 2 * 3 * MACRO_RTOL
+ITERATIVE_RTOL = 2 * 100 * MACRO_RTOL
 """A run on CG + BoomerAMG resumes to its solver's tolerance, not to round-off: the first step after
 the restart starts from u = 0 with a new multigrid hierarchy where the uninterrupted run started
-from the previous u with a kept one; each u is within 3 macro_rtol of the exact one
-(docs/large_tissues.md), so the two within twice that (measured: ...)."""
+from the previous u with a kept one. Each solve's error is within 3 macro_rtol in u and 100
+macro_rtol in the largest elastic strain (a maximum of grad u; plantgrowth.scene.limits.MACRO_RTOL),
+so the two runs agree within twice the latter (measured: ...)."""
 
 
 # --- helpers ------------------------------------------------------------------------------------

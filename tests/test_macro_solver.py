@@ -213,7 +213,7 @@ def test_mpirun_reproduces_the_serial_iterative_run(tmp_path, rtol, agreement):
     """``plantgrowth run`` with ``solver.macro = "iterative"``, serial and ``mpirun -n 2``:
     different multigrid aggregates give different iterates, each u within ERROR_PER_RTOL rtol of
     the exact one, so the two runs agree to twice that: with ``macro_rtol = 1e-10`` to 1e-8
-    relative, as for the direct solver (tests/test_macro_run.py); at the default to 6e-7 (its
+    relative, as for the direct solver (tests/test_macro_run.py); at the default to 6e-8 (its
     summary moves by less than the u error: area and G integrate it)."""
     mpirun = shutil.which("mpirun")
     if mpirun is None:

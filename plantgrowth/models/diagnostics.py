@@ -19,7 +19,7 @@ round-off is ~1e-14, GMRES stops at 1e-10 (problem.NEWTON_KRYLOV_RTOL). The macr
 own bound, TRUE_RESIDUAL_FACTOR times ``solver.macro_rtol`` (SolveReport.bound)."""
 TRUE_RESIDUAL_FACTOR = 10.0
 """How far CG's true relative residual may exceed the tolerance it stopped at (its recursive
-residual drifts from the true one by round-off: measured equal to 2 digits at 1e-10 and 1e-7)."""
+residual drifts from the true one by round-off: measured equal to 2 digits at 1e-10 to 1e-7)."""
 
 EULER_HINT = "likely cause: a time step too large for explicit Euler (use integrator = 'exp')"
 RATE_HINT = (
