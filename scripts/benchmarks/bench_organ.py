@@ -119,11 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         name: {str(r): medians(runs[name][r]) for r in args.ranks} for name in versions
     }  # fmt: skip
     result["per_step_medians"] = per_step
-    result["runs"] = {
-        name: {str(r): [{k: v for k, v in x.items() if k != "rows"} for x in runs[name][r]]
-               for r in args.ranks}
-        for name in versions
-    }  # fmt: skip
+    result["runs"] = runs  # with every run's summary rows
     result["ratio_new_over_baseline"] = {
         str(r): per_step["new"][str(r)]["seconds"] / per_step["baseline"][str(r)]["seconds"]
         for r in args.ranks
