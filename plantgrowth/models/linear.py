@@ -67,16 +67,11 @@ GAMG_OPTIONS = {
 """PETSc options of :func:`gamg_solver` (under its prefix)."""
 SPD_OPTIONS = {"mg_levels_esteig_ksp_type": "cg"}  # the smoothed operator is SPD
 """Added for a symmetric positive definite matrix (CG); GMRES keeps PETSc's GMRES estimate."""
-BOOMERAMG_OPTIONS = {"pc_hypre_type": "boomeramg"}
-"""PETSc options of :func:`boomeramg_solver`: hypre's classical AMG with its defaults (strength
-threshold 0.25), for the nearly incompressible homogenized law (2D Poisson ratio 0.96) 2.6-3.2
-times faster than GAMG as before and 1.6-3 times faster than GAMG's best variant measured, and
-faster than threshold 0.5 (docs/large_tissues.md, "Macro solve sized by accuracy")."""
 
 
 def gamg_solver(
     A: PETSc.Mat, V: fem.FunctionSpace, prefix: str, rtol: float, max_it: int = 500,
-    spd: bool = True, warm: bool = False,
+    spd: bool = True, warm: bool = False, options: dict | None = None,
 ) -> PETSc.KSP:  # fmt: skip
     """A Krylov solver preconditioned by GAMG with the rigid-body near-nullspace, for an
     elasticity matrix ``A`` on ``V``, with its own options prefix: CG for a symmetric positive
@@ -89,26 +84,10 @@ def gamg_solver(
     initial residual (KSPConvergedDefaultSetUIRNorm is not set). The multigrid hierarchy's
     interpolation is built at the first solve and reused when ``A`` is re-assembled with the
     same pattern (only the Galerkin coarse operators and smoothers are recomputed).
+    ``options``: PETSc options added to (or replacing) GAMG_OPTIONS and SPD_OPTIONS.
     """
     A.setNearNullSpace(rigid_body_modes(A, V))
-    options = GAMG_OPTIONS | (SPD_OPTIONS if spd else {})
-    return _krylov(A, V.mesh.comm, prefix, rtol, max_it, spd, warm, "gamg", options)
-
-
-def boomeramg_solver(
-    A: PETSc.Mat, comm: MPI.Comm, prefix: str, rtol: float, max_it: int, warm: bool = False
-) -> PETSc.KSP:
-    """CG preconditioned by hypre's BoomerAMG (BOOMERAMG_OPTIONS) for a symmetric positive
-    definite elasticity matrix ``A``, with its own options prefix; residual test and ``warm`` as
-    in :func:`gamg_solver`."""
-    return _krylov(A, comm, prefix, rtol, max_it, True, warm, "hypre", BOOMERAMG_OPTIONS)
-
-
-def _krylov(
-    A: PETSc.Mat, comm: MPI.Comm, prefix: str, rtol: float, max_it: int, spd: bool, warm: bool,
-    pc: str, pc_options: dict,
-) -> PETSc.KSP:  # fmt: skip
-    ksp = PETSc.KSP().create(comm)
+    ksp = PETSc.KSP().create(V.mesh.comm)
     ksp.setOptionsPrefix(prefix)
     ksp.setOperators(A)
     if spd:
@@ -122,10 +101,10 @@ def _krylov(
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
     ksp.setInitialGuessNonzero(warm)
-    ksp.getPC().setType(pc)
-    options = PETSc.Options()
-    for key, value in pc_options.items():
-        options[prefix + key] = value
+    ksp.getPC().setType("gamg")
+    petsc_options = PETSc.Options()
+    for key, value in (GAMG_OPTIONS | (SPD_OPTIONS if spd else {}) | (options or {})).items():
+        petsc_options[prefix + key] = value
     ksp.setFromOptions()
     return ksp
 
