@@ -67,9 +67,9 @@ ITERATIVE_RTOL = 2 * 100 * MACRO_RTOL
 the restart starts from u = 0 with a new multigrid hierarchy where the uninterrupted run started
 from the previous u with a kept one. Each solve's error is within 3 macro_rtol in u and 100
 macro_rtol in the largest elastic strain (a maximum of grad u; plantgrowth.scene.limits.MACRO_RTOL),
-so the two runs agree within twice the latter (measured at the default 1e-8: 4.8e-8 in
-elastic_strain_max, 1.2e-8 in u1_max, 1.4e-9 in the state's G; at 1e-7, with BoomerAMG's strength
-threshold 0.5, 8.7e-6 in elastic_strain_max)."""
+so the two runs agree within twice the latter (measured at the default 1e-8: 1.2e-7 in
+elastic_strain_max, 6.5e-9 in u1_max, 1.6e-10 in the state's G; at 1e-7, with hypre BoomerAMG
+instead of GAMG, 8.7e-6 in elastic_strain_max)."""
 
 
 # --- helpers ------------------------------------------------------------------------------------
