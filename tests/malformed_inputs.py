@@ -86,6 +86,7 @@ FLOAT_KEYS = {  # plain numbers
     "growth": ("clamp",),
     "time": ("t_max", "dt"),
     "accuracy": ("key_tolerance",),
+    "solver": ("macro_rtol",),
 }
 FIELD_KEYS = {  # number or {from, to}
     "cell": ("l1", "l2", "theta", "w"),
@@ -110,7 +111,7 @@ SCHEMA = {
     "output": ("fields", "every", "precision"),
     "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
-    "solver": ("macro", "macro_threshold"),
+    "solver": ("macro", "macro_threshold", "macro_rtol"),
 }
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", "trG", "growth_anisotropy",
                  "growth_direction", "stress_direction")  # fmt: skip
@@ -176,7 +177,8 @@ def base_scene(rng: random.Random, micro: bool = False) -> dict:
         "accuracy": {"cell_resolution": rng.randint(1, 4), "key_tolerance": 1e-6},
         "micro": {"nx": 2 * rng.randint(1, 16), "resolution": rng.randint(1, 4)},
         "solver": {"macro": rng.choice(["auto", "direct", "iterative"]),
-                   "macro_threshold": rng.randint(0, 10**6)},
+                   "macro_threshold": rng.randint(0, 10**6),
+                   "macro_rtol": rng.choice([1e-12, 1e-10, 1e-7, 1e-5])},
     }  # fmt: skip
     for name in TABLES:  # a random subset of the keys (cell, time: all or none), growth.law
         whole = name in ("cell", "time")  # a default w or t_max may not fit the others
@@ -394,7 +396,7 @@ def _time_steps(rng: random.Random, scene: dict):
 def _out_of_range(rng: random.Random, scene: dict):
     what = rng.choice(["E", "P1", "eta", "tau", "clamp", "key_tolerance", "cell_resolution",
                        "Fg0", "h_big", "H_small", "h_tiny", "micro_resolution",
-                       "every", "macro_threshold"])  # fmt: skip
+                       "every", "macro_threshold", "macro_rtol"])  # fmt: skip
     table, key, value = {
         "E": ("material", "E", rng.choice([0, -_magnitude(rng), 1e13])),
         "P1": ("pressure", "P1", -_magnitude(rng)),
@@ -411,6 +413,7 @@ def _out_of_range(rng: random.Random, scene: dict):
         "micro_resolution": ("micro", "resolution", rng.choice([0, -2, 65])),
         "every": ("output", "every", rng.choice([0, -1, 10**6 + 1])),
         "macro_threshold": ("solver", "macro_threshold", rng.choice([-1, -200000, 10**9 + 1])),
+        "macro_rtol": ("solver", "macro_rtol", rng.choice([0, -1e-7, 1e-15, 1e-3, 1.0])),
     }[what]  # fmt: skip
     if table == "tissue":
         scene["tissue"] = {"width": 8.0, "height": 4.0, "h": 0.1, "H": 1.0}

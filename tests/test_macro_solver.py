@@ -23,8 +23,9 @@ from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.models import diagnostics
-from plantgrowth.models.macro.problem import MACRO_RTOL, MacroProblem, rectangle_mesh
+from plantgrowth.models.macro.problem import REBUILD_GROWTH, MacroProblem, rectangle_mesh
 from plantgrowth.scene import parse_scene
+from plantgrowth.scene.limits import MACRO_RTOL
 from plantgrowth.scene.parts import Solver
 from plantgrowth.scene.toml_text import dict_to_toml
 
@@ -32,9 +33,15 @@ PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 HONEYCOMB = np.array([[0.030507, 0.029324, 0.0], [0.029324, 0.030507, 0.0], [0.0, 0.0, 0.000591]])
 AGREEMENT = 1e-8
-"""Iterative against direct, relative to |u|: the error is at most cond(A) times the relative
-residual (<= MACRO_RTOL = 1e-10 for CG, ~1e-13 for LU); 1e-8 allows an effective condition number
-of 100 (measured difference: 7e-11 serial, 3e-10 on 2 ranks)."""
+"""Iterative (``macro_rtol = 1e-10``) against direct, relative to |u|: the error is at most
+cond(A) times the relative residual (<= 1e-10 for CG, ~1e-13 for LU); 1e-8 allows an effective
+condition number of 100 (measured difference: 4.1e-11 serial and on 2 ranks)."""
+ERROR_PER_RTOL = 3.0
+"""The algebraic error |u - u_exact| / |u| CG leaves, per unit of its relative residual
+tolerance: measured 0.5-2.8 on a 104,794-dof E-gradient tissue and 1-2.5 on this rectangle
+(docs/large_tissues.md); 3 is
+the stated rule (plantgrowth.scene.limits.MACRO_RTOL)."""
+TIGHT = {"macro": "iterative", "macro_rtol": 1e-10}
 
 
 def scene(solver: dict, **tables: dict):
@@ -68,17 +75,79 @@ def owned_norm(values: np.ndarray, problem: MacroProblem) -> float:
 def test_iterative_and_direct_solves_agree():
     """CG + GAMG and LU solve the same system: |u_cg - u_lu| / |u_lu| <= 1e-8 (AGREEMENT), both
     pass the true-residual check. CG's true residual is within 10 times its tolerance (it stops
-    on its recursive residual; measured equal to 1e-11), in fewer than 120 iterations (measured:
-    98 serial, 95 on 2 ranks; without the near-nullspace 143, with a wrong rotation mode 129)."""
+    on its recursive residual; measured equal), in fewer than 120 iterations (measured: 59
+    serial, 58 on 2 ranks; 95-98 with PETSc's default graph squaring)."""
     direct = problem_with_coefficients({"macro": "direct"})
-    iterative = problem_with_coefficients({"macro": "iterative"}, direct.mesh)  # same partition
+    iterative = problem_with_coefficients(TIGHT, direct.mesh)  # same partition
     lu, cg = direct.solve(), iterative.solve()
     for report, problem in ((lu, direct), (cg, iterative)):
         diagnostics.check_solution(report, problem.u, MPI.COMM_WORLD)
-    assert cg.residual <= 10 * MACRO_RTOL <= diagnostics.RESIDUAL_BOUND
+    assert cg.residual <= cg.bound == 10 * 1e-10 <= diagnostics.RESIDUAL_BOUND
     assert lu.iterations == 0 and 10 < cg.iterations < 120
     difference = owned_norm(iterative.u.x.array - direct.u.x.array, direct)
     assert difference <= AGREEMENT * owned_norm(direct.u.x.array, direct)
+
+
+def test_the_default_tolerance_leaves_the_stated_error():
+    """``macro_rtol`` at its default: CG stops with its true residual within the bound (10
+    macro_rtol) and u within ERROR_PER_RTOL macro_rtol of LU's, in fewer iterations than at
+    1e-10 (fewer decades of residual to remove). Measured: error 1.1e-8 serial, 3.8e-9 on 2
+    ranks, 48 iterations against 58-59."""
+    direct = problem_with_coefficients({"macro": "direct"})
+    loose = problem_with_coefficients({"macro": "iterative"}, direct.mesh)
+    tight = problem_with_coefficients(TIGHT, direct.mesh)
+    lu, cg, cg_tight = direct.solve(), loose.solve(), tight.solve()
+    assert lu.bound == diagnostics.RESIDUAL_BOUND
+    assert cg.reason > 0 and cg.residual <= cg.bound == 10 * MACRO_RTOL
+    assert cg.iterations < cg_tight.iterations
+    error = owned_norm(loose.u.x.array - direct.u.x.array, direct)
+    assert error <= ERROR_PER_RTOL * MACRO_RTOL * owned_norm(direct.u.x.array, direct)
+
+
+def test_warm_start_equals_a_cold_start():
+    """The next step's system (E_hom 2% stiffer, Fg grown by 1%) solved from the previous u
+    (the macro solve's warm start) and from zero: both within ERROR_PER_RTOL macro_rtol of the
+    exact u, so within twice that of each other; the warm start needs fewer iterations
+    (measured: 42 against 48, difference 5.8e-9 serial, 1.1e-8 on 2 ranks)."""
+    warm = problem_with_coefficients({"macro": "iterative"})
+    cold = problem_with_coefficients({"macro": "iterative"}, warm.mesh)
+    assert warm.ksp.getInitialGuessNonzero()
+    warm.solve()
+    for problem in (warm, cold):
+        problem.set_cell_values(problem.C, 1.02 * problem.cell_values(problem.C))
+        problem.set_cell_values(problem.Fg, 1.01 * problem.cell_values(problem.Fg))
+    assert owned_norm(cold.u.x.array, cold) == 0.0
+    second, first = warm.solve(), cold.solve()
+    assert second.iterations < first.iterations
+    difference = owned_norm(warm.u.x.array - cold.u.x.array, cold)
+    assert difference <= 2 * ERROR_PER_RTOL * MACRO_RTOL * owned_norm(cold.u.x.array, cold)
+
+
+def test_the_rebuild_rule_fires():
+    """The multigrid hierarchy is kept while the matrix changes a little (E_hom 2% stiffer:
+    measured 23 iterations from the previous u against 47-48 for the first solve) and rebuilt
+    once a solve needs more than REBUILD_GROWTH times the first solve's iterations: E_hom times
+    1 + 30 (x1 / width)^2, a contrast of 31 the kept hierarchy does not know (measured 128-133),
+    which the next solve's rebuilt one solves in fewer iterations than the kept one did (14)."""
+    problem = problem_with_coefficients({"macro": "iterative"})
+    reuse = problem.reuse
+    first = problem.solve()
+    C = problem.cell_values(problem.C).reshape(-1, 3, 3).copy()
+    problem.set_cell_values(problem.C, 1.02 * C)
+    small = problem.solve()
+    assert reuse.rebuilds == 1 and not reuse.rebuild_next
+    assert 0 < small.iterations <= REBUILD_GROWTH * first.iterations
+    x1 = problem.midpoints[:, 0] / problem.bounding_box[0]
+    contrast = (1.0 + 30.0 * x1**2)[:, None, None] * C
+    problem.set_cell_values(problem.C, contrast)
+    stale = problem.solve()
+    assert stale.reason > 0 and stale.residual <= stale.bound
+    assert stale.iterations > REBUILD_GROWTH * first.iterations
+    assert reuse.rebuilds == 1 and reuse.rebuild_next
+    problem.set_cell_values(problem.C, 1.02 * contrast)
+    rebuilt = problem.solve()
+    assert reuse.rebuilds == 2 and not reuse.rebuild_next
+    assert 0 < rebuilt.iterations < stale.iterations
 
 
 def test_the_solver_is_reused_between_steps():
@@ -89,14 +158,14 @@ def test_the_solver_is_reused_between_steps():
     problem.set_cell_values(problem.C, 1.1 * problem.cell_values(problem.C))
     second = problem.solve()
     assert problem.ksp is ksp
-    assert second.reason > 0 and second.residual <= 10 * MACRO_RTOL
-    assert abs(second.iterations - first.iterations) <= 0.2 * first.iterations
+    assert second.reason > 0 and second.residual <= second.bound
+    assert second.iterations <= 1.2 * first.iterations
 
 
 @pytest.mark.parametrize("offset, expected", [(0, "iterative"), (1, "direct")])
 def test_auto_switches_at_the_threshold(offset, expected):
-    """``auto`` is iterative from ``macro_threshold`` dofs on: threshold = dofs gives CG + GAMG,
-    threshold = dofs + 1 gives LU."""
+    """``auto`` is iterative from ``macro_threshold`` dofs on: threshold = dofs gives
+    CG + GAMG, threshold = dofs + 1 gives LU."""
     ndofs = 2 * 70 * 31  # the rectangle at h = 0.1: 70 x 31 nodes
     s = scene({"macro": "auto", "macro_threshold": ndofs + offset})
     problem = MacroProblem(s, rectangle_mesh(s, MPI.COMM_WORLD))
@@ -114,13 +183,14 @@ def test_explicit_choice_ignores_the_threshold():
 
 @pytest.mark.parametrize("tolerances", [{"max_it": 1}, {"rtol": 1e-4}])
 def test_true_residual_check_stops_a_bad_solve(tolerances):
-    """One CG iteration (PETSc reports divergence) or a loose tolerance (PETSc reports success,
-    the residual is ~1e-4 > RESIDUAL_BOUND): the check raises the named RunError, which
-    suggests the direct solver."""
+    """One CG iteration (PETSc reports divergence) or a KSP tolerance looser than
+    ``solver.macro_rtol`` (PETSc reports success, the residual is ~1e-4 > the bound 10
+    macro_rtol): the check raises the named RunError, which suggests the direct solver."""
     problem = problem_with_coefficients({"macro": "iterative"})
     problem.ksp.setTolerances(**tolerances)
     report = problem.solve()
-    assert report.residual > diagnostics.RESIDUAL_BOUND
+    assert report.bound == 10 * MACRO_RTOL
+    assert report.residual > report.bound
     if "rtol" in tolerances:
         assert report.reason > 0  # only the true-residual test can catch this one
     hint = r"relative residual .* CG iterations; the direct solver \(solver.macro = 'direct'\)"
@@ -134,10 +204,16 @@ def summary(path: Path) -> list[dict[str, float]]:
 
 
 @pytest.mark.skip_in_parallel
-def test_mpirun_reproduces_the_serial_iterative_run(tmp_path):
-    """``plantgrowth run`` with ``solver.macro = "iterative"``, serial and ``mpirun -n 2``
-    (different multigrid aggregates, the same tolerance): the summary agrees to 1e-8 relative,
-    as for the direct solver (tests/test_macro_run.py)."""
+@pytest.mark.parametrize(
+    "rtol, agreement", [(1e-10, 1e-8), (MACRO_RTOL, 2 * ERROR_PER_RTOL * MACRO_RTOL)],
+    ids=["tight", "default"],
+)  # fmt: skip
+def test_mpirun_reproduces_the_serial_iterative_run(tmp_path, rtol, agreement):
+    """``plantgrowth run`` with ``solver.macro = "iterative"``, serial and ``mpirun -n 2``:
+    different multigrid aggregates give different iterates, each u within ERROR_PER_RTOL rtol of
+    the exact one, so the two runs agree to twice that: with ``macro_rtol = 1e-10`` to 1e-8
+    relative, as for the direct solver (tests/test_macro_run.py); at the default to 6e-8 (its
+    summary moves by less than the u error: area and G integrate it)."""
     mpirun = shutil.which("mpirun")
     if mpirun is None:
         pytest.skip("mpirun not found")
@@ -147,7 +223,7 @@ def test_mpirun_reproduces_the_serial_iterative_run(tmp_path):
         "growth": {"law": "strain"},
         "time": {"t_max": 2.0, "dt": 1.0},
         "accuracy": {"cell_resolution": 1, "cell_tolerance": 0.0},
-        "solver": {"macro": "iterative"},
+        "solver": {"macro": "iterative", "macro_rtol": rtol},
     }
     path = tmp_path / "scene.toml"
     path.write_text(dict_to_toml(data))
@@ -162,5 +238,5 @@ def test_mpirun_reproduces_the_serial_iterative_run(tmp_path):
     assert len(rows[1]) == len(rows[2]) == 3
     for a, b in zip(rows[1], rows[2], strict=True):
         for column in ("area", "growth_rate_11", "growth_rate_22", "u1_max", "u2_max"):
-            assert b[column] == pytest.approx(a[column], rel=1e-8), column
-        assert max(a["residual"], b["residual"]) <= 10 * MACRO_RTOL
+            assert b[column] == pytest.approx(a[column], rel=agreement), column
+        assert max(a["residual"], b["residual"]) <= 10 * rtol

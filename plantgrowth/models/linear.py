@@ -13,15 +13,18 @@ from dolfinx import fem, la
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from plantgrowth.models.diagnostics import RESIDUAL_BOUND
+
 
 @dataclass(frozen=True)
 class SolveReport:
     """PETSc converged reason (> 0: converged), true relative residual, Krylov iterations (0
-    for a direct solve)."""
+    for a direct solve), the largest true relative residual the solve may leave."""
 
     reason: int
     residual: float
     iterations: int = 0
+    bound: float = RESIDUAL_BOUND
 
 
 def lu_solver(A: PETSc.Mat, comm: MPI.Comm, prefix: str, serial: str = "mumps") -> PETSc.KSP:
@@ -68,17 +71,20 @@ SPD_OPTIONS = {"mg_levels_esteig_ksp_type": "cg"}  # the smoothed operator is SP
 
 def gamg_solver(
     A: PETSc.Mat, V: fem.FunctionSpace, prefix: str, rtol: float, max_it: int = 500,
-    spd: bool = True,
+    spd: bool = True, warm: bool = False, options: dict | None = None,
 ) -> PETSc.KSP:  # fmt: skip
     """A Krylov solver preconditioned by GAMG with the rigid-body near-nullspace, for an
     elasticity matrix ``A`` on ``V``, with its own options prefix: CG for a symmetric positive
     definite ``A`` (``spd``, linear elasticity), else right-preconditioned GMRES (a finite-
     kinematics Jacobian: follower loads make it non-symmetric, compression indefinite).
 
-    The residual test is on the unpreconditioned residual relative to ``|b|`` (zero initial
-    guess), i.e. on the quantity the true-residual check measures. The multigrid hierarchy's
+    The residual test is on the unpreconditioned residual relative to ``|b|``, i.e. on the
+    quantity the true-residual check measures; ``warm``: the solve starts from the vector it is
+    given (the previous solution), and PETSc's default test still scales by ``|b|``, not by the
+    initial residual (KSPConvergedDefaultSetUIRNorm is not set). The multigrid hierarchy's
     interpolation is built at the first solve and reused when ``A`` is re-assembled with the
     same pattern (only the Galerkin coarse operators and smoothers are recomputed).
+    ``options``: PETSc options added to (or replacing) GAMG_OPTIONS and SPD_OPTIONS.
     """
     A.setNearNullSpace(rigid_body_modes(A, V))
     ksp = PETSc.KSP().create(V.mesh.comm)
@@ -94,10 +100,11 @@ def gamg_solver(
         ksp.setPCSide(PETSc.PC.Side.RIGHT)
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
+    ksp.setInitialGuessNonzero(warm)
     ksp.getPC().setType("gamg")
-    options = PETSc.Options()
-    for key, value in (GAMG_OPTIONS | (SPD_OPTIONS if spd else {})).items():
-        options[prefix + key] = value
+    petsc_options = PETSc.Options()
+    for key, value in (GAMG_OPTIONS | (SPD_OPTIONS if spd else {}) | (options or {})).items():
+        petsc_options[prefix + key] = value
     ksp.setFromOptions()
     return ksp
 
@@ -115,9 +122,10 @@ def relative_residual(A: PETSc.Mat, x: PETSc.Vec, b: PETSc.Vec) -> float:
 
 def assemble_and_solve(
     A: PETSc.Mat, b: PETSc.Vec, a: fem.FormMetaClass, L: fem.FormMetaClass, bcs: list,
-    ksp: PETSc.KSP, u: fem.Function,
+    ksp: PETSc.KSP, u: fem.Function, bound: float = RESIDUAL_BOUND,
 ) -> SolveReport:  # fmt: skip
-    """Assemble ``a`` and ``L`` with Dirichlet conditions, solve into ``u`` with ``ksp``."""
+    """Assemble ``a`` and ``L`` with Dirichlet conditions, solve into ``u`` with ``ksp`` (from
+    ``u`` if its initial guess is nonzero); ``bound``: the report's residual bound."""
     A.zeroEntries()
     fem.petsc.assemble_matrix(A, a, bcs=bcs)
     A.assemble()
@@ -131,4 +139,4 @@ def assemble_and_solve(
     u.x.scatter_forward()
     residual = relative_residual(A, u.vector, b)
     iterations = 0 if ksp.getType() == "preonly" else ksp.getIterationNumber()
-    return SolveReport(ksp.getConvergedReason(), residual, iterations)
+    return SolveReport(ksp.getConvergedReason(), residual, iterations, bound)

@@ -36,8 +36,8 @@ from plantgrowth.models.linear import relative_residual
 log = logging.getLogger("plantgrowth")
 
 NEWTON_RTOL = 1e-10
-"""Residual at convergence relative to the external load: the macro CG tolerance
-(macro_problem.MACRO_RTOL), 100 times below the time loop's residual bound
+"""Residual at convergence relative to the external load: the tolerance of its GMRES solves
+(problem.NEWTON_KRYLOV_RTOL), 100 times below the time loop's residual bound
 (diagnostics.RESIDUAL_BOUND), so a converged Newton solve is as accurate as a linear one."""
 NEWTON_ATOL = 1e-11
 """The absolute floor's strain: ``floor = NEWTON_ATOL * stiffness * sqrt(area)`` is the residual

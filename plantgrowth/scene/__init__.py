@@ -85,9 +85,11 @@ inclined wall length l2 = 1)::
     nx = 16                    # cells per row of the micro model, even integer in [2, 256]
     resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
     [solver]                   # linear solvers: speed only, results agree to the solver tolerance
-    macro = "auto"             # "direct" (LU), "iterative" (CG + GAMG, true relative residual
-                               # <= 1e-10) or "auto": iterative from macro_threshold fine dofs on
+    macro = "auto"             # "direct" (LU), "iterative" (CG + AMG, true relative residual
+                               # <= macro_rtol) or "auto": iterative from macro_threshold dofs on
     macro_threshold = 200000   # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
+    macro_rtol = 1e-8          # CG's stop |b - A u| / |b| (algebraic error of u <= 3 macro_rtol),
+                               # [1e-14, 1e-4] (docs/large_tissues.md)
     [numerics]
     on_instability = "stop"    # where the material law loses strong ellipticity (the tissue is
                                # compressed beyond where its walls would buckle): "stop" (a named

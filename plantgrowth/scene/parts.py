@@ -24,6 +24,8 @@ from plantgrowth.scene.limits import (
     IDENTITY,
     INTEGRATORS,
     LAWS,
+    MACRO_RTOL,
+    MACRO_RTOL_RANGE,
     MACRO_SOLVERS,
     MACRO_THRESHOLD,
     MAX_CELLS,
@@ -337,14 +339,18 @@ class Accuracy:
 @dataclass(frozen=True)
 class Solver:
     """The macro problem's linear solver: "direct", "iterative" or "auto" (iterative from
-    ``macro_threshold`` fine dofs on)."""
+    ``macro_threshold`` fine dofs on); the iterative solve stops at the true relative residual
+    ``macro_rtol``."""
 
     macro: str = "auto"
     macro_threshold: int = MACRO_THRESHOLD
+    macro_rtol: float = MACRO_RTOL
 
     def __post_init__(self) -> None:
         choice("solver.macro", self.macro, MACRO_SOLVERS)
         integer("solver.macro_threshold", self.macro_threshold, 0, 10**9)
+        rtol = in_range("solver.macro_rtol", self.macro_rtol, *MACRO_RTOL_RANGE, False, False)
+        set_fields(self, macro_rtol=rtol)
 
     def macro_kind(self, ndofs: int) -> str:
         """The solver kind, "direct" or "iterative", for a macro problem of ``ndofs`` dofs."""

@@ -20,7 +20,7 @@ TABLES = {
     "output": ("fields", "every", "precision"),
     "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
-    "solver": ("macro", "macro_threshold"),
+    "solver": ("macro", "macro_threshold", "macro_rtol"),
     "numerics": ("on_instability",),
     "walls": ("fibre_stiffness", "fibre_angle"),
     "feedback": ("cue", "rate"),

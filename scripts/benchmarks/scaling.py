@@ -182,7 +182,7 @@ def crossing(runs: list[dict]) -> float | None:
     """Fine dofs where CG + GAMG's solve time per step meets LU's (log-log interpolation)."""
     by_size: dict[int, dict[str, float]] = {}
     for r in runs:
-        kind = "iterative" if r["macro_solver"] == "CG + GAMG" else "direct"
+        kind = "iterative" if r["macro_solver"].startswith("CG + ") else "direct"
         by_size.setdefault(r["fine_dofs"], {})[kind] = r["per_step"]["seconds_solve"]
     points = sorted((n, math.log(t["iterative"] / t["direct"])) for n, t in by_size.items())
     for (n0, d0), (n1, d1) in zip(points, points[1:], strict=False):

@@ -28,6 +28,7 @@ from plantgrowth.base.tensors import from_voigt_stress, inv2, voigt_vector
 from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction, grown_length
 from plantgrowth.models import growth, stability
+from plantgrowth.models.diagnostics import RESIDUAL_BOUND, TRUE_RESIDUAL_FACTOR
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
 from plantgrowth.models.macro.boundary import Boundary, pinned_vertices, rectangle_boundary
 from plantgrowth.models.macro.edge_loads import FORCE_LENGTH_RTOL, EdgeLoads
@@ -39,17 +40,27 @@ from plantgrowth.models.newton import (
     global_extreme,
     log_report,
 )
+from plantgrowth.models.preconditioner_reuse import PreconditionerReuse
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
 
-MACRO_RTOL = 1e-10
-"""CG's relative tolerance on ``|b - A u| / |b|``: 100 times below the residual bound
-(diagnostics.RESIDUAL_BOUND), so that the true residual, which drifts from CG's recursive one,
-passes it, and serial and parallel runs agree to 1e-8 (docs/large_tissues.md)."""
+NEWTON_KRYLOV_RTOL = 1e-10
+"""GMRES's relative tolerance on a Newton step's ``|b - J du| / |b|``: 100 times below the residual
+bound (diagnostics.RESIDUAL_BOUND), so that the true residual, which drifts from GMRES's
+recursive one, passes it. (The linear CG solve stops at ``solver.macro_rtol``.)"""
 MACRO_MAX_IT = 2000
 """CG's iteration limit: about 100 iterations at any size on the shipped scenes, 700 on the
 thinnest-walled hard case (w = 0.005); a solve that needs more stops with a RunError."""
+REBUILD_GROWTH = 1.5
+"""CG's multigrid hierarchy is kept across steps and rebuilt once a solve needs more than 1.5 times
+the iterations of the solve after the last rebuild (plantgrowth.models.preconditioner_reuse;
+measured in docs/large_tissues.md, "Macro solve sized by accuracy")."""
+MACRO_GAMG_OPTIONS = {"pc_gamg_square_graph": 0}
+"""GAMG coarsens the linear macro problem's graph without squaring it (PETSc squares it on the
+first level by default): 69 CG iterations to 1e-7 against 120 on a 104,794-dof E-gradient tissue,
+at 1.0-1.3 times the cost of an iteration, the fastest of GAMG's settings measured there
+(docs/large_tissues.md, "Macro solve sized by accuracy"). Newton's GMRES keeps the defaults."""
 PREFIX = "plantgrowth_macro_"
 NEWTON_PREFIX = PREFIX + "newton_"  # its own GAMG options (see linear.gamg_solver)
 NEWTON_KRYLOV_MAX_IT = 500
@@ -140,6 +151,7 @@ class MacroProblem:
         self.bcs = self._boundary_conditions(scene)
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         self.solver = scene.solver.macro_kind(self.ndofs)
+        self.rtol = scene.solver.macro_rtol
         self._linear_forms(scene, psi, P1, grad_P1)  # finite kinematics: Newton's predictor
         if self.finite:
             self._finite_forms(scene, psi, P1)
@@ -172,6 +184,9 @@ class MacroProblem:
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = self._linear_solver(self.A)
+        self.reuse = None
+        if self.solver == "iterative":
+            self.reuse = PreconditionerReuse(self.ksp, REBUILD_GROWTH)
 
     def _finite_forms(self, scene: Scene, psi, P1) -> None:
         """docs/model.md section 10: the residual (grad P1 and P2vec cancel: not assembled) and
@@ -201,8 +216,10 @@ class MacroProblem:
         return "CG + GAMG" + newton
 
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
-        if self.solver == "iterative":
-            return gamg_solver(A, self.V, PREFIX, MACRO_RTOL, MACRO_MAX_IT)
+        if self.solver == "iterative":  # warm: from the previous step's u
+            return gamg_solver(
+                A, self.V, PREFIX, self.rtol, MACRO_MAX_IT, warm=True, options=MACRO_GAMG_OPTIONS
+            )
         return lu_solver(A, self.mesh.comm, PREFIX)
 
     def _jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
@@ -210,7 +227,7 @@ class MacroProblem:
         under follower loads, indefinite under strong compression), or LU."""
         if self.solver == "iterative":
             return gamg_solver(
-                J, self.V, NEWTON_PREFIX, MACRO_RTOL, NEWTON_KRYLOV_MAX_IT, spd=False
+                J, self.V, NEWTON_PREFIX, NEWTON_KRYLOV_RTOL, NEWTON_KRYLOV_MAX_IT, spd=False
             )
         return self._direct_jacobian_solver(J)
 
@@ -251,8 +268,8 @@ class MacroProblem:
         report = self._linear_solve()
         if self.solver == "iterative":
             log.info(
-                "macro solve: %d CG iterations, relative residual %.2g",
-                report.iterations, report.residual,
+                "macro solve: %d CG iterations, relative residual %.2g, preconditioner built %d "
+                "times", report.iterations, report.residual, self.reuse.rebuilds,
             )  # fmt: skip
         return report
 
@@ -271,8 +288,28 @@ class MacroProblem:
         )
 
     def _linear_solve(self) -> SolveReport:
-        """The linear-kinematics solve (docs/model.md section 4) into u."""
-        return assemble_and_solve(self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u)
+        """The linear-kinematics solve (docs/model.md section 4) into u (CG: from the current u,
+        with the kept or a rebuilt preconditioner)."""
+
+        def solve() -> SolveReport:
+            return assemble_and_solve(
+                self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u, self.residual_bound
+            )
+
+        if self.reuse is None:
+            return solve()
+        return self.reuse.solve(solve, self._cold_start)
+
+    def _cold_start(self) -> None:
+        self.u.x.array[:] = 0.0
+
+    @property
+    def residual_bound(self) -> float:
+        """The true relative residual the linear solve may leave: TRUE_RESIDUAL_FACTOR times
+        ``solver.macro_rtol`` for CG, diagnostics.RESIDUAL_BOUND for LU."""
+        if self.solver == "iterative":
+            return TRUE_RESIDUAL_FACTOR * self.rtol
+        return RESIDUAL_BOUND
 
     def stability_values(
         self, grad_u: np.ndarray | None = None, screened: bool = True
