@@ -247,9 +247,12 @@ class Homogenizer:
         turn = np.degrees(np.arctan2(R[:, 1, 0], R[:, 0, 0]))
         b = (fibres[1] - turn) % 180.0  # the director in the stretch's frame, per point
         W = weights.tocoo()
-        node = np.column_stack([geometry, nu, fibres[0]])[W.col]
+        # the tables of the nodes the weights use, found per node (not per weight entry)
+        used, entry_node = np.unique(W.col, return_inverse=True)
+        node = np.column_stack([geometry, nu, fibres[0]])[used]
         rows = np.round(node / self.tol).astype(np.int64)
-        unique, entry_table = np.unique(rows, axis=0, return_inverse=True)
+        unique, node_table = np.unique(rows, axis=0, return_inverse=True)
+        entry_table = node_table.ravel()[entry_node.ravel()]
         # isotropic tables (fibre_stiffness 0) keep the paper's keys
         tables = [tuple(row[:5]) if row[5] == 0 else tuple(row) for row in unique.tolist()]
         pairs = sp.csr_matrix((W.data, (W.row, entry_table.ravel())), shape=(n, len(tables)))
