@@ -27,6 +27,7 @@ from cli_helpers import (
 from mpi4py import MPI
 
 from plantgrowth.base.errors import SceneError
+from plantgrowth.base.gather import MeshGather
 from plantgrowth.models import growth
 from plantgrowth.models.fibres import cue as fibres_cue
 from plantgrowth.models.fibres import reduce_angle
@@ -67,7 +68,7 @@ def _two_steps(model: MacroModel) -> tuple[np.ndarray, np.ndarray] | None:
     G = model.step(Fg).G
     G = model.step(growth.advance(Fg, G, 1.0, "exp")).G
     n = model.problem.n_owned
-    gather = model._gather
+    gather = MeshGather(model.problem.V)
     return gather.cell_values(G[:n].reshape(n, 4)), gather.function(model.problem.u)
 
 

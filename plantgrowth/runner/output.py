@@ -19,12 +19,10 @@ Fields are written at t = 0, every ``output.every``-th step and at the last step
 loads) with gzip and shuffle filters; the state, written after every step, keeps float64 so
 that a resumed run continues exactly. Every file is written under a temporary name and renamed
 when complete, so a run killed at any moment (even SIGKILL) leaves every written step readable.
-The step files and the state are written collectively (issue 23, item 2): every rank writes its
-own block of the canonical order (:mod:`plantgrowth.base.blocks`) through HDF5's MPI-IO driver
-(Debian's ``python3-h5py-mpi``, which h5py loads under mpirun), so the arrays are the same
-whatever the number of ranks and nothing is gathered to one rank; rank 0 alone writes the small
-files (the XDMF indexes, the CSVs) and fields.h5's meshes, once. Only these names are ever
-removed (:func:`run_files`): a user's own files in the directory are left alone.
+Step files and state are written collectively (issue 23, item 2): each rank writes its block
+of the canonical order (:mod:`plantgrowth.base.blocks`) through HDF5's MPI-IO driver (Debian's
+``python3-h5py-mpi``), the same arrays whatever the ranks, nothing gathered to one rank; rank 0
+writes the XDMF indexes, CSVs and meshes. Only these names are ever removed (:func:`run_files`).
 """
 
 from __future__ import annotations
