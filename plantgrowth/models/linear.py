@@ -7,6 +7,7 @@ Every solve reports PETSc's converged reason, the iterations and the *true* rela
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from dolfinx import fem, la
@@ -69,6 +70,35 @@ SPD_OPTIONS = {"mg_levels_esteig_ksp_type": "cg"}  # the smoothed operator is SP
 """Added for a symmetric positive definite matrix (CG); GMRES keeps PETSc's GMRES estimate."""
 
 
+def _krylov(
+    A: PETSc.Mat, comm: MPI.Comm, prefix: str, rtol: float, max_it: int, spd: bool, warm: bool
+) -> PETSc.KSP:
+    """CG (``spd``) or right-preconditioned GMRES on ``A``, tested on the unpreconditioned
+    residual relative to ``|b|``; ``warm``: from the vector it is given."""
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(A)
+    if spd:
+        ksp.setType("cg")
+    else:
+        # PETSc's restart 30: 90-111 iterations a solve on gradient_E_strain with finite
+        # kinematics, against 88-100 with restart 100 at 3.3x the memory. Right
+        # preconditioning: GMRES then minimizes the unpreconditioned residual it is tested on.
+        ksp.setType("gmres")
+        ksp.setPCSide(PETSc.PC.Side.RIGHT)
+    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
+    ksp.setInitialGuessNonzero(warm)
+    return ksp
+
+
+def _set_options(ksp: PETSc.KSP, prefix: str, options: dict) -> None:
+    petsc_options = PETSc.Options()
+    for key, value in options.items():
+        petsc_options[prefix + key] = value
+    ksp.setFromOptions()
+
+
 def gamg_solver(
     A: PETSc.Mat, V: fem.FunctionSpace, prefix: str, rtol: float, max_it: int = 500,
     spd: bool = True, warm: bool = False, options: dict | None = None,
@@ -87,25 +117,27 @@ def gamg_solver(
     ``options``: PETSc options added to (or replacing) GAMG_OPTIONS and SPD_OPTIONS.
     """
     A.setNearNullSpace(rigid_body_modes(A, V))
-    ksp = PETSc.KSP().create(V.mesh.comm)
-    ksp.setOptionsPrefix(prefix)
-    ksp.setOperators(A)
-    if spd:
-        ksp.setType("cg")
-    else:
-        # PETSc's restart 30: 90-111 iterations a solve on gradient_E_strain with finite
-        # kinematics, against 88-100 with restart 100 at 3.3x the memory. Right
-        # preconditioning: GMRES then minimizes the unpreconditioned residual it is tested on.
-        ksp.setType("gmres")
-        ksp.setPCSide(PETSc.PC.Side.RIGHT)
-    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
-    ksp.setInitialGuessNonzero(warm)
+    ksp = _krylov(A, V.mesh.comm, prefix, rtol, max_it, spd, warm)
     ksp.getPC().setType("gamg")
-    petsc_options = PETSc.Options()
-    for key, value in (GAMG_OPTIONS | (SPD_OPTIONS if spd else {}) | (options or {})).items():
-        petsc_options[prefix + key] = value
-    ksp.setFromOptions()
+    _set_options(ksp, prefix, GAMG_OPTIONS | (SPD_OPTIONS if spd else {}) | (options or {}))
+    return ksp
+
+
+BOOMERAMG_OPTIONS = {"pc_hypre_type": "boomeramg"}
+"""hypre BoomerAMG with PETSc's defaults (Falgout coarsening, strength threshold 0.25, one
+symmetric-SOR/Jacobi sweep down and up): the fastest of the settings measured on the organ
+scene's system (docs/large_tissues.md, "Macro solve sized by accuracy")."""
+
+
+def boomeramg_cg_solver(
+    A: PETSc.Mat, comm: MPI.Comm, prefix: str, rtol: float, max_it: int, warm: bool
+) -> PETSc.KSP:
+    """CG preconditioned by hypre BoomerAMG (:data:`BOOMERAMG_OPTIONS`) for a symmetric
+    positive definite ``A``, tested as :func:`gamg_solver`'s; the hierarchy is rebuilt at a
+    solve unless the preconditioner is marked for reuse (``PCSetReusePreconditioner``)."""
+    ksp = _krylov(A, comm, prefix, rtol, max_it, spd=True, warm=warm)
+    ksp.getPC().setType("hypre")
+    _set_options(ksp, prefix, BOOMERAMG_OPTIONS)
     return ksp
 
 
@@ -123,9 +155,11 @@ def relative_residual(A: PETSc.Mat, x: PETSc.Vec, b: PETSc.Vec) -> float:
 def assemble_and_solve(
     A: PETSc.Mat, b: PETSc.Vec, a: fem.FormMetaClass, L: fem.FormMetaClass, bcs: list,
     ksp: PETSc.KSP, u: fem.Function, bound: float = RESIDUAL_BOUND,
+    guess: Callable[[PETSc.Mat, PETSc.Vec, PETSc.Vec], None] | None = None,
 ) -> SolveReport:  # fmt: skip
     """Assemble ``a`` and ``L`` with Dirichlet conditions, solve into ``u`` with ``ksp`` (from
-    ``u`` if its initial guess is nonzero); ``bound``: the report's residual bound."""
+    ``u`` if its initial guess is nonzero, after ``guess(A, b, u.vector)`` has set it);
+    ``bound``: the report's residual bound."""
     A.zeroEntries()
     fem.petsc.assemble_matrix(A, a, bcs=bcs)
     A.assemble()
@@ -135,6 +169,8 @@ def assemble_and_solve(
     fem.petsc.apply_lifting(b, [a], bcs=[bcs])
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     fem.petsc.set_bc(b, bcs)
+    if guess is not None:
+        guess(A, b, u.vector)
     ksp.solve(b, u.vector)
     u.x.scatter_forward()
     residual = relative_residual(A, u.vector, b)

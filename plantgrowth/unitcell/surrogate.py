@@ -101,10 +101,22 @@ def _corners(s: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return points, weights
 
 
+CHUNK = 8192
+"""Queries per batched product in :func:`_combine` (and rows per pass of
+:meth:`LatticeSurrogate.relative_difference`): a chunk's gathered corner rows (8192 x 4
+x m, about 10 MB for the 38 packed values of the strain law) stay in cache; the whole (n, 4, m)
+gather of a fine mesh's 500,000 queries took 11 times as long (3.3 s against 0.3 s) and 600 MB."""
+
+
 def _combine(weights: np.ndarray, rows: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """``sum_c weights[n, c] table[rows[n, c], :]`` (n, m): the interpolated values, as a
-    batched product (about twice as fast as einsum at a fine mesh's query counts)."""
-    return (weights[:, None, :] @ table[rows])[:, 0, :]
+    """``sum_c weights[n, c] table[rows[n, c], :]`` (n, m): the interpolated values, as
+    batched products over chunks of :data:`CHUNK` queries (each row's arithmetic is the same
+    whatever the chunk)."""
+    out = np.empty((len(weights), table.shape[1]))
+    for start in range(0, len(weights), CHUNK):
+        part = slice(start, start + CHUNK)
+        out[part] = (weights[part, None, :] @ table[rows[part]])[:, 0, :]
+    return out
 
 
 class LatticeSurrogate:
@@ -147,16 +159,24 @@ class LatticeSurrogate:
 
     def relative_difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Largest over the segments of ``|a - b| / |b|`` (Frobenius norms), per row of
-        (n, m) arrays (or for single vectors)."""
+        (n, m) arrays (or for single vectors), over chunks of :data:`CHUNK` rows."""
         a2, b2 = np.atleast_2d(a), np.atleast_2d(b)
-        squared, scale2 = (a2 - b2) ** 2, b2 * b2
         out = np.zeros(len(b2))
+        for start in range(0, len(b2), CHUNK):
+            part = slice(start, start + CHUNK)
+            out[part] = self._squared_difference(a2[part], b2[part])
+        out = np.sqrt(out)
+        return out if np.ndim(b) > 1 else float(out[0])
+
+    def _squared_difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Largest over the segments of ``|a - b|^2 / |b|^2`` per row."""
+        squared, scale2 = (a - b) ** 2, b * b
+        out = np.zeros(len(b))
         for seg in self.segments:
             diff, scale = squared[:, seg].sum(axis=1), scale2[:, seg].sum(axis=1)
             ratio = np.divide(diff, scale, out=np.zeros_like(diff), where=scale > 0)
             out = np.maximum(out, ratio)
-        out = np.sqrt(out)
-        return out if np.ndim(b) > 1 else float(out[0])
+        return out
 
     def _solve_points(self, points: list[Point]) -> int:
         """Solve the lattice points missing on any rank (collective: ``points`` are this

@@ -7,7 +7,7 @@ the scene activates are assembled. Boundary conditions (plantgrowth/models/macro
 on the held edges (``[supports]``) and, unless a held edge holds u1, ``u1 = 0`` at the pinned
 vertex (the origin of the rectangle; removes the remaining rigid translation); the other edges
 carry the scene's tractions or none. The operator is
-symmetric positive definite after these conditions, so large systems are solved by CG + GAMG
+symmetric positive definite after these conditions, so large systems are solved by CG + BoomerAMG
 (``solver.macro``), small ones by LU; a finite-kinematics Jacobian is not (GMRES + GAMG, then
 LU where GMRES stops).
 """
@@ -29,7 +29,13 @@ from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction, grown_length
 from plantgrowth.models import growth, stability
 from plantgrowth.models.diagnostics import RESIDUAL_BOUND, TRUE_RESIDUAL_FACTOR
-from plantgrowth.models.linear import SolveReport, assemble_and_solve, gamg_solver, lu_solver
+from plantgrowth.models.linear import (
+    SolveReport,
+    assemble_and_solve,
+    boomeramg_cg_solver,
+    gamg_solver,
+    lu_solver,
+)
 from plantgrowth.models.macro.boundary import Boundary, pinned_vertices, rectangle_boundary
 from plantgrowth.models.macro.edge_loads import FORCE_LENGTH_RTOL, EdgeLoads
 from plantgrowth.models.macro.supports import HeldEdges
@@ -41,6 +47,7 @@ from plantgrowth.models.newton import (
     log_report,
 )
 from plantgrowth.models.preconditioner_reuse import PreconditionerReuse
+from plantgrowth.models.solution_history import SolutionHistory
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -56,11 +63,11 @@ REBUILD_GROWTH = 1.5
 """CG's multigrid hierarchy is kept across steps and rebuilt once a solve needs more than 1.5 times
 the iterations of the solve after the last rebuild (plantgrowth.models.preconditioner_reuse;
 measured in docs/large_tissues.md, "Macro solve sized by accuracy")."""
-MACRO_GAMG_OPTIONS = {"pc_gamg_square_graph": 0}
-"""GAMG coarsens the linear macro problem's graph without squaring it (PETSc squares it on the
-first level by default): 69 CG iterations to 1e-7 against 120 on a 104,794-dof E-gradient tissue,
-at 1.0-1.3 times the cost of an iteration, the fastest of GAMG's settings measured there
-(docs/large_tissues.md, "Macro solve sized by accuracy"). Newton's GMRES keeps the defaults."""
+HISTORY = 5
+"""CG starts from the energy-norm projection onto the last 5 solutions (plantgrowth.models.
+solution_history): on the organ scene (2 ranks, 1e-8) 2-4 iterations a step from step 4 on,
+against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is (docs/
+large_tissues.md, "Macro solve sized by accuracy")."""
 PREFIX = "plantgrowth_macro_"
 NEWTON_PREFIX = PREFIX + "newton_"  # its own GAMG options (see linear.gamg_solver)
 NEWTON_KRYLOV_MAX_IT = 500
@@ -184,9 +191,10 @@ class MacroProblem:
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = self._linear_solver(self.A)
-        self.reuse = None
+        self.reuse, self.history = None, None
         if self.solver == "iterative":
             self.reuse = PreconditionerReuse(self.ksp, REBUILD_GROWTH)
+            self.history = SolutionHistory(HISTORY)
 
     def _finite_forms(self, scene: Scene, psi, P1) -> None:
         """docs/model.md section 10: the residual (grad P1 and P2vec cancel: not assembled) and
@@ -213,13 +221,11 @@ class MacroProblem:
         if self.solver != "iterative":
             return "LU"
         newton = ", Newton: GMRES + GAMG (LU where GMRES stops)" if self.finite else ""
-        return "CG + GAMG" + newton
+        return "CG + BoomerAMG" + newton
 
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
         if self.solver == "iterative":  # warm: from the previous step's u
-            return gamg_solver(
-                A, self.V, PREFIX, self.rtol, MACRO_MAX_IT, warm=True, options=MACRO_GAMG_OPTIONS
-            )
+            return boomeramg_cg_solver(A, self.mesh.comm, PREFIX, self.rtol, MACRO_MAX_IT, True)
         return lu_solver(A, self.mesh.comm, PREFIX)
 
     def _jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
@@ -293,15 +299,20 @@ class MacroProblem:
 
         def solve() -> SolveReport:
             return assemble_and_solve(
-                self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u, self.residual_bound
-            )
+                self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u, self.residual_bound,
+                None if self.history is None else self.history.guess,
+            )  # fmt: skip
 
         if self.reuse is None:
             return solve()
-        return self.reuse.solve(solve, self._cold_start)
+        report = self.reuse.solve(solve, self._cold_start)
+        if report.reason > 0:
+            self.history.record(self.u.vector)
+        return report
 
     def _cold_start(self) -> None:
         self.u.x.array[:] = 0.0
+        self.history.clear()
 
     @property
     def residual_bound(self) -> float:
