@@ -8,6 +8,7 @@
 #      --system-site-packages (so the Debian builds are seen; NEVER pip-install
 #      dolfinx, gmsh, h5py, petsc4py, mpi4py, numpy or scipy into it);
 #   3. pip-installs this repo in editable mode plus the dev tools into .venv;
+#      then compiles its bytecode (editable installs are not compiled by pip);
 #   4. as root, links /usr/local/bin/plantgrowth -> .venv/bin/plantgrowth.
 set -euo pipefail
 
@@ -98,6 +99,15 @@ else
     "$VENV/bin/python" -m pip install --quiet "ruff==$RUFF_VERSION" "meshio==$MESHIO_VERSION"
     echo "$want_stamp" >"$STAMP"
 fi
+
+# --- 3b. bytecode -------------------------------------------------------------------
+# pip does not compile an editable install, and with PYTHONDONTWRITEBYTECODE set (as in many
+# containers and CI machines) Python would compile plantgrowth's sources afresh in every
+# process: about 0.1-0.2 s of each command's start-up (docs/large_tissues.md, "Start-up").
+# Writing the __pycache__ files here is idempotent; a source edited later is recompiled in
+# memory (Python checks the source's time stamp), never run stale.
+"$VENV/bin/python" -m compileall -q plantgrowth forms meshes
+log "compiled plantgrowth's bytecode"
 
 # --- 4. CLI on PATH ---------------------------------------------------------------
 if [[ "$(id -u)" -eq 0 ]]; then

@@ -64,6 +64,20 @@ class NodeTensors:
     P2_matrix: np.ndarray  # (n, 2, 2), P2vec = P2_matrix grad(P1)
 
 
+@dataclass(frozen=True)
+class QueryLayout:
+    """Which tables a rank's points ask the surrogate: query k asks ``tables[which[k]]`` for
+    point ``point[k]``; ``combine`` (points x queries) weighs the answers into the points'
+    values. ``weights`` and ``node`` are what it was made from."""
+
+    weights: object
+    node: np.ndarray
+    tables: list[tuple]
+    which: np.ndarray
+    point: np.ndarray
+    combine: sp.csr_matrix
+
+
 def _mesh_group(key: tuple) -> tuple:
     """The solver (mesh) a rounded key or table is solved on: its geometry, and whether its walls
     are fibred (keys longer than 9 entries, tables longer than 5)."""
@@ -126,6 +140,7 @@ class Homogenizer:
             self.cache = CellCache(cache_root(), fingerprint, comm)
             self._loaded: set[tuple] = set()  # tables whose cached lattice is loaded
             self._calls = 0
+            self._last_layout: QueryLayout | None = None
             self._rng = np.random.default_rng(0)  # the same draws on every rank
             self.checks = 0
             self.largest_checked_error = 0.0
@@ -242,24 +257,12 @@ class Homogenizer:
         interpolated (and, for a fibred table, the director's angle turned back by the rotation:
         :mod:`plantgrowth.unitcell.director_lattice`), then combined with the weights, scaled by
         E and rotated exactly."""
-        n = len(Fg)
         R, s = surrogate.split_growth(Fg)
         turn = np.degrees(np.arctan2(R[:, 1, 0], R[:, 0, 0]))
         b = (fibres[1] - turn) % 180.0  # the director in the stretch's frame, per point
-        W = weights.tocoo()
-        # the tables of the nodes the weights use, found per node (not per weight entry)
-        used, entry_node = np.unique(W.col, return_inverse=True)
-        node = np.column_stack([geometry, nu, fibres[0]])[used]
-        rows = np.round(node / self.tol).astype(np.int64)
-        unique, node_table = np.unique(rows, axis=0, return_inverse=True)
-        entry_table = node_table.ravel()[entry_node.ravel()]
-        # isotropic tables (fibre_stiffness 0) keep the paper's keys
-        tables = [tuple(row[:5]) if row[5] == 0 else tuple(row) for row in unique.tolist()]
-        pairs = sp.csr_matrix((W.data, (W.row, entry_table.ravel())), shape=(n, len(tables)))
-        pairs.sum_duplicates()
-        pairs.eliminate_zeros()
-        point = np.repeat(np.arange(n), np.diff(pairs.indptr))
-        which, s_q, b_q = pairs.indices, s[point], b[point]
+        layout = self._layout(geometry, nu, fibres[0], weights)
+        tables, which, point = layout.tables, layout.which, layout.point
+        s_q, b_q = s[point], b[point]
         answer = director_lattice.interpolate_angles(
             self._evaluate, self.surrogate.relative_difference, self.surrogate.tolerance,
             self.comm, tables, which, s_q, b_q,
@@ -268,8 +271,7 @@ class Homogenizer:
             lambda k: self._solve_stretch(tables[which[k]], surrogate.stretch(s_q[k]), b_q[k]),
             s_q, answer,
         )  # fmt: skip
-        combine = sp.csr_matrix((pairs.data, (point, np.arange(len(point)))), (n, len(point)))
-        tensors = self._unpack(combine @ answer.values, E)
+        tensors = self._unpack(layout.combine @ answer.values, E)
         rotated = {"C": rotate_voigt(R, tensors.C)}
         for name in ("K", "dbar_v"):
             if getattr(tensors, name) is not None:
@@ -277,6 +279,33 @@ class Homogenizer:
         if tensors.dbar_w is not None:
             rotated["dbar_w"] = rotate4(R, tensors.dbar_w)
         return replace(tensors, **rotated)
+
+    def _layout(
+        self, geometry: np.ndarray, nu: np.ndarray, stiffness: np.ndarray, weights
+    ) -> QueryLayout:
+        """The tables this rank's points ask (for each point, each table its nodes weigh,
+        merged: a table met at several nodes is asked once) and the weights that combine the
+        answers; found per node (not per weight entry), and kept while the weights and the
+        nodes' parameters stay those of the last call (over a run's steps they do)."""
+        node = np.column_stack([geometry, nu, stiffness])
+        last = self._last_layout
+        if last is not None and last.weights is weights and np.array_equal(last.node, node):
+            return last
+        n = weights.shape[0]
+        W = weights.tocoo()
+        used, entry_node = np.unique(W.col, return_inverse=True)
+        rows = np.round(node[used] / self.tol).astype(np.int64)
+        unique, node_table = np.unique(rows, axis=0, return_inverse=True)
+        entry_table = node_table.ravel()[entry_node.ravel()]
+        # isotropic tables (fibre_stiffness 0) keep the paper's keys
+        tables = [tuple(row[:5]) if row[5] == 0 else tuple(row) for row in unique.tolist()]
+        pairs = sp.csr_matrix((W.data, (W.row, entry_table.ravel())), shape=(n, len(tables)))
+        pairs.sum_duplicates()
+        pairs.eliminate_zeros()
+        point = np.repeat(np.arange(n), np.diff(pairs.indptr))
+        combine = sp.csr_matrix((pairs.data, (point, np.arange(len(point)))), (n, len(point)))
+        self._last_layout = QueryLayout(weights, node, tables, pairs.indices, point, combine)
+        return self._last_layout
 
     def _all_blocks(self, mine: NodeTensors) -> NodeTensors:
         """The tensors of all nodes from every rank's block (in rank order)."""
