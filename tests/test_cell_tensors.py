@@ -125,6 +125,29 @@ def test_varying_geometry_combines_the_nodes_tables_at_the_cells_own_Fg():
                                    rtol=1e-12, atol=1e-12 * np.abs(C[cell]).max())  # fmt: skip
 
 
+def test_the_query_layout_kept_across_steps_answers_as_a_new_one():
+    """The tables the fine cells ask are found once (``Homogenizer._layout``) and kept while the
+    weights and the nodes' parameters stay those of the last call: a second step answered
+    through the kept layout equals, bit for bit, the same step answered through a layout made
+    anew; other node parameters (nu) make a new layout."""
+    model = macro_model(load_scene(ROOT / "scenes/gradient_w_strain.toml"), MPI.COMM_WORLD)
+    homogenizer, mid = model.homogenizer, model.problem.midpoints[:, :2]
+    model.cell_tensors(np.tile(np.eye(2), (len(mid), 1, 1)))
+    layout = homogenizer._last_layout
+    kept = model.cell_tensors(_growth(mid))
+    assert homogenizer._last_layout is layout
+    homogenizer._last_layout = None
+    fresh = model.cell_tensors(_growth(mid))
+    assert homogenizer._last_layout is not layout
+    for name in ("C", "phi_w", "K", "dbar_w", "dbar_v", "P2_matrix"):
+        assert np.array_equal(getattr(kept, name), getattr(fresh, name)), name
+    layout = homogenizer._last_layout
+    homogenizer.homogenize(
+        model.geometry, model.E, 1.01 * model.nu_nodes, _growth(mid), model._W_active
+    )  # fmt: skip
+    assert homogenizer._last_layout is not layout
+
+
 def shipped_scenes() -> list[str]:
     patterns = ("scenes/*.toml", "scenes/biology/*.toml", "scenes/hard/*.toml",
                 "scenes/shapes/*.toml", "scenes/examples/held_and_pulled.toml")  # fmt: skip
