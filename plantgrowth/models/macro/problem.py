@@ -65,14 +65,16 @@ the iterations of the solve after the last rebuild (plantgrowth.models.precondit
 measured in docs/large_tissues.md, "Macro solve sized by accuracy")."""
 HISTORY = 5
 """CG starts from the energy-norm projection onto the last 5 solutions (plantgrowth.models.
-solution_history): on the organ scene (2 ranks, 1e-8) 2-4 iterations a step from step 4 on,
-against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is (docs/
+solution_history): on the organ scene (2 ranks, 1e-8) 2-5 iterations a step at steps 4-15,
+against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is; 12-16 from
+step 16 on, where the surrogate's per-cell answers stop changing smoothly (docs/
 large_tissues.md, "Macro solve sized by accuracy")."""
 SERIAL_LU = "petsc"
 """The linear macro problem's LU on one rank: PETSc's own (nested-dissection ordering; the matrix
 is symmetric positive definite, so no pivoting is needed), MUMPS on several. On the reference
 scene (4,340 dofs) the solve phase took 0.58 s over 61 steps against MUMPS's 0.77 s, results
-within 6e-14 of MUMPS's (docs/large_tissues.md, "Start-up"). Newton's Jacobians keep MUMPS."""
+within 1.2e-11 in u and 4e-10 in elastic_strain_max of MUMPS's (docs/large_tissues.md,
+"Start-up"). Newton's Jacobians keep MUMPS."""
 PREFIX = "plantgrowth_macro_"
 NEWTON_PREFIX = PREFIX + "newton_"  # its own GAMG options (see linear.gamg_solver)
 NEWTON_KRYLOV_MAX_IT = 500
@@ -229,7 +231,7 @@ class MacroProblem:
         return "CG + BoomerAMG" + newton
 
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
-        if self.solver == "iterative":  # warm: from the previous step's u
+        if self.solver == "iterative":  # warm: from the guess SolutionHistory sets
             return boomeramg_cg_solver(A, self.mesh.comm, PREFIX, self.rtol, MACRO_MAX_IT, True)
         return lu_solver(A, self.mesh.comm, PREFIX, serial=SERIAL_LU)
 
@@ -299,8 +301,8 @@ class MacroProblem:
         )
 
     def _linear_solve(self) -> SolveReport:
-        """The linear-kinematics solve (docs/model.md section 4) into u (CG: from the current u,
-        with the kept or a rebuilt preconditioner)."""
+        """The linear-kinematics solve (docs/model.md section 4) into u (CG: from the projection
+        onto the last solutions, with the kept or a rebuilt preconditioner)."""
 
         def solve() -> SolveReport:
             return assemble_and_solve(
