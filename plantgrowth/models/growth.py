@@ -17,25 +17,9 @@ INTEGRATORS = ("euler", "exp")
 
 
 def symmetric_function(A: np.ndarray, f) -> np.ndarray:
-    """``Q f(Lambda) Q^T`` for symmetric (n, 2, 2) tensors ``A = Q Lambda Q^T`` (the lower
-    triangle is read), by spectral projectors: with the eigenvalues ``m +- r``,
-    ``f(A) = (f(m + r) + f(m - r)) / 2 I + (f(m + r) - f(m - r)) / (2 r) (A - m I)``.
-
-    No eigenvectors, so no eigen-solver: ~30 times faster than numpy's batched ``eigh`` on a
-    step's cell stacks (1.5 ms against 0.05 ms for the reference scene's 4,140 cells); the
-    divided difference loses digits as r -> 0 but multiplies ``A - m I``, whose size is r, so
-    the result keeps the round-off of ``eps max |f|`` (r = 0: ``f(m) I``).
-    """
-    a, b, d = A[:, 0, 0], A[:, 1, 0], A[:, 1, 1]
-    m, r = 0.5 * (a + d), np.hypot(0.5 * (a - d), b)
-    upper, lower = f(m + r), f(m - r)
-    mean = 0.5 * (upper + lower)
-    slope = np.divide(upper - lower, 2.0 * r, out=np.zeros_like(r), where=r > 0.0)
-    out = np.empty((len(A), 2, 2))
-    out[:, 0, 0] = mean + slope * (a - m)
-    out[:, 1, 1] = mean + slope * (d - m)
-    out[:, 0, 1] = out[:, 1, 0] = slope * b
-    return out
+    """``Q f(Lambda) Q^T`` for symmetric (n, 2, 2) tensors ``A = Q Lambda Q^T``."""
+    lam, Q = np.linalg.eigh(A)
+    return np.einsum("nij,nj,nkj->nik", Q, f(lam), Q)
 
 
 def positive_part(A: np.ndarray) -> np.ndarray:
