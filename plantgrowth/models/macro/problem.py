@@ -66,8 +66,8 @@ measured in docs/large_tissues.md, "Macro solve sized by accuracy")."""
 HISTORY = 5
 """CG starts from the energy-norm projection onto the last 5 solutions (plantgrowth.models.
 solution_history): on the organ scene (2 ranks, 1e-8) 2-5 iterations a step at steps 4-15,
-against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is; 12-16 from
-step 16 on, where the surrogate's per-cell answers stop changing smoothly (docs/
+against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is; 12-18 from
+step 16 on (two 60-step runs), where the surrogate's per-cell answers stop changing smoothly (docs/
 large_tissues.md, "Macro solve sized by accuracy")."""
 SERIAL_LU = "petsc"
 """The linear macro problem's LU on one rank: PETSc's own (nested-dissection ordering; the matrix
