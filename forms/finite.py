@@ -4,9 +4,10 @@
 Residuals ``R(u; psi)`` are returned as linear forms in the test function psi; their Jacobians
 are ``ufl.derivative(R, u)`` (:func:`jacobian`), never written by hand.
 
-- macro: ``int Jg (Fe S) : grad(psi) Fg^{-1} dx - int_{Gamma_N} |cof(F) N| f . psi ds`` with
-  ``S = E_hom Ee + (K_hom + (phi_w - 1) I) P1``; the grad(P1) and P2vec body forces of section 4
-  cancel (P2vec = (1 - phi_w) grad P1) and are not assembled;
+- macro: ``int Jg (Fe S_w + P_l) : grad(psi) Fg^{-1} dx - int_{Gamma_N} |cof(F) N| f . psi ds``
+  with the walls' ``S_w = E_hom Ee + K_hom P1`` (= sigma_hom) and the lumens' water
+  ``P_l = -(1 - phi_w) P1 cof(Fe)``, a follower pressure on the current lumen area; the grad(P1)
+  and P2vec body forces of section 4 cancel (P2vec = (1 - phi_w) grad P1) and are not assembled;
 - micro: St Venant-Kirchhoff walls, ``S = lam tr(Ee) I + 2 mu Ee``, and the follower turgor
   ``-P cof(F) N`` per reference length on the membranes.
 """
@@ -40,30 +41,38 @@ def cofactor(F):
     return ufl.det(F) * ufl.inv(F).T
 
 
-def macro_stress(u, Fg, C, K, phi_w, P1):
-    """Second Piola-Kirchhoff stress ``S = E_hom Ee + (K_hom + (phi_w - 1) I) P1`` (K = None:
-    no pressure term)."""
+def walls_macro_stress(u, Fg, C, K, P1):
+    """The walls' second Piola stress ``S_w = E_hom Ee + K_hom P1`` (= sigma_hom; K = None: no
+    pressure term)."""
     S = from_voigt(ufl.dot(C, voigt(green_lagrange_strain(u, Fg))))
-    return S if K is None else S + turgor_prestress(K, phi_w, P1)
+    return S if K is None else S + K * P1
 
 
-def turgor_prestress(K, phi_w, P1):
-    """``S_P = (K_hom + (phi_w - 1) I) P1``, the turgor part of the macro stress (docs/model.md
-    section 10)."""
-    return (K + (phi_w - 1.0) * ufl.Identity(2)) * P1
+def lumen_pressure_stress(Fe, phi_w, P1):
+    """The lumens' water as a first Piola stress of the intermediate frame, ``P_l = -(1 - phi_w)
+    P1 cof(Fe)``: a pressure on the current lumen area (a follower; docs/model.md section 10)."""
+    return -(1.0 - phi_w) * P1 * cofactor(Fe)
+
+
+def macro_first_piola(u, Fg, C, K, phi_w, P1):
+    """``Fe S_w + P_l`` (intermediate frame): the walls' stress carried by Fe plus the lumens'
+    follower pressure (K = None: walls only)."""
+    Fe = elastic_deformation(u, Fg)
+    P = Fe * walls_macro_stress(u, Fg, C, K, P1)
+    return P if K is None else P + lumen_pressure_stress(Fe, phi_w, P1)
 
 
 def macro_residual(u, psi, Fg, C, K, phi_w, P1, dx) -> ufl.Form:
-    """Volume part of the macro residual, ``int Jg (Fe S) : grad(psi) Fg^{-1} dx``."""
-    Fe = elastic_deformation(u, Fg)
-    return growth_weighted_work(Fe * macro_stress(u, Fg, C, K, phi_w, P1), psi, Fg, dx)
+    """Volume part of the macro residual, ``int Jg (Fe S_w + P_l) : grad(psi) Fg^{-1} dx``."""
+    return growth_weighted_work(macro_first_piola(u, Fg, C, K, phi_w, P1), psi, Fg, dx)
 
 
 def macro_prestress_work(u, psi, Fg, K, phi_w, P1, dx) -> ufl.Form:
-    """The turgor part of the macro residual, ``int Jg (Fe S_P) : grad(psi) Fg^{-1} dx`` with
-    ``S_P = (K_hom + (phi_w - 1) I) P1``: the step's external load from turgor."""
-    S_P = turgor_prestress(K, phi_w, P1)
-    return growth_weighted_work(elastic_deformation(u, Fg) * S_P, psi, Fg, dx)
+    """The turgor part of the macro residual, ``int Jg (Fe K_hom P1 + P_l) : grad(psi) Fg^{-1}
+    dx``: the step's external load from turgor (the walls' prestress and the lumens' water)."""
+    Fe = elastic_deformation(u, Fg)
+    turgor = Fe * K * P1 + lumen_pressure_stress(Fe, phi_w, P1)
+    return growth_weighted_work(turgor, psi, Fg, dx)
 
 
 def current_length(u, n):

@@ -58,6 +58,13 @@ def offset_convex_polygon(vertices: np.ndarray, distance: float) -> np.ndarray:
     return poly[keep]
 
 
+def lattice_area(l1, l2, theta_deg):
+    """``|Y| = 2 c (l1 + s)``, ``c = l2 cos(theta)``, ``s = l2 sin(theta)`` (docs/model.md
+    section 2), for arrays (the fields' values; HoneycombCell.area for one cell)."""
+    theta = np.radians(theta_deg)
+    return 2.0 * l2 * np.cos(theta) * (l1 + l2 * np.sin(theta))
+
+
 @dataclass(frozen=True)
 class HoneycombCell:
     """Parameters of the periodic honeycomb cell, validated on construction.

@@ -26,6 +26,8 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth.base.tensors import det2, smallest_eigenvalue_sym3
+from plantgrowth.models import nonelliptic_sets
+from plantgrowth.models.nonelliptic_sets import NonellipticSet
 
 VOIGT_INDEX = np.array([[0, 2], [2, 1]])
 """v(M, J): the Voigt row of the tensor index pair (M, J)."""
@@ -224,44 +226,114 @@ def stretch_of_strain(eps: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Ellipticity:
-    """One step's stability check over the tissue.
+    """One step's stability check over the tissue, with the resolution rule
+    (plantgrowth.models.nonelliptic_sets).
 
     Attributes:
-        nonelliptic_area_fraction: the area fraction (reference configuration) of the units
-            (macro: fine cells; micro: wall triangles) where the law is not strongly elliptic.
+        nonelliptic_area_fraction: the area fraction (reference configuration) of the connected
+            non-elliptic sets larger than one cell (macro: of fine cells; micro: of wall
+            triangles, where every set counts): where the model loses stability.
+        singular_area_fraction: that of the sets within one cell (singular points).
         smallest: the smallest normalised acoustic eigenvalue (:func:`normalised`; where the
             whole tissue is elliptic, the smallest of the screened values, a lower bound).
         place: (x1, x2), reference coordinates, where it is.
+        extended: the sets larger than one cell, largest first.
+        singular: the sets within one cell (singular points), largest first.
     """
 
     nonelliptic_area_fraction: float
+    singular_area_fraction: float
     smallest: float
     place: tuple[float, float]
+    extended: tuple[NonellipticSet, ...] = ()
+    singular: tuple[NonellipticSet, ...] = ()
+
+    @property
+    def lost(self) -> bool:
+        """True where a non-elliptic set is larger than one cell: the model loses stability."""
+        return len(self.extended) > 0
 
     def describe(self, t: float) -> str:
-        """The first loss of ellipticity in a biologist's words."""
-        x1, x2 = self.place
+        """The loss of stability (the largest set) in a biologist's words: "compressed" only
+        where the walls' stress has a compressive principal value."""
+        worst = self.extended[0]
+        size = (
+            f"{worst.cells:.3g} cells" if np.isfinite(worst.cells) else "the walls of the tissue"
+        )
+        lost = (
+            f"(loss of ellipticity: smallest acoustic eigenvalue {worst.smallest:.3g} times the "
+            f"shear modulus, on {self.nonelliptic_area_fraction:.2%} of the tissue, the largest "
+            f"connected set {size}) at {worst.where()}, t = {t:g}; results past this point are "
+            "outside the model"
+        )
+        values, angle = principal_stresses(worst.stress)
+        if values[0] < 0.0:
+            return (
+                f"the cell walls are compressed (principal stress {values[0]:.3g} along "
+                f"{angle:.0f} degrees from x1, in the units of E) beyond the point where they "
+                f"would buckle {lost}"
+            )
         return (
-            f"the tissue is compressed beyond the point where its cell walls would buckle (loss "
-            f"of ellipticity: smallest acoustic eigenvalue {self.smallest:.3g} times the shear "
-            f"modulus, on {self.nonelliptic_area_fraction:.2%} of the tissue) at x1 = {x1:.4g}, "
-            f"x2 = {x2:.4g}, t = {t:g}; results past this point are outside the model"
+            f"the walls are in tension there (principal stresses {values[0]:.3g} and "
+            f"{values[1]:.3g}), but the honeycomb has lost its stiffness against a shear band: "
+            "its cells are too distorted (grown or stretched much more along one direction than "
+            "the other) to keep their shape; lower the growth anisotropy (eta, tau, Fg0, cell "
+            f"shape) or the loads there {lost}"
         )
 
 
+def principal_stresses(S: np.ndarray) -> tuple[np.ndarray, float]:
+    """((2,) the principal values of a symmetric 2 x 2 stress, ascending; the angle of the
+    smaller one's direction, degrees from x1 in [0, 180))."""
+    values, vectors = np.linalg.eigh(0.5 * (S + S.T))
+    return values, float(np.degrees(np.arctan2(vectors[1, 0], vectors[0, 0])) % 180.0)
+
+
 def check(
-    values: np.ndarray, nonelliptic: np.ndarray, areas: np.ndarray, points: np.ndarray, comm
+    values: np.ndarray,
+    areas: np.ndarray,
+    points: np.ndarray,
+    comm,
+    stress: np.ndarray,
+    vertices: np.ndarray | None = None,
+    grown: np.ndarray | None = None,
+    cell_areas: np.ndarray | None = None,
 ) -> Ellipticity:
     """Collective: the :class:`Ellipticity` of this rank's units.
 
     Args:
-        values: (n,) normalised smallest eigenvalue per sample point.
-        nonelliptic: (m,) whether each unit has a sample below 0.
+        values: (m,) each unit's smallest normalised eigenvalue (negative: non-elliptic).
         areas: (m,) the units' reference areas.
-        points: (n, 2) the sample points.
+        points: (m, 2) the place of each unit's smallest value.
+        stress: (m, 2, 2) the walls' stress there.
+        vertices: (m, k) global mesh-vertex indices per unit (None: the non-elliptic units
+            form one set).
+        grown: (m,) grown areas ``Jg A`` (None: the reference areas).
+        cell_areas: (m,) a cell's grown area ``Jg |Y|`` at each unit (None: 0, every set is
+            larger than a cell).
     """
-    sums = comm.allreduce(np.array([areas[nonelliptic].sum(), areas.sum()]), op=MPI.SUM)
+    bad = values < 0.0
+    grown = areas if grown is None else grown
+    cell_areas = np.zeros_like(areas) if cell_areas is None else cell_areas
+    mine = [x[bad] for x in (values, areas, grown, cell_areas, points, stress)]
+    mine.append(None if vertices is None else vertices[bad])
+    gathered = comm.gather(mine, root=0)
+    total = comm.allreduce(float(areas.sum()), op=MPI.SUM)
+    found = None
+    if comm.rank == 0:
+        v, a, g, c, p, S = (np.concatenate([x[k] for x in gathered]) for k in range(6))
+        vx = None if vertices is None else np.concatenate([x[6] for x in gathered])
+        found = nonelliptic_sets.sets_of(v, vx, a, g, c, p.reshape(-1, 2), S.reshape(-1, 2, 2))
+    found = comm.bcast(found, root=0)
     i = int(np.argmin(values)) if len(values) else None
-    mine = (float(values[i]), tuple(float(x) for x in points[i])) if i is not None else None
-    smallest, place = min((x for x in comm.allgather(mine) if x is not None), key=lambda x: x[0])
-    return Ellipticity(float(sums[0] / sums[1]) if sums[1] > 0 else 0.0, smallest, place)
+    here = (float(values[i]), tuple(float(x) for x in points[i])) if i is not None else None
+    smallest, place = min((x for x in comm.allgather(here) if x is not None), key=lambda x: x[0])
+    singular = tuple(s for s in found if s.singular)
+    extended = tuple(s for s in found if not s.singular)
+
+    def fraction(sets) -> float:
+        return sum(s.reference_area for s in sets) / total if total > 0 else 0.0
+
+    return Ellipticity(
+        fraction(extended), fraction(singular), smallest, place, extended, singular
+    )

@@ -147,12 +147,22 @@ def run_scene(
 
 
 def result_line(directory: Path) -> str:
-    """The final line of a run: its last time, area and mean growth rate (summary.csv)."""
+    """The final line of a run: its last time, area and mean growth rate, and the largest
+    non-elliptic area fraction reached and when (summary.csv, resumed steps included)."""
     with open(directory / "summary.csv", newline="") as f:
-        rows = list(csv.DictReader(f))
-    first, last = ({k: float(v) for k, v in row.items()} for row in (rows[0], rows[-1]))
+        rows = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    first, last = rows[0], rows[-1]
+    worst = max(rows, key=lambda row: row["nonelliptic_area_fraction"])
+    lost = (
+        f"; largest non-elliptic area {worst['nonelliptic_area_fraction']:.3g} of the tissue "
+        f"at t = {worst['t']:g}"
+        if worst["nonelliptic_area_fraction"] > 0.0
+        else "; no non-elliptic area larger than a cell"
+    )
+    singular = sum(row["singular_points"] > 0 for row in rows)
+    points = f", singular points at {singular} step(s)" if singular else ""
     return (
         f"t = {last['t']:g}: area {last['area']:.6g} ({last['area'] / first['area']:.4g} times "
         f"its value at t = 0), mean growth rate tr G {last['growth_rate_area']:.6g} per unit "
-        "time (summary.csv has every step)"
+        f"time{lost}{points} (summary.csv has every step)"
     )

@@ -5,20 +5,27 @@
   warns only for a band its earlier steps had not reached;
 - the applied loads' net x1 force passes ``WARN_LOAD_IMBALANCE`` (1%) of the largest edge force
   (the pinned point carries it; above ``MAX_LOAD_IMBALANCE`` the run stops: runner.timeloop);
-- the material law loses strong ellipticity somewhere (the tissue is compressed beyond where its
-  walls would buckle: plantgrowth.models.stability); with ``numerics.on_instability = "stop"``,
-  the default, the run stops there instead (runner.timeloop);
+- a connected non-elliptic set larger than one cell appears (the material law loses strong
+  ellipticity there: plantgrowth.models.stability), and again each time the non-elliptic area
+  enters a higher power of two of the tissue's (doubling bands, like the strain bands: a resumed
+  run warns as the whole run would); with ``numerics.on_instability = "stop"``, the default, the
+  run stops at the first such set instead (runner.timeloop);
+- singular points (non-elliptic sets within one cell: plantgrowth.models.nonelliptic_sets) are
+  reported once per place (:meth:`StepWarnings.singular_points`), never a stop;
 - the clamp M is active (some ``|G_ij| = M``) on more than ``MAX_CLAMPED_FRACTION`` (10%) of the
   tissue, area-weighted (macro: fine cells, micro: biological cells by their reference areas).
 
-The last three: each kind at most once per run.
+The clamp and the loads: each at most once per run.
 """
 
 from __future__ import annotations
 
+import math
 from bisect import bisect_right
 
 from plantgrowth.models.elastic_strain import StrainPeak
+from plantgrowth.models.nonelliptic_sets import NonellipticSet
+from plantgrowth.models.stability import Ellipticity
 from plantgrowth.models.step import StepResult
 
 STRAIN_BANDS = (0.2, 0.5, 1.0)
@@ -48,12 +55,18 @@ class StepWarnings:
             advise).
         strain_reached: the largest elastic strain of the steps before (a resumed run's kept
             summary rows; 0 for a new run): its band does not warn again.
+        nonelliptic_reached: likewise the largest ``nonelliptic_area_fraction`` before.
     """
 
-    def __init__(self, kinematics: str = "linear", strain_reached: float = 0.0) -> None:
+    def __init__(
+        self, kinematics: str = "linear", strain_reached: float = 0.0,
+        nonelliptic_reached: float = 0.0,
+    ) -> None:  # fmt: skip
         self.given: set[str] = set()
         self.kinematics = kinematics
         self.strain_band = bisect_right(STRAIN_BANDS, strain_reached)
+        self.nonelliptic_band = doubling_band(nonelliptic_reached)
+        self.singular_places: list[NonellipticSet] = []
 
     def check(self, step: int, t: float, result: StepResult) -> list[str]:
         """New warnings for this step's result."""
@@ -71,9 +84,40 @@ class StepWarnings:
         balance = result.load_balance
         if balance is not None and balance.imbalance > WARN_LOAD_IMBALANCE:
             out += self._once("loads", f"step {step}, t = {t:g}: {balance.describe()}")
-        lost = result.ellipticity
-        if lost is not None and lost.nonelliptic_area_fraction > 0.0:
-            out += self._once("ellipticity", f"step {step}, t = {t:g}: {lost.describe(t)}")
+        if result.ellipticity is not None:
+            out += self._nonelliptic(step, t, result.ellipticity)
+        return out
+
+    def _nonelliptic(self, step: int, t: float, lost: Ellipticity) -> list[str]:
+        """The warning of a non-elliptic area larger than a cell that first appears or enters a
+        higher doubling band (none otherwise)."""
+        band = doubling_band(lost.nonelliptic_area_fraction)
+        if band is None or (self.nonelliptic_band is not None and band <= self.nonelliptic_band):
+            return []
+        grown = "appeared" if self.nonelliptic_band is None else "at least doubled"
+        self.nonelliptic_band = band
+        return [
+            f"step {step}, t = {t:g}: a non-elliptic area larger than a cell {grown} "
+            f"({lost.nonelliptic_area_fraction:.3g} of the tissue): {lost.describe(t)}"
+        ]
+
+    def singular_points(self, step: int, t: float, lost: Ellipticity | None) -> list[str]:
+        """Reports of the singular points (non-elliptic sets within one cell) at places not
+        reported before: a place is new unless it lies within a cell's diameter of one
+        reported."""
+        out = []
+        for point in () if lost is None else lost.singular:
+            if any(_near(point, seen) for seen in self.singular_places):
+                continue
+            self.singular_places.append(point)
+            out.append(
+                f"step {step}, t = {t:g}: a singular point at {point.where()}: a non-elliptic "
+                f"set of {point.cells:.2g} of a cell's area (smallest acoustic eigenvalue "
+                f"{point.smallest:.3g} times the shear modulus), beneath the model's resolution "
+                "of one cell (a corner of a held edge, a re-entrant corner, a sharp jump of a "
+                "parameter): the fields there are not resolved; the run goes on (reported once "
+                "per place; summary.csv column singular_points)"
+            )
         return out
 
     def _strain(self, step: int, t: float, peak: StrainPeak) -> list[str]:
@@ -97,6 +141,18 @@ class StepWarnings:
             return []
         self.given.add(kind)
         return [text]
+
+
+def doubling_band(fraction: float) -> int | None:
+    """``floor(log2(fraction))`` (None for 0): the non-elliptic area warns again each time it
+    enters a higher band, i.e. at least doubles, the same in a resumed run as in a whole one."""
+    return math.floor(math.log2(fraction)) if fraction > 0.0 else None
+
+
+def _near(a: NonellipticSet, b: NonellipticSet) -> bool:
+    """True if two sets lie within a cell's diameter, ``sqrt(Jg |Y|)``, of each other."""
+    reach = math.sqrt(max(a.cell_area, b.cell_area))
+    return math.dist(a.place, b.place) <= reach
 
 
 def strain_advice(band: int, kinematics: str) -> str:

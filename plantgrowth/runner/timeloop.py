@@ -37,8 +37,8 @@ SUMMARY_COLUMNS = [
     "step", "t", "area", "growth_rate_11", "growth_rate_22", "growth_rate_area",
     "u1_max", "u2_max", "det_Fg_min", "n_cell_solves", "residual",
     "substeps", "seconds", "seconds_cells", "seconds_solve", "seconds_growth", "seconds_io",
-    "nonelliptic_area_fraction", "elastic_strain_max", "elastic_strain_max_x1",
-    "elastic_strain_max_x2",
+    "nonelliptic_area_fraction", "singular_points", "elastic_strain_max",
+    "elastic_strain_max_x1", "elastic_strain_max_x2",
 ]  # fmt: skip
 NEWTON_COLUMNS = ["newton_iterations", "newton_residual"]
 """Appended to SUMMARY_COLUMNS for ``kinematics = "finite"`` (linear runs keep those above)."""
@@ -200,7 +200,10 @@ def run_model(
         log.info("resuming after step %d (t = %g)", last, last * dt)
     rows = []
     # a resumed run warns only for strain bands its kept steps had not reached
-    warnings = StepWarnings(scene.kinematics, summary.kept_max("elastic_strain_max"))
+    warnings = StepWarnings(
+        scene.kinematics, summary.kept_max("elastic_strain_max"),
+        summary.kept_max("nonelliptic_area_fraction"),
+    )  # fmt: skip
     prefix = f"{label}: " if label else ""
     start = time.perf_counter()
     with interrupt_at_step_end() as interrupt:
@@ -232,6 +235,7 @@ def run_model(
                 row.update(zip(HELD_COLUMNS, result.held_force, strict=True))
             if result.ellipticity is not None:
                 row["nonelliptic_area_fraction"] = result.ellipticity.nonelliptic_area_fraction
+                row["singular_points"] = len(result.ellipticity.singular)
             peak = result.elastic_strain
             row.update(elastic_strain_max=peak.value, elastic_strain_max_x1=peak.place[0],
                        elastic_strain_max_x2=peak.place[1])  # fmt: skip
@@ -254,8 +258,10 @@ def run_model(
                 row["n_cell_solves"], newton, left,
             )  # fmt: skip
             lost = result.ellipticity
+            for text in warnings.singular_points(step, t, lost):
+                log.warning("%ssingular point: %s", prefix, text)
             stop = scene.numerics.on_instability == "stop"
-            if stop and lost is not None and lost.nonelliptic_area_fraction > 0.0:
+            if stop and lost is not None and lost.lost:
                 raise RunError(
                     f"step {step}, t = {t:g}: {lost.describe(t)} (the run stops; "
                     'numerics.on_instability = "warn" goes on)'

@@ -27,6 +27,7 @@ from plantgrowth.base.blocks import Block, CanonicalBlocks, root_blocks
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import dof_state, restore_dofs
 from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS, det2
+from plantgrowth.meshes.honeycomb import lattice_area
 from plantgrowth.models import diagnostics, growth, stability
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
@@ -125,6 +126,7 @@ class MacroModel:
         self.nu_nodes = scene.material.nu(*at_nodes)
         self.E = scene.material.E(*(at_cells if self.per_cell else at_nodes))
         self.P1 = scene.P1(*at_cells)
+        self.cell_area = lattice_area(*(f(*at_cells) for f in scene.cell.fields()[:3]))
         self.eta, self.tau = scene.growth.eta(*at_cells), scene.growth.tau(*at_cells)
         # (n_cells, 2): docs/model.md section 6, P2 = -grad P1 . y
         self.grad_P1 = scene.P1.gradient(*at_cells)
@@ -299,12 +301,7 @@ class MacroModel:
             + diagnostics.inversion_problems(det2(np.eye(2) + grad_u), midpoints),
             self.comm,
         )
-        stable = problem.stability_values(grad_u)
-        n_owned = problem.n_owned
-        owned = stable[:n_owned]
-        ellipticity = stability.check(
-            owned, owned < 0.0, problem.areas, midpoints[:n_owned], self.comm
-        )
+        ellipticity = self._ellipticity(grad_u, Fg)
         problem.set_cell_values(self.out.G, G)
         if "stability" in self.out.fields:
             exact = problem.stability_values(grad_u, screened=False)
@@ -333,6 +330,19 @@ class MacroModel:
             *((newton.iterations, newton.residual) if newton else (0, 0.0)),
             problem.loads.balance() if self.scene.loads and self.scene.pinned else None,
             ellipticity, problem.held.force() if self.scene.supports else None,
+        )  # fmt: skip
+
+    def _ellipticity(self, grad_u: np.ndarray, Fg: np.ndarray) -> stability.Ellipticity:
+        """Collective: the step's stability check with the resolution rule: the owned fine
+        cells' values with the walls' stress, connected by their vertices, each set against the
+        grown area of a cell there, ``Jg |Y|`` (docs/model.md section 10)."""
+        problem, n = self.problem, self.problem.n_owned
+        Fe, S, C = problem.walls_state(grad_u)
+        values = stability.normalised(Fe[:n], S[:n], C[:n], screened=True)
+        Jg = det2(Fg[:n])
+        return stability.check(
+            values, problem.areas, problem.midpoints[:n, :2], self.comm, S[:n],
+            problem.cell_vertices, Jg * problem.areas, Jg * self.cell_area[:n],
         )  # fmt: skip
 
     def measures(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, float]:

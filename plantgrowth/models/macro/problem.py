@@ -24,7 +24,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth.base.errors import RunError
-from plantgrowth.base.tensors import from_voigt_stress, inv2, voigt_vector
+from plantgrowth.base.tensors import inv2
 from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction, grown_length
 from plantgrowth.models import growth, stability
@@ -100,6 +100,13 @@ def rectangle_mesh(scene: Scene, comm: MPI.Comm) -> mesh.Mesh:
     return mesh.create_rectangle(comm, corners, [nx, ny], mesh.CellType.triangle)
 
 
+def global_cell_vertices(msh: mesh.Mesh, n: int) -> np.ndarray:
+    """(n, 3) the global indices of the first n cells' vertices (the same on every rank
+    count: what connects fine cells across ranks, plantgrowth.models.nonelliptic_sets)."""
+    local = msh.topology.connectivity(2, 0).array.reshape(-1, 3)[:n]
+    return msh.topology.index_map(0).local_to_global(local.reshape(-1)).reshape(-1, 3)
+
+
 class MacroProblem:
     """Fine mesh, pruned forms, boundary conditions and linear solver of the macro problem.
 
@@ -131,6 +138,7 @@ class MacroProblem:
         self.areas = areas.array[self.Q0.dofmap.list.array[: self.n_owned]].copy()
         self.total_area = comm.allreduce(self.areas.sum(), op=MPI.SUM)
         self.bounding_box = mesh_bounding_box(msh)
+        self.cell_vertices = global_cell_vertices(msh, self.n_owned)
 
         psi = ufl.TestFunction(self.V)
         self.finite = scene.kinematics == "finite"
@@ -333,10 +341,18 @@ class MacroProblem:
         self, grad_u: np.ndarray | None = None, screened: bool = True
     ) -> np.ndarray:
         """(n_cells,) the normalised smallest acoustic eigenvalue of each cell at the current u
-        (plantgrowth.models.stability.normalised; ``screened``: exact in sign only): the finite
-        law ``S = E_hom Ee + (K_hom + (phi_w - 1) I) P1`` at ``Fe = (I + grad u) Fg^-1``, or for
-        linear kinematics at ``Ee = eps_el`` (``grad_u``: the current one if the caller has
-        it)."""
+        (plantgrowth.models.stability.normalised; ``screened``: exact in sign only) with the
+        walls' stress ``S_w = E_hom Ee + K_hom P1`` (the lumens' follower pressure adds nothing
+        to the acoustic tensor: docs/model.md section 10) at ``Fe = (I + grad u) Fg^-1``, or for
+        linear kinematics at ``Ee = eps_el`` (``grad_u``: the current one if the caller has it)."""
+        Fe, S, C = self.walls_state(grad_u)
+        return stability.normalised(Fe, S, C, screened)
+
+    def walls_state(
+        self, grad_u: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Fe, S_w, C) per cell: the elastic deformation (linear kinematics: the stretch
+        ``sqrt(I + 2 eps_el)``), the walls' stress ``E_hom Ee + K_hom P1`` and E_hom (Voigt)."""
         grad_u = self.grad_u() if grad_u is None else grad_u
         Fg = self.cell_values(self.Fg).reshape(-1, 2, 2)
         C = self.cell_values(self.C).reshape(-1, 3, 3)
@@ -346,13 +362,8 @@ class MacroProblem:
         else:
             Ee = growth.elastic_strain(grad_u, Fg)
             Fe = stability.stretch_of_strain(Ee)
-        S = from_voigt_stress(np.einsum("nij,nj->ni", C, voigt_vector(Ee)))
-        if self.K is not None:
-            phi_w = self.cell_values(self.phi_w)[:, 0]
-            prestress = self.cell_values(self.K).reshape(-1, 2, 2)
-            prestress = prestress + (phi_w - 1.0)[:, None, None] * np.eye(2)
-            S = S + prestress * self.P1_cells[:, None, None]
-        return stability.normalised(Fe, S, C, screened)
+        K = None if self.K is None else self.cell_values(self.K).reshape(-1, 2, 2)
+        return Fe, growth.homogenized_stress(C, Ee, K, self.P1_cells), C
 
     def smallest_stability(self) -> tuple[float, np.ndarray]:
         """Collective: the smallest :meth:`stability_values` of the owned cells and where."""

@@ -40,15 +40,23 @@ class WallStability:
     def values(self, screened: bool = True) -> np.ndarray:
         """(n,) normalised smallest acoustic eigenvalue at each sample point, now (``screened``:
         exact in sign only, plantgrowth.models.stability.normalised)."""
-        T = np.stack([p.values() for p in self._parts], axis=1).reshape(-1, 2, 2)
-        Fe = T if self.finite else stability.stretch_of_strain(0.5 * (T + np.swapaxes(T, 1, 2)))
+        Fe = self._deformation()
         return stability.normalised(Fe, stability.svk_stress(Fe, self._C), self._C, screened)
 
+    def _deformation(self) -> np.ndarray:
+        """(n, 2, 2) Fe at the samples (linear kinematics: the stretch ``sqrt(I + 2 eps_el)``)."""
+        T = np.stack([p.values() for p in self._parts], axis=1).reshape(-1, 2, 2)
+        return T if self.finite else stability.stretch_of_strain(0.5 * (T + np.swapaxes(T, 1, 2)))
+
     def check(self) -> stability.Ellipticity:
-        """Collective: the step's :class:`plantgrowth.models.stability.Ellipticity`."""
-        values = self.values()
-        per_cell = values.reshape(-1, SAMPLES_PER_CELL).min(axis=1)
-        return stability.check(values, per_cell < 0.0, self.areas, self.points, self.comm)
+        """Collective: the step's :class:`plantgrowth.models.stability.Ellipticity`. The micro
+        model resolves every wall, so every non-elliptic set counts (no resolution limit)."""
+        Fe = self._deformation()
+        values = stability.normalised(Fe, stability.svk_stress(Fe, self._C), self._C, True)
+        per_cell = values.reshape(-1, SAMPLES_PER_CELL)
+        worst = np.arange(len(per_cell)) * SAMPLES_PER_CELL + np.argmin(per_cell, axis=1)
+        S = stability.svk_stress(Fe[worst], self._C[worst])
+        return stability.check(values[worst], self.areas, self.points[worst], self.comm, S)
 
     def smallest(self) -> tuple[float, np.ndarray]:
         """Collective: the smallest value over all ranks and where (Newton's ranking)."""
