@@ -248,15 +248,16 @@ def test_micro_kinematics_differ_at_second_order_in_the_turgor_load():
         assert 3.5 <= d[0] / d[1] <= 4.5
 
 
-def test_gradient_scene_growth_rates_agree_to_the_square_of_the_elastic_strain():
+def test_gradient_scene_growth_rates_agree_to_first_order_in_the_elastic_strain():
     """The E-gradient strain scene (scenes/gradient_E_strain.toml, coarse), three steps: the
-    growth rates of the two kinematics differ by O(eps^2) relative to the driving strain
-    eps_hom / phi_w (Ee - eps_el = grad(u)^T grad(u) / 2 for Fg ~ I). Measured: max |G_fin -
-    G_lin| = 5.4e-6 against max |G| = 1.05e-2 with elastic strains up to eps = 3.6e-2, i.e.
-    dG = 0.39 |G| eps^2; the bound |G| eps^2 fails for any first-order difference (~|G| eps).
-    On the 14 shipped gradient scenes at their own resolution (scripts/studies/finite_vs_linear.py,
-    docs/finite_kinematics.md) the mean tr G differs by 1e-10-4.3e-6 at t = 1 and by
-    1e-10-1.7e-3 at t = 60, the area by 2.5e-4-3.7e-2 at t = 60."""
+    growth rates of the two kinematics agree to first order (docs/model.md section 10 (1)):
+    they differ by O(eps) relative, eps the elastic strain. With the lumens' water a follower
+    pressure (section 10 as amended) the turgor load itself differs at O(eps P1) between the
+    kinematics, so the difference is first order in eps (it was O(eps^2) with the dead load
+    of the earlier law). Measured: max |G_fin - G_lin| = 1.28e-4 against max |G| = 1.05e-2 with
+    elastic strains up to eps = 3.6e-2, i.e. dG = 0.33 |G| eps; the bound |G| eps fails for a
+    difference of order |G| (a wrong law), and dG > |G| eps^2 shows the follower's first-order
+    part is there (the dead load's measured 0.39 |G| eps^2 fails it)."""
     rows = {}
     msh = rectangle_mesh(scene(), MPI.COMM_WORLD)
     for kinematics in ("linear", "finite"):
@@ -271,9 +272,8 @@ def test_gradient_scene_growth_rates_agree_to_the_square_of_the_elastic_strain()
         rows[kinematics] = (result.G[: model.problem.n_owned], result.elastic_strain.value)
     G_lin, strain = rows["linear"]
     dG = global_max(rows["finite"][0] - G_lin)
-    print(f"max |dG| = {dG:.3g}, max |G| = {global_max(G_lin):.3g}, strain {strain:.3g}")
-    assert dG <= global_max(G_lin) * strain**2
-    assert dG > 0.0  # the kinematics do differ
+    assert dG <= global_max(G_lin) * strain
+    assert dG > global_max(G_lin) * strain**2
 
 
 # --- Newton -------------------------------------------------------------------------------------

@@ -284,9 +284,9 @@ class Ellipticity:
 
 def principal_stresses(S: np.ndarray) -> tuple[np.ndarray, float]:
     """((2,) the principal values of a symmetric 2 x 2 stress, ascending; the angle of the
-    smaller one's direction, degrees from x1 in [0, 180))."""
+    smaller one's direction, whole degrees from x1 in [0, 180))."""
     values, vectors = np.linalg.eigh(0.5 * (S + S.T))
-    return values, float(np.degrees(np.arctan2(vectors[1, 0], vectors[0, 0])) % 180.0)
+    return values, round(float(np.degrees(np.arctan2(vectors[1, 0], vectors[0, 0])))) % 180
 
 
 def check(

@@ -43,7 +43,6 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
-from plantgrowth.base.tensors import from_voigt_stress, voigt_vector
 from plantgrowth.models import growth, stability
 from plantgrowth.models.diagnostics import RESIDUAL_BOUND
 from plantgrowth.models.macro.model import MacroModel
@@ -297,22 +296,16 @@ def evaluate(scene: Scene, outdir: Path, comm: MPI.Comm) -> dict[str, Any]:
 def unstable_state(model: MacroModel) -> dict[str, Any]:
     """Collective: the state where the law is least elliptic (the current step): its place, the
     normalised acoustic eigenvalue, the principal elastic strains (eps_el or Ee) and the
-    principal values of the wall stress ``E_hom Ee`` and of the net stress (wall stress plus
-    the turgor term ``(K_hom + (phi_w - 1) I) P1``), both over the mean shear modulus, the
-    direction of the net stress's smaller principal value (degrees from x1, in [0, 180)), and
-    the bounding box of the non-elliptic cells (reference coordinates)."""
+    principal values of the walls' stress ``S_w = E_hom Ee + K_hom P1`` (the stability
+    criterion's, docs/model.md section 10) over the mean shear modulus, the direction of its
+    smaller principal value (degrees from x1, in [0, 180)), and the bounding box of the
+    non-elliptic cells (reference coordinates)."""
     p, n = model.problem, model.problem.n_owned
     values = p.stability_values(screened=False)[:n]
     Fg = p.cell_values(p.Fg).reshape(-1, 2, 2)[:n]
     kinematics = growth.green_lagrange_strain if p.finite else growth.elastic_strain
     eps = kinematics(p.grad_u()[:n], Fg)
-    C = p.cell_values(p.C).reshape(-1, 3, 3)[:n]
-    wall = from_voigt_stress(np.einsum("nij,nj->ni", C, voigt_vector(eps)))
-    net = wall.copy()
-    if p.K is not None:
-        phi_w = p.cell_values(p.phi_w)[:n, 0]
-        turgor = p.cell_values(p.K).reshape(-1, 2, 2)[:n] + (phi_w - 1.0)[:, None, None] * np.eye(2)
-        net += turgor * p.P1_cells[:n, None, None]
+    _, walls, C = (x[:n] for x in p.walls_state())
     mu = stability.mean_shear_modulus(C)
     mine = None
     if n:
@@ -320,9 +313,8 @@ def unstable_state(model: MacroModel) -> dict[str, Any]:
         mine = (float(values[i]), {
             "x": [float(v) for v in p.midpoints[i, :2]], "stability": float(values[i]),
             "strain": np.linalg.eigvalsh(eps[i]).tolist(),
-            "wall_stress_over_mu": (np.linalg.eigvalsh(wall[i]) / mu[i]).tolist(),
-            "net_stress_over_mu": (np.linalg.eigvalsh(net[i]) / mu[i]).tolist(),
-            "compression_angle": _angle(np.linalg.eigh(net[i])[1][:, 0]),
+            "wall_stress_over_mu": (np.linalg.eigvalsh(walls[i]) / mu[i]).tolist(),
+            "compression_angle": _angle(np.linalg.eigh(walls[i])[1][:, 0]),
         })  # fmt: skip
     worst = min((m for m in model.comm.allgather(mine) if m is not None), key=lambda m: m[0])[1]
     bad = np.concatenate(model.comm.allgather(p.midpoints[:n, :2][values < 0.0]))

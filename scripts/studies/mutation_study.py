@@ -197,8 +197,7 @@ MUTANTS = (
     Mutant(
         "cell_growth_wrong_cell", "plantgrowth/unitcell/homogenization.py", "wrong index",
         "the surrogate asked at another cell's stretch (the queries' s reversed)",
-        (("which, s_q, b_q = pairs.indices, s[point], b[point]",
-          "which, s_q, b_q = pairs.indices, s[point][::-1], b[point]"),),
+        (("s_q, b_q = s[point], b[point]", "s_q, b_q = s[point][::-1], b[point]"),),
     ),
     Mutant(
         "table_weights_dropped", "plantgrowth/unitcell/homogenization.py", "factor",
@@ -282,8 +281,29 @@ MUTANTS = (
     Mutant(
         "finite_macro_stress_order", "forms/finite.py", "transposition",
         "macro first Piola stress from S Fe instead of Fe S",
-        (("growth_weighted_work(Fe * macro_stress(u, Fg, C, K, phi_w, P1), psi, Fg, dx)",
-          "growth_weighted_work(macro_stress(u, Fg, C, K, phi_w, P1) * Fe, psi, Fg, dx)"),),
+        (("P = Fe * walls_macro_stress(u, Fg, C, K, P1)",
+          "P = walls_macro_stress(u, Fg, C, K, P1) * Fe"),),
+    ),
+    # --- issue 36 ----------------------------------------------------------------------------
+    Mutant(
+        "finite_lumens_dead", "forms/finite.py", "wrong configuration",
+        "the lumens' water as the dead stress -(1 - phi_w) P1 Fe (the earlier law) instead of "
+        "the follower -(1 - phi_w) P1 cof(Fe)",
+        (("return -(1.0 - phi_w) * P1 * cofactor(Fe)", "return -(1.0 - phi_w) * P1 * Fe"),),
+    ),
+    Mutant(
+        "stability_total_stress", "plantgrowth/models/macro/problem.py", "wrong law or integrator",
+        "the acoustic tensor with the total stress S_w - (1 - phi_w) P1 I (walls and lumens)",
+        (("K = None if self.K is None else self.cell_values(self.K).reshape(-1, 2, 2)",
+          "K = None if self.K is None else self.cell_values(self.K).reshape(-1, 2, 2) - (\n"
+          "            1.0 - self.cell_values(self.phi_w)[:, :, None]) * np.eye(2)"),),
+    ),
+    Mutant(
+        "resolution_by_fine_cells", "plantgrowth/models/nonelliptic_sets.py", "wrong scale",
+        "the resolution rule by fine cells (a set of at most four fine cells is a singular "
+        "point) instead of its area against a cell's grown area",
+        (("cell_area = float(np.dot(grown[mine], cell_areas[mine]) / area) if area > 0.0 else 0.0",
+          "cell_area = 2.0 * area if len(mine) <= 4 else 0.0"),),
     ),
     # --- issue 20 ----------------------------------------------------------------------------
     Mutant(
