@@ -8,7 +8,8 @@
 #      --system-site-packages (so the Debian builds are seen; NEVER pip-install
 #      dolfinx, gmsh, h5py, petsc4py, mpi4py, numpy or scipy into it);
 #   3. pip-installs this repo in editable mode plus the dev tools into .venv;
-#      then compiles its bytecode (editable installs are not compiled by pip);
+#      then compiles its bytecode (editable installs are not compiled by pip) and installs
+#      the Jupyter kernel "plantgrowth" (.venv's python) for docs/tutorial.ipynb;
 #   4. as root, links /usr/local/bin/plantgrowth -> .venv/bin/plantgrowth.
 set -euo pipefail
 
@@ -31,6 +32,10 @@ APT_PACKAGES=(
     python3-pytest
     python3-matplotlib
     python3-scipy
+    python3-yaml      # tests/test_citation.py reads CITATION.cff
+    python3-nbformat  # docs/tutorial.ipynb: tests/test_tutorial.py and
+    python3-nbclient  # scripts/figures/render_tutorial.py run it in a kernel
+    python3-ipykernel # of .venv's python (the kernelspec "plantgrowth", step 3c)
     python3-venv
     python3-pip
     git
@@ -108,6 +113,21 @@ fi
 # memory (Python checks the source's time stamp), never run stale.
 "$VENV/bin/python" -m compileall -q plantgrowth forms meshes
 log "compiled plantgrowth's bytecode"
+
+# --- 3c. Jupyter kernel --------------------------------------------------------------
+# docs/tutorial.ipynb runs in the kernelspec "plantgrowth": .venv's python, which imports this
+# repository (Debian's own "python3" kernel runs /usr/bin/python3, which does not). Installed
+# into .venv/share/jupyter/kernels, where Jupyter started from .venv finds it. The debugger's
+# warning about frozen modules (debugpy, at every kernel start) is silenced.
+KERNEL="$VENV/share/jupyter/kernels/plantgrowth/kernel.json"
+if [[ -f "$KERNEL" ]] && grep -q "\"$VENV/bin/python\"" "$KERNEL"; then
+    log "Jupyter kernel plantgrowth already installed in .venv"
+else
+    PYDEVD_DISABLE_FILE_VALIDATION=1 "$VENV/bin/python" -Xfrozen_modules=off -m ipykernel \
+        install --sys-prefix --name plantgrowth --display-name "Python (plantgrowth)" \
+        --env PYDEVD_DISABLE_FILE_VALIDATION 1 >/dev/null
+    log "installed the Jupyter kernel plantgrowth (.venv's python)"
+fi
 
 # --- 4. CLI on PATH ---------------------------------------------------------------
 if [[ "$(id -u)" -eq 0 ]]; then

@@ -7,7 +7,8 @@ numbers, bad {from, to} fields and loads, bad expressions, expression fields out
 the tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the
 mesh) and named parameters (undefined, shadowing x1, x2, s, pi or a function), bad fibre walls
 and feedback (and valid micro ones, which the runner refuses), zip sweeps whose lists differ in
-length), bad command lines and output paths that cannot be written. Every case
+length), bad command lines (``render`` and ``export`` of runs that are not there, into files
+they must not write) and output paths that cannot be written. Every case
 must end with exit code 2 and a one-line ``plantgrowth: error: ...`` naming the field
 (``Case.expect``), before anything is written.
 
@@ -1035,6 +1036,8 @@ def _cli_case(rng: random.Random, cls: str):
         )
     if cls == "cli_render":
         return _cli_render(rng)
+    if cls == "cli_export":
+        return _cli_export(rng)
     if cls == "cli_sweep_zip":
         return _cli_sweep_zip(rng)
     # cli_parse: unknown sub-commands and flags, missing or malformed option values
@@ -1123,6 +1126,36 @@ def _cli_render(rng: random.Random):
     return run, ["render", "{dir}/run", "-o", "{dir}/pic.png"], ("--field",)
 
 
+def _cli_export(rng: random.Random):
+    """``plantgrowth export`` asked for what it cannot do, checked before any run is read: a
+    missing or non-run DIR, a table that exists (no --overwrite), is not a .csv, lies inside DIR
+    or in a directory that does not exist, a malformed --time, no --field."""
+    what = rng.choice(["no_dir", "not_a_run", "exists", "suffix", "inside", "no_parent",
+                       "time", "no_field"])  # fmt: skip
+    field = rng.choice(["G", "u", "Fg", "trG", _name(rng)])
+    base = ["export", "{dir}/run", "--field", field]
+    if what == "no_dir":
+        return (), [*base, "-o", "{dir}/t.csv"], ("{dir}/run", "no such directory")
+    run = (("run/keep.txt", "a user's file\n"),)
+    if what == "not_a_run":
+        return run, [*base, "-o", "{dir}/t.csv"], ("not a plantgrowth run directory",)
+    if what == "exists":
+        files = (*run, ("t.csv", "x1,x2\n0,0\n"))
+        return files, [*base, "-o", "{dir}/t.csv"], ("-o", "exists", "--overwrite")
+    if what == "suffix":
+        name = rng.choice(["t.txt", "t", "t.csv.gz", "t.png", "t.tsv"])
+        return run, [*base, "-o", f"{{dir}}/{name}"], ("-o", ".csv")
+    if what == "inside":
+        return run, [*base, "-o", "{dir}/run/t.csv"], ("-o", "inside the run directory")
+    if what == "no_parent":
+        out = "{dir}/" + "/".join(_name(rng) for _ in range(rng.randint(1, 3))) + "/t.csv"
+        return run, [*base, "-o", out], ("-o", "does not exist")
+    if what == "time":
+        value = rng.choice(["abc", "1,5", "", "t=1", "last", "ALL"])
+        return run, [*base, "--time", value, "-o", "{dir}/t.csv"], ("--time",)
+    return run, ["export", "{dir}/run", "-o", "{dir}/t.csv"], ("--field",)
+
+
 def _setup_case(rng: random.Random):
     """An output directory that cannot be written: under a regular file, the file itself, /proc."""
     what = rng.choice(["under_file", "under_file", "is_file", "proc", "compare_under_file"])
@@ -1166,13 +1199,15 @@ CLASSES = {  # class -> relative weight
     "cli_compare": 1.5,
     "cli_run": 2.0,
     "cli_render": 2.0,
+    "cli_export": 1.5,
     "cli_sweep_zip": 1.5,
     "cli_parse": 3.0,
     "output_dir": 2.0,
     "unbounded_size": 0.25,
 }
 FILE_CLASSES = ("empty_file", "binary_garbage", "toml_syntax")
-CLI_CLASSES = ("cli_cell", "cli_compare", "cli_run", "cli_render", "cli_sweep_zip", "cli_parse")
+CLI_CLASSES = ("cli_cell", "cli_compare", "cli_run", "cli_render", "cli_export", "cli_sweep_zip",
+               "cli_parse")  # fmt: skip
 
 
 def _scene_argv(rng: random.Random, files: list) -> list[str]:

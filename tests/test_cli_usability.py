@@ -21,7 +21,7 @@ from mpi4py import MPI
 from plantgrowth.cli import build_parser
 from plantgrowth.scene import SceneError, parse_scene
 
-COMMANDS = ("cell", "run", "compare", "validate", "sweep", "render")
+COMMANDS = ("cell", "run", "compare", "validate", "sweep", "render", "export")
 SMALL = (
     '[tissue]\nh = 0.5\n[growth]\nlaw = "stress"\n{growth}[time]\nt_max = {t_max}\n'
     "[accuracy]\ncell_resolution = 1\n"

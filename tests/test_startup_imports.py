@@ -64,7 +64,8 @@ def heavy(modules: set, names: set) -> set:
 
 @pytest.mark.parametrize(
     "argv", [["--version"], ["--help"], ["run", "--help"], ["validate", "--help"],
-             ["sweep", "--help"], ["render", "--help"], ["compare", "--help"]],
+             ["sweep", "--help"], ["render", "--help"], ["export", "--help"],
+             ["compare", "--help"]],
 )  # fmt: skip
 def test_help_and_version_load_neither_mpi_nor_numpy(argv):
     code, out, modules = loaded(argv)

@@ -1,4 +1,4 @@
-"""Command line: ``plantgrowth run | validate | cell | compare | sweep | render``.
+"""Command line: ``plantgrowth run | validate | cell | compare | sweep | render | export``.
 
 ``main(argv) -> int`` logs on rank 0 only: progress to stdout, warnings to stderr, both to the
 run's ``run.log``. Exit codes: 0 done, 2 bad input (one line naming the field and its valid
@@ -35,7 +35,8 @@ def main(argv: list[str] | None = None) -> int:
             if world().rank == 0:
                 parser.print_help()
             raise InputError(
-                "no command given: choose one of cell, run, compare, validate, sweep, render"
+                "no command given: choose one of cell, run, compare, validate, sweep, render, "
+                "export"
             )
         args = parser.parse_args(argv)
         comm = world()

@@ -8,6 +8,7 @@ import argparse
 import json
 import logging
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -42,23 +43,44 @@ def cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 
 def render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    """Rank 0 draws; the others wait for its outcome and fail the same way."""
-    outcome = None
-    if comm.rank == 0:
+    """Rank 0 draws (:func:`_on_rank0`)."""
+
+    def draw() -> str:
         from plantgrowth.results.picture import render
 
+        if args.dpi is not None and not 10 <= args.dpi <= 1200:
+            raise InputError(f"--dpi = {args.dpi} is out of range: an integer in [10, 1200]")
+        written = render(args.directory, args.field, args.output, args.time, args.component,
+                         args.force, dpi=args.dpi, vmin=args.vmin, vmax=args.vmax,
+                         regions=args.regions, fibres=args.fibres)  # fmt: skip
+        return f"wrote {written}"
+
+    return _on_rank0(draw, "render", comm)
+
+
+def export_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    """Rank 0 writes the table (:func:`_on_rank0`)."""
+
+    def write() -> str:
+        from plantgrowth.results.export import export
+
+        written = export(args.directory, args.field, args.output, args.time, args.overwrite)
+        return f"wrote {written}"
+
+    return _on_rank0(write, "export", comm)
+
+
+def _on_rank0(work: Callable[[], str], command: str, comm: MPI.Comm) -> int:
+    """``work()`` on rank 0 alone (a command that reads a run and writes one file); the other
+    ranks wait for its outcome and fail the same way. Logs the line ``work`` returns."""
+    outcome = None
+    if comm.rank == 0:
         try:
-            if args.dpi is not None and not 10 <= args.dpi <= 1200:
-                raise InputError(f"--dpi = {args.dpi} is out of range: an integer in [10, 1200]")
-            written = render(args.directory, args.field, args.output, args.time,
-                             args.component, args.force, dpi=args.dpi, vmin=args.vmin,
-                             vmax=args.vmax, regions=args.regions,
-                             fibres=args.fibres)  # fmt: skip
-            outcome = ("done", f"wrote {written}")
+            outcome = ("done", work())
         except USER_ERRORS as err:
             outcome = ("error", str(err))
         except BaseException:
-            comm.bcast(("failed", "render failed on rank 0"), root=0)
+            comm.bcast(("failed", f"{command} failed on rank 0"), root=0)
             raise
     kind, text = comm.bcast(outcome, root=0)
     if kind == "error":

@@ -172,6 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
     validate.set_defaults(handler=commands.validate_command, solves=False)
     _add_sweep_parser(sub)
     _add_render_parser(sub)
+    _add_export_parser(sub)
     return parser
 
 
@@ -234,6 +235,34 @@ def _add_render_parser(sub) -> None:
                         "cell from cells.csv's fibre_angle), turned by the elastic deformation "
                         "F Fg^-1 into the drawn tissue")  # fmt: skip
     render.set_defaults(handler=commands.render_command, solves=False)
+
+
+def _add_export_parser(sub) -> None:
+    export = sub.add_parser(
+        "export",
+        parents=[_QUIET],
+        help="write a field of a run as a CSV table, one row per triangle or node",
+        description="Write one written field of a run (finished or still running) as a CSV "
+        "table: one row per triangle (cell fields) or node (u) with step, t, the row's index, "
+        "its reference x1, x2 and deformed x1_deformed, x2_deformed (+ u), then the field's "
+        "components (G_11, G_12, G_21, G_22; u_1, u_2; a scalar under its name), every number "
+        "exact (shortest round-trip form). Reads DIR, never writes into it; under mpirun only "
+        "rank 0 writes.",
+    )
+    export.add_argument("directory", type=Path, metavar="DIR", help="a run's output directory")
+    export.add_argument("--field", required=True, metavar="NAME",
+                        help="a written field (a wrong name lists the run's fields)")  # fmt: skip
+    export.add_argument(
+        "--time", type=_time, default=None, metavar="T",
+        help="a written time (default: the last); all: every written time, one after the "
+        "other (a long table)",
+    )  # fmt: skip
+    export.add_argument("-o", "--output", type=Path, required=True, metavar="FILE",
+                        help="the .csv file to write (outside DIR)")  # fmt: skip
+    export.add_argument("--overwrite", "--force", action="store_true", dest="overwrite",
+                        help="replace FILE if it exists (without it an existing file is "
+                        "refused)")  # fmt: skip
+    export.set_defaults(handler=commands.export_command, solves=False)
 
 
 def _add_sweep_parser(sub) -> None:

@@ -6,11 +6,11 @@ renamed into place, never into the run's directory.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from plantgrowth.results.animate import ANIMATION_DPI, write_animation
 from plantgrowth.results.fibre_glyphs import check_fibres
+from plantgrowth.results.output_file import written_atomically
 from plantgrowth.results.render import (
     ALL_TIMES,
     check_limits,
@@ -43,8 +43,7 @@ def render(
     view = plan_view(series, name, component, times, vmin, vmax)
     if fibres:
         check_fibres(series)
-    tmp = output.with_name(f".{output.stem}.tmp{output.suffix}")
-    try:
+    with written_atomically(output) as tmp:
         if animation:
             write_animation(series, name, component, times, view, title, tmp,
                             dpi or ANIMATION_DPI, regions, fibres)  # fmt: skip
@@ -52,7 +51,4 @@ def render(
             fig = draw(series, name, times[0], component, title, view, regions=regions,
                        fibres=fibres)  # fmt: skip
             fig.savefig(tmp, dpi=dpi or 150, format=output.suffix.lower()[1:])
-        os.replace(tmp, output)
-    finally:
-        tmp.unlink(missing_ok=True)
     return output

@@ -29,6 +29,7 @@ from matplotlib.tri import Triangulation
 from plantgrowth.base.errors import InputError
 from plantgrowth.results.fibre_glyphs import draw_fibres
 from plantgrowth.results.field_hints import bad_component, missing_field
+from plantgrowth.results.output_file import check_new_file
 from plantgrowth.results.reader import COMPONENTS, ResultSeries, boundary_outline, read_series
 from plantgrowth.results.region_outlines import region_outlines
 
@@ -62,18 +63,7 @@ def check_output(output: Path, directory: Path, force: bool, animation: bool = F
             f"-o {output}: the picture must be a {', '.join(PICTURES)} file (or, with --time "
             "all, a .gif animation)"
         )
-    if output.is_dir():
-        raise RenderError(f"-o {output}: is a directory; give a file name ending in {suffix}")
-    if output.exists() and not force:
-        raise RenderError(f"-o {output}: the file exists; give --force to replace it")
-    if not output.parent.resolve().is_dir():
-        raise RenderError(f"-o {output}: the directory {output.parent} does not exist")
-    run = directory.resolve()
-    if run == output.parent.resolve() or run in output.parent.resolve().parents:
-        raise RenderError(
-            f"-o {output}: inside the run directory {directory}; plantgrowth never writes "
-            "into a run after it: choose a path outside it"
-        )
+    check_new_file(output, directory, force, "--force", RenderError)
 
 
 def check_limits(vmin: float | None, vmax: float | None) -> None:
