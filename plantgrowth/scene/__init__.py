@@ -91,9 +91,10 @@ inclined wall length l2 = 1)::
     macro_rtol = 1e-8          # CG's stop |b - A u| / |b| (algebraic error of u <= 4 macro_rtol),
                                # [1e-14, 1e-4] (docs/large_tissues.md)
     [numerics]
-    on_instability = "stop"    # where the material law loses strong ellipticity (the tissue is
-                               # compressed beyond where its walls would buckle): "stop" (a named
-                               # error, every completed step kept) or "warn" (once, and go on)
+    on_instability = "stop"    # where the walls' law loses strong ellipticity on a set larger
+                               # than a cell (they would buckle; smaller sets are singular points,
+                               # reported only): "stop" (a named error, every completed step
+                               # kept) or "warn" (as it appears and doubles, and go on)
     [parameters]               # named numbers (none by default) that every expression may use:
     E_in = 0.3                 # a name of letters, digits and _ (not x1, x2, s, pi or a
                                # function), a finite number of magnitude <= 1e12; replaced by

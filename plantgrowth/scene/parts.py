@@ -364,9 +364,10 @@ INSTABILITY_ACTIONS = ("stop", "warn")
 
 @dataclass(frozen=True)
 class Numerics:
-    """What the run does where the material law loses strong ellipticity (the tissue is
-    compressed beyond where its walls would buckle: plantgrowth.models.stability): "stop" (a
-    named error after the step is written) or "warn" (once, and go on)."""
+    """What the run does where the walls' law loses strong ellipticity on a connected set larger
+    than one cell (the walls would buckle: plantgrowth.models.stability; smaller sets are
+    singular points, reported, never a stop): "stop" (a named error after the step is written)
+    or "warn" (when it appears and each time its area doubles, and go on)."""
 
     on_instability: str = "stop"
 
