@@ -94,8 +94,8 @@ def test_stiff_walls_pushed_past_their_shear_modulus_stop_naming_the_compression
 ):
     """Walls 100 times stiffer pushed at 1.5 times their limit: the linear run stops at step 0
     (exit 3, step 0 written), saying that the walls are compressed, by how much (the principal
-    stress, within 10% of the push: the tissue's stress is uniform but for the ends) and along
-    x1."""
+    stress, within 10% of the push: the tissue's stress is uniform but for the ends), along x1,
+    and how large the set is."""
     push = stiff_push()
     code, err, rows = run(mpi_tmp_path, end_compression(push, E=100.0), capsys)
     assert code == 3 and len(rows) == 1
@@ -106,6 +106,9 @@ def test_stiff_walls_pushed_past_their_shear_modulus_stop_naming_the_compression
         stress = float(message.split("principal stress ")[1].split(" ")[0])
         assert stress == pytest.approx(-push, rel=0.1)
         assert " along 0 degrees from x1" in message
+        # the whole tissue is one connected set (across ranks under mpirun): its grown area,
+        # 6.93 x 3 at t = 0, is 8 cells of |Y| = 2.598
+        assert "the largest connected set 8 cells" in message
         assert (mpi_tmp_path / "out" / "fields.xdmf").exists()
 
 
