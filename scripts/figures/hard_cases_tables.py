@@ -342,7 +342,7 @@ MEANING = {
 
 
 def _state(r: dict | None) -> str:
-    """The least elliptic cell of a stopped run: principal elastic strains and net stress."""
+    """The least elliptic cell of a stopped run: principal elastic strains and walls' stress."""
     u = (r or {}).get("unstable_state")
     if not u:
         return "-"
@@ -350,10 +350,9 @@ def _state(r: dict | None) -> str:
     return (
         f"non-elliptic cells in x1 {box[0]:.3g}-{box[1]:.3g}, x2 {box[2]:.3g}-{box[3]:.3g}; at "
         f"the least elliptic ({u['x'][0]:.3g}, {u['x'][1]:.3g}) principal elastic strains "
-        f"{_g(u['strain'][0], 2)} / {_g(u['strain'][1], 2)}, net stress (walls and turgor) "
-        f"{_g(u['net_stress_over_mu'][0], 2)} / {_g(u['net_stress_over_mu'][1], 2)} x the shear "
-        f"modulus, the first at {u['compression_angle']:.0f} deg from x1 (the walls' part "
-        f"{_g(u['wall_stress_over_mu'][0], 2)} / {_g(u['wall_stress_over_mu'][1], 2)})"
+        f"{_g(u['strain'][0], 2)} / {_g(u['strain'][1], 2)}, the walls' stress S_w "
+        f"{_g(u['wall_stress_over_mu'][0], 2)} / {_g(u['wall_stress_over_mu'][1], 2)} x the shear "
+        f"modulus, the first at {u['compression_angle']:.0f} deg from x1"
     )
 
 
