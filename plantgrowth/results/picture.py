@@ -13,6 +13,7 @@ from plantgrowth.results.animate import ANIMATION_DPI, write_animation
 from plantgrowth.results.fibre_glyphs import check_fibres
 from plantgrowth.results.render import (
     ALL_TIMES,
+    check_field,
     check_limits,
     check_output,
     draw,
@@ -37,8 +38,9 @@ def render(
     directory, output = Path(directory), Path(output)
     animation = time == ALL_TIMES
     check_limits(vmin, vmax)
-    check_output(output, directory, force, animation)
     series = open_run(directory)
+    check_field(series, name)  # a wrong field name first: before "the file exists"
+    check_output(output, directory, force, animation)
     times = pick_times(series, time)
     view = plan_view(series, name, component, times, vmin, vmax)
     if fibres:

@@ -127,12 +127,18 @@ def pick_time(series: ResultSeries, time: float | None) -> float:
     return min(times, key=lambda s: abs(s - time))
 
 
+def check_field(series: ResultSeries, name: str) -> None:
+    """RenderError unless the run wrote the field ``name`` (with what it wrote, and the field
+    it may mean)."""
+    if name not in series.names:
+        raise RenderError(missing_field(series, name))
+
+
 def field_values(
     series: ResultSeries, name: str, t: float, component: str | None
 ) -> tuple[np.ndarray, bool]:
     """(values, on nodes): (n,) for a scalar or a component, (n, 2) for a vector."""
-    if name not in series.names:
-        raise RenderError(missing_field(series, name))
+    check_field(series, name)
     on_nodes = name == "u"
     data = series.displacement(t) if on_nodes else series.cell_field(name, t)
     if data.ndim == 2 and data.shape[1] == 9:

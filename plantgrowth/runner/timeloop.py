@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.base.errors import RunError
+from plantgrowth.base.errors import Interrupted, RunError
 from plantgrowth.models import growth
 from plantgrowth.models.regions import region_columns
 from plantgrowth.models.step import GrowthModel
@@ -67,16 +67,6 @@ def summary_columns(scene: Scene) -> list[str]:
     held = HELD_COLUMNS if scene.supports else []
     fibres = FIBRE_COLUMNS if scene.has_director else []
     return SUMMARY_COLUMNS + newton + loads + held + fibres + region_columns(scene.regions)
-
-
-class Interrupted(Exception):
-    """SIGINT stopped a run cleanly after a completed step."""
-
-    def __init__(self, step: int, t: float) -> None:
-        super().__init__(
-            f"interrupted after step {step} (t = {t:g}); every completed step is saved"
-        )
-        self.step, self.t = step, t
 
 
 @contextmanager

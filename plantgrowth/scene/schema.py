@@ -58,7 +58,14 @@ from plantgrowth.scene.values import (
     set_fields,
     show,
 )
-from plantgrowth.scene.walls import Feedback, Walls, feedback_from, walls_from
+from plantgrowth.scene.walls import (
+    Feedback,
+    Walls,
+    carries_director,
+    default_fields,
+    feedback_from,
+    walls_from,
+)
 
 
 @dataclass(frozen=True)
@@ -100,6 +107,12 @@ class Scene:
                 "output.fields: fibre_direction is the fibre director, but the scene has none: "
                 "give walls.fibre_stiffness (E_f / E, > 0) and walls.fibre_angle (degrees from "
                 "x1), or remove fibre_direction"
+            )
+        if "cue_anisotropy" in self.output.fields and self.feedback is None:
+            raise SceneError(
+                "output.fields: cue_anisotropy is the anisotropy of the [feedback] cue, but the "
+                'scene has no [feedback]: give it (cue = "stress" or "strain", rate >= 0) with '
+                "fibred [walls], or remove cue_anisotropy"
             )
         self.P1.check("pressure.P1", *RANGES["pressure.P1"])
         for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
@@ -150,8 +163,7 @@ class Scene:
     def has_director(self) -> bool:
         """Whether the run carries a fibre director (docs/fibres.md): fibred walls
         (``walls.fibre_stiffness`` other than the constant 0), or ``[feedback]`` turning one."""
-        walls = self.walls
-        return walls is not None and (walls.fibred or self.feedback is not None)
+        return carries_director(self.walls, self.feedback)
 
     @property
     def pinned(self) -> bool:
@@ -444,6 +456,9 @@ def _parse(data: dict, directory: Path) -> Scene:
             else row
             for i, row in enumerate(Fg0)
         ]
+    walls = walls_from(data, t["walls"], tissue, constants)
+    feedback = feedback_from(data, t["feedback"])
+    output = {"fields": default_fields(walls, feedback)} | t["output"]
     return Scene(
         model=data.get("model", "macro"),
         tissue=tissue,
@@ -453,7 +468,7 @@ def _parse(data: dict, directory: Path) -> Scene:
         growth=Growth(**(t["growth"] | f["growth"])),
         time=Time(**t["time"]),
         loads=dict(t["loads"]),
-        output=Output(**t["output"]),
+        output=Output(**output),
         accuracy=Accuracy(**t["accuracy"]),
         micro_nx=t["micro"].get("nx", 16),
         micro_resolution=t["micro"].get("resolution", 2),
@@ -463,8 +478,8 @@ def _parse(data: dict, directory: Path) -> Scene:
         parameters=constants,
         regions=parse_regions(data.get("regions", {}), constants),
         supports=dict(t["supports"]),
-        walls=walls_from(data, t["walls"], tissue, constants),
-        feedback=feedback_from(data, t["feedback"]),
+        walls=walls,
+        feedback=feedback,
     )
 
 

@@ -9,7 +9,14 @@ from typing import TYPE_CHECKING
 from plantgrowth.base.errors import SceneError
 from plantgrowth.scene.field_syntax import parse_field
 from plantgrowth.scene.fields import AnyField
-from plantgrowth.scene.limits import BIG, CUES, RANGES
+from plantgrowth.scene.limits import (
+    BIG,
+    CUES,
+    DEFAULT_OUTPUT,
+    DIRECTOR_OUTPUT,
+    FEEDBACK_OUTPUT,
+    RANGES,
+)
 from plantgrowth.scene.values import choice, in_range, set_fields
 
 if TYPE_CHECKING:
@@ -97,3 +104,18 @@ def feedback_from(data: dict, table: dict) -> Feedback | None:
         if key not in table:
             raise SceneError(f"feedback.{key} is required in [feedback]: {valid}")
     return Feedback(**table)
+
+
+def carries_director(walls: Walls | None, feedback: Feedback | None) -> bool:
+    """Whether a run carries a fibre director (docs/fibres.md): fibred walls
+    (``walls.fibre_stiffness`` other than the constant 0), or ``[feedback]`` turning one."""
+    return walls is not None and (walls.fibred or feedback is not None)
+
+
+def default_fields(walls: Walls | None, feedback: Feedback | None) -> tuple[str, ...]:
+    """``output.fields`` of a scene that lists none: DEFAULT_OUTPUT, with the director
+    (``fibre_direction``) when the run carries one and the cue's anisotropy
+    (``cue_anisotropy``) with ``[feedback]``, so that ``render --fibres`` and ParaView's glyphs
+    find them."""
+    director = DIRECTOR_OUTPUT if carries_director(walls, feedback) else ()
+    return DEFAULT_OUTPUT + director + (FEEDBACK_OUTPUT if feedback is not None else ())
