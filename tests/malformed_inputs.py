@@ -864,6 +864,25 @@ def _bad_fibres(rng: random.Random, scene: dict):
     return scene, expect
 
 
+FIELD_WORDS = {  # an [output] field as a new user names it -> the field the error suggests
+    "stress": "sigma_hom", "Stress": "sigma_hom", "strain": "eps_hom", "growth": "G",
+    "displacement": "u", "fibres": "fibre_direction", "sigma_hm": "sigma_hom", "trg": "trG",
+    "fibre_directon": "fibre_direction", "growth_anisotropie": "growth_anisotropy",
+    "elastic_strian": "elastic_strain",
+}  # fmt: skip
+
+
+def _field_name(rng: random.Random, scene: dict):
+    """An [output] field named by a synonym or a near miss (the error suggests the field it
+    may mean), or cue_anisotropy in a scene without [feedback]."""
+    if rng.random() < 0.2:
+        scene["output"] = {"fields": ["u", "cue_anisotropy"]}
+        return scene, ("output.fields", "cue_anisotropy", "no [feedback]")
+    word, meant = rng.choice(list(FIELD_WORDS.items()))
+    scene["output"] = {"fields": ["u", word]}
+    return scene, ("output.fields[1]", "did you mean", f"'{meant}'")
+
+
 SCENE_MAKERS = {
     "wrong_type": _wrong_type,
     "missing_required": _missing_required,
@@ -887,6 +906,7 @@ SCENE_MAKERS = {
     "bad_parameter": _bad_parameter,
     "bad_supports": _bad_supports,
     "bad_fibres": _bad_fibres,
+    "field_name": _field_name,
 }
 
 TOML_ERRORS = [
@@ -1087,7 +1107,8 @@ def _cli_render(rng: random.Random):
     """``plantgrowth render`` asked for what it cannot do, checked before any run is read: a
     missing or non-run DIR, a picture that exists (no --force), is not a .png, .pdf or .svg (a
     .gif without --time all, or --time all into a picture) or lies inside DIR, a malformed
-    --time or --dpi, --vmin/--vmax not finite or not in order, no --field."""
+    --time or --dpi, --vmin/--vmax not finite or not in order, no --field (an existing picture
+    is refused after the run is read: the run's own error comes first)."""
     what = rng.choice(["no_dir", "not_a_run", "exists", "suffix", "inside", "time", "dpi",
                        "no_field", "limits", "animation"])  # fmt: skip
     field = rng.choice(["trG", "G", "u", "growth_direction", _name(rng)])
@@ -1097,9 +1118,9 @@ def _cli_render(rng: random.Random):
     run = (("run/keep.txt", "a user's file\n"),)
     if what == "not_a_run":
         return run, [*base, "-o", "{dir}/pic.png"], ("DIR", "not a run directory")
-    if what == "exists":
+    if what == "exists":  # refused once the run and its field are read (not a run here)
         files = (*run, ("pic.png", b"\x89PNG not really"))
-        return files, [*base, "-o", "{dir}/pic.png"], ("-o", "exists", "--force")
+        return files, [*base, "-o", "{dir}/pic.png"], ("DIR", "not a run directory")
     if what == "suffix":
         name = rng.choice(["pic.jpg", "pic", "pic.png.txt", "pic.GIF", "pic.eps"])
         return run, [*base, "-o", f"{{dir}}/{name}"], ("-o", ".png")

@@ -96,8 +96,8 @@ GO_ON = '[numerics]\non_instability = "warn"\n'
 E in Pa; a micro tissue at 10x the reference turgor): the loss of ellipticity warns, once."""
 WARNINGS = {  # name -> (scene, the warnings' key phrases in order of appearance)
     "units": ('[material]\nE = 1e6\n[pressure]\nP1 = 0.3e6\n[growth]\nlaw = "stress"\n' + GO_ON,
-              ["pressure.P1 / material.E = 0.3", "largest elastic strain", "clamp",
-               "loss of ellipticity"]),
+              ["pressure.P1 / material.E = 0.3", "grows the tissue's area",
+               "largest elastic strain", "clamp", "loss of ellipticity"]),
     "radians": ('[cell]\ntheta = 0.5236\n[growth]\nlaw = "stress"\n',
                 ["cell.theta = 0.5236 degrees", "largest elastic strain"]),
     "pre_grown": ('[growth]\nlaw = "stress"\nFg0 = [[1.5, 0], [0, 1]]\n',

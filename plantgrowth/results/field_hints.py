@@ -36,7 +36,7 @@ def missing_field(series: ResultSeries, name: str) -> str:
     close = close_fields(name, names)
     if close:
         return f"{text}; did you mean {' or '.join(close)}?"
-    unwritten = close_fields(name, OUTPUT_FIELDS)
+    unwritten = [] if name in OUTPUT_FIELDS else close_fields(name, OUTPUT_FIELDS)
     meant = f" (did you mean {' or '.join(unwritten)}?)" if unwritten else ""
     return (
         f"{text}{meant}; a field is written when the scene's [output] fields lists it: add it "

@@ -51,9 +51,9 @@ class RenderError(InputError):
     """A render request that cannot be met; the message starts with the option."""
 
 
-def check_output(output: Path, directory: Path, force: bool, animation: bool = False) -> None:
+def check_output(output: Path, directory: Path, animation: bool = False) -> None:
     """FILE must be a picture (.png, .pdf, .svg; .gif for an animation) outside DIR, in an
-    existing directory, new unless ``force``."""
+    existing directory (whether it is new: :func:`check_new`, once the field is known)."""
     suffix = output.suffix.lower()
     if animation and suffix != ".gif":
         raise RenderError(f"-o {output}: --time all writes an animation: give a .gif file")
@@ -64,8 +64,6 @@ def check_output(output: Path, directory: Path, force: bool, animation: bool = F
         )
     if output.is_dir():
         raise RenderError(f"-o {output}: is a directory; give a file name ending in {suffix}")
-    if output.exists() and not force:
-        raise RenderError(f"-o {output}: the file exists; give --force to replace it")
     if not output.parent.resolve().is_dir():
         raise RenderError(f"-o {output}: the directory {output.parent} does not exist")
     run = directory.resolve()
@@ -74,6 +72,12 @@ def check_output(output: Path, directory: Path, force: bool, animation: bool = F
             f"-o {output}: inside the run directory {directory}; plantgrowth never writes "
             "into a run after it: choose a path outside it"
         )
+
+
+def check_new(output: Path, force: bool) -> None:
+    """FILE must be new unless ``force``."""
+    if output.exists() and not force:
+        raise RenderError(f"-o {output}: the file exists; give --force to replace it")
 
 
 def check_limits(vmin: float | None, vmax: float | None) -> None:

@@ -232,6 +232,8 @@ def run_model(
             summary.write(row)
             state.write(step, t, snapshot)
             rows.append(row)
+            for text in warnings.growth(step, t, row["growth_rate_area"], dt, scene.growth.law):
+                log.warning("warning: %s%s", prefix, text)
             left = (time.perf_counter() - start) / (step + 1 - first) * (n_steps - step)
             newton = (
                 f"  Newton {result.newton_iterations} it., residual {result.newton_residual:.1e}"
