@@ -100,6 +100,23 @@ def test_cue_anisotropy_is_one_under_a_uniaxial_pull_and_zero_under_turgor():
     assert low >= 0.0 and high <= 1e-9
 
 
+
+def test_micro_cue_anisotropy_is_each_cells_cue_anisotropy():
+    """A micro feedback scene writes cue_anisotropy per cell: on every wall triangle of a cell,
+    (q1 - q2) / (|q1| + |q2|) of the cell's cue, here from numpy's eigenvalues (the code uses
+    closed forms). Tolerance 1e-12: both are round-off apart on |q| ~ 1e-3 (2 x 2 eigenvalues)."""
+    from plantgrowth.models.micro.model import MicroModel
+
+    text = 'model = "micro"\n[micro]\nnx = 2\nresolution = 1\n[growth]\nlaw = "strain"\n'
+    model = MicroModel(_scene(text + WALLS + FEEDBACK), COMM)
+    model.step(model.initial_growth())
+    assert "cue_anisotropy" in [f.name for f in model.outputs]
+    q = np.linalg.eigvalsh(model._cue)  # ascending: q2, q1
+    A = (q[:, 1] - q[:, 0]) / (np.abs(q[:, 0]) + np.abs(q[:, 1]))
+    dofs = model.cue_out.function_space.dofmap.list.array[: model.n_owned]
+    assert np.abs(model.cue_out.x.array[dofs] - A[model.cell_id]).max() <= 1e-12
+    assert A.max() > 0.0  # the cells' own-wall stress is anisotropic: a real check
+
 # --- 8. unknown field names: "did you mean"; render checks the field before the file -----------
 
 
