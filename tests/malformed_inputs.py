@@ -6,10 +6,11 @@ random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, si
 numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
 the tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the
 mesh) and named parameters (undefined, shadowing x1, x2, s, pi or a function), bad fibre walls
-and feedback (and valid micro ones, which the runner refuses), zip sweeps whose lists differ in
-length), bad command lines and output paths that cannot be written. Every case
-must end with exit code 2 and a one-line ``plantgrowth: error: ...`` naming the field
-(``Case.expect``), before anything is written.
+and feedback (and valid micro ones, which the runner refuses), output fields named by a word or
+a typo (the error says which field it may mean), zip sweeps whose lists differ in length), bad
+command lines and output paths that cannot be written. Every case must end with exit code 2 and
+a one-line ``plantgrowth: error: ...`` naming the field (``Case.expect``), before anything is
+written.
 
 A case is materialized in its own empty directory: ``files`` are written there and ``{dir}`` in
 ``argv`` and ``expect`` stands for that directory. Cases with ``isolate = True`` could run for
