@@ -119,3 +119,20 @@ def default_fields(walls: Walls | None, feedback: Feedback | None) -> tuple[str,
     find them."""
     director = DIRECTOR_OUTPUT if carries_director(walls, feedback) else ()
     return DEFAULT_OUTPUT + director + (FEEDBACK_OUTPUT if feedback is not None else ())
+
+
+def check_outputs(fields: tuple[str, ...], walls: Walls | None, feedback: Feedback | None) -> None:
+    """``output.fields`` may list ``fibre_direction`` only with a director and
+    ``cue_anisotropy`` only with ``[feedback]``: SceneError otherwise."""
+    if "fibre_direction" in fields and not carries_director(walls, feedback):
+        raise SceneError(
+            "output.fields: fibre_direction is the fibre director, but the scene has none: "
+            "give walls.fibre_stiffness (E_f / E, > 0) and walls.fibre_angle (degrees from "
+            "x1), or remove fibre_direction"
+        )
+    if "cue_anisotropy" in fields and feedback is None:
+        raise SceneError(
+            "output.fields: cue_anisotropy is the anisotropy of the [feedback] cue, but the "
+            'scene has no [feedback]: give it (cue = "stress" or "strain", rate >= 0) with '
+            "fibred [walls], or remove cue_anisotropy"
+        )
