@@ -286,6 +286,24 @@ def test_ctrl_c_stops_a_parameter_loop_that_catches_exception(tmp_path_factory, 
     assert started == [1.0]
 
 
+def test_ctrl_c_in_compare_exits_130_with_one_line(tmp_path_factory, monkeypatch, capsys):
+    """compare has no handler of its own: main turns pg.Interrupted into exit code 130 and one
+    line (before, the exception escaped main with a traceback)."""
+    from contextlib import nullcontext
+
+    from plantgrowth.runner import timeloop
+
+    monkeypatch.setattr(timeloop, "interrupt_at_step_end", lambda: nullcontext({"set": True}))
+    directory = shared_dir(tmp_path_factory, "compare_stop")
+    scene = directory / "compare.toml"
+    write(scene, '[growth]\nlaw = "stress"\n[time]\nt_max = 2\n[tissue]\nh = 0.5\n'
+                 "[accuracy]\ncell_resolution = 1\n[micro]\nresolution = 1\n")  # fmt: skip
+    code, _, err = call(["compare", scene, "--nx", "2", "-o", directory / "out"], capsys)
+    assert code == 130
+    if RANK0:
+        assert err.splitlines() == ["plantgrowth: interrupted after step 0 (t = 0); every "
+                                    "completed step is saved"], err  # fmt: skip
+
 def test_api_messages_name_the_api_arguments(tmp_path_factory):
     import plantgrowth as pg
 
