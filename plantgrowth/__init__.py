@@ -5,7 +5,8 @@ The Python API, as ``import plantgrowth as pg``:
 - ``pg.load_scene(path)``, ``pg.Scene.from_dict(data)``, ``scene.replace(**{"material.E": 2.0})``;
 - ``pg.run(scene, outdir, comm=None) -> pg.Results``; ``pg.read_results(outdir) -> pg.Results``;
 - ``pg.cell(**parameters) -> dict``;
-- the errors ``pg.InputError`` (bad input; ``pg.SceneError`` for scenes) and ``pg.RunError``.
+- the errors ``pg.InputError`` (bad input; ``pg.SceneError`` for scenes) and ``pg.RunError``;
+  ``pg.Interrupted`` (Ctrl-C stopped a run after a step), a KeyboardInterrupt.
 
 Subpackages, each importing only those after it (tests/test_layout.py checks):
 ``cli`` -> ``api`` -> ``studies`` -> ``runner``, ``results`` -> ``models`` -> ``unitcell`` ->
@@ -34,6 +35,7 @@ _API = {
     "SceneError": "plantgrowth.base.errors",
     "InputError": "plantgrowth.base.errors",
     "RunError": "plantgrowth.base.errors",
+    "Interrupted": "plantgrowth.base.errors",
     "run": "plantgrowth.api",
     "read_results": "plantgrowth.results.run_results",
     "Results": "plantgrowth.results.run_results",

@@ -24,6 +24,7 @@ from mpi4py import MPI
 from plantgrowth.base.errors import InputError
 from plantgrowth.meshes.honeycomb import GeometryError
 from plantgrowth.results.run_results import Results, read_results
+from plantgrowth.runner.rundir import API_OPTIONS, Options
 from plantgrowth.runner.scene_run import run_scene
 from plantgrowth.scene import Scene
 from plantgrowth.unitcell.solver import cell_properties
@@ -39,23 +40,36 @@ def run(
 ) -> Results | dict[str, Results]:  # fmt: skip
     """Run ``scene`` into ``outdir`` as ``plantgrowth run -o OUTDIR`` does (collective on
     ``comm``, default ``MPI.COMM_WORLD``); ``resume`` and ``overwrite`` as ``--resume`` and
-    ``--overwrite``; ``label`` names the run in run.log's first line. Returns the run's
-    :class:`Results` on every rank, once every file is complete (``model = "both"``: a dict
-    with the ``"macro"`` and ``"micro"`` results).
+    ``--overwrite`` (its messages name them ``resume=True`` and ``overwrite=True``); ``label``
+    names the run in run.log's first line. Returns the run's :class:`Results` on every rank,
+    once every file is complete (``model = "both"``: a dict with the ``"macro"`` and
+    ``"micro"`` results).
 
     Raises:
         InputError: the scene is invalid where the run uses it (nothing is written), or the
             directory is refused (in use, holds an earlier run, cannot be resumed).
         RunError: a step failed (every completed step stays readable).
-        Interrupted: SIGINT stopped the run after a completed step.
+        Interrupted: SIGINT stopped the run after a completed step (``pg.Interrupted``, a
+            KeyboardInterrupt: ``except Exception`` does not catch it).
     """
+    return run_with(
+        API_OPTIONS, scene, outdir, comm, resume=resume, overwrite=overwrite, label=label
+    )
+
+
+def run_with(
+    options: Options, scene: Scene, outdir: str | os.PathLike, comm: MPI.Comm | None = None, *,
+    resume: bool = False, overwrite: bool = False, label: str = "plantgrowth.run",
+) -> Results | dict[str, Results]:  # fmt: skip
+    """:func:`run`, its messages naming ``resume`` and ``overwrite`` as ``options`` do (the
+    API's arguments, or the CLI's flags for ``plantgrowth run``)."""
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be a Scene (pg.load_scene, pg.Scene.from_dict), got {scene!r}")
     comm = MPI.COMM_WORLD if comm is None else comm
     outdir = Path(outdir)
     try:
         with _progress_logged(comm):
-            run_scene(scene, outdir, comm, label, resume, overwrite)
+            run_scene(scene, outdir, comm, label, resume, overwrite, options)
     except GeometryError as err:  # an impossible cell met while building a model
         raise InputError(str(err)) from None
     comm.Barrier()  # rank 0 writes the last summary row and log line after the collectives

@@ -6,11 +6,12 @@ random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, si
 numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
 the tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the
 mesh) and named parameters (undefined, shadowing x1, x2, s, pi or a function), bad fibre walls
-and feedback (and valid micro ones, which the runner refuses), zip sweeps whose lists differ in
-length), bad command lines (``render`` and ``export`` of runs that are not there, into files
-they must not write) and output paths that cannot be written. Every case
-must end with exit code 2 and a one-line ``plantgrowth: error: ...`` naming the field
-(``Case.expect``), before anything is written.
+and feedback (and valid micro ones, which the runner refuses), output fields named by a word or
+a typo (the error says which field it may mean), zip sweeps whose lists differ in length), bad
+command lines (``render`` and ``export`` of runs that are not there, into files they must not
+write) and output paths that cannot be written. Every case must end with exit code 2 and a
+one-line ``plantgrowth: error: ...`` naming the field (``Case.expect``), before anything is
+written.
 
 A case is materialized in its own empty directory: ``files`` are written there and ``{dir}`` in
 ``argv`` and ``expect`` stands for that directory. Cases with ``isolate = True`` could run for
@@ -865,6 +866,25 @@ def _bad_fibres(rng: random.Random, scene: dict):
     return scene, expect
 
 
+FIELD_WORDS = {  # an [output] field as a new user names it -> the field the error suggests
+    "stress": "sigma_hom", "Stress": "sigma_hom", "strain": "eps_hom", "growth": "G",
+    "displacement": "u", "fibres": "fibre_direction", "sigma_hm": "sigma_hom", "trg": "trG",
+    "fibre_directon": "fibre_direction", "growth_anisotropie": "growth_anisotropy",
+    "elastic_strian": "elastic_strain",
+}  # fmt: skip
+
+
+def _field_name(rng: random.Random, scene: dict):
+    """An [output] field named by a synonym or a near miss (the error suggests the field it
+    may mean), or cue_anisotropy in a scene without [feedback]."""
+    if rng.random() < 0.2:
+        scene["output"] = {"fields": ["u", "cue_anisotropy"]}
+        return scene, ("output.fields", "cue_anisotropy", "no [feedback]")
+    word, meant = rng.choice(list(FIELD_WORDS.items()))
+    scene["output"] = {"fields": ["u", word]}
+    return scene, ("output.fields[1]", "did you mean", f"'{meant}'")
+
+
 SCENE_MAKERS = {
     "wrong_type": _wrong_type,
     "missing_required": _missing_required,
@@ -888,6 +908,7 @@ SCENE_MAKERS = {
     "bad_parameter": _bad_parameter,
     "bad_supports": _bad_supports,
     "bad_fibres": _bad_fibres,
+    "field_name": _field_name,
 }
 
 TOML_ERRORS = [
@@ -1090,7 +1111,8 @@ def _cli_render(rng: random.Random):
     """``plantgrowth render`` asked for what it cannot do, checked before any run is read: a
     missing or non-run DIR, a picture that exists (no --force), is not a .png, .pdf or .svg (a
     .gif without --time all, or --time all into a picture) or lies inside DIR, a malformed
-    --time or --dpi, --vmin/--vmax not finite or not in order, no --field."""
+    --time or --dpi, --vmin/--vmax not finite or not in order, no --field (an existing picture
+    is refused after the run is read: the run's own error comes first)."""
     what = rng.choice(["no_dir", "not_a_run", "exists", "suffix", "inside", "time", "dpi",
                        "no_field", "limits", "animation"])  # fmt: skip
     field = rng.choice(["trG", "G", "u", "growth_direction", _name(rng)])
@@ -1100,9 +1122,9 @@ def _cli_render(rng: random.Random):
     run = (("run/keep.txt", "a user's file\n"),)
     if what == "not_a_run":
         return run, [*base, "-o", "{dir}/pic.png"], ("DIR", "not a run directory")
-    if what == "exists":
+    if what == "exists":  # refused once the run and its field are read (not a run here)
         files = (*run, ("pic.png", b"\x89PNG not really"))
-        return files, [*base, "-o", "{dir}/pic.png"], ("-o", "exists", "--force")
+        return files, [*base, "-o", "{dir}/pic.png"], ("DIR", "not a run directory")
     if what == "suffix":
         name = rng.choice(["pic.jpg", "pic", "pic.png.txt", "pic.GIF", "pic.eps"])
         return run, [*base, "-o", f"{{dir}}/{name}"], ("-o", ".png")

@@ -77,11 +77,12 @@ def run(scene: Path, outdir: Path) -> int:
 
 @pytest.fixture(scope="module")
 def good_run(tmp_path_factory):
-    """One small run with every output field (E_hom as six coarse-node fields, eps_hom too, and
-    fibre_direction: the walls are fibred)."""
+    """One small run with every output field (E_hom as six coarse-node fields, eps_hom too,
+    fibre_direction: the walls are fibred, and cue_anisotropy: with stress feedback)."""
     directory = shared_dir(tmp_path_factory, "output_files")
     scene, outdir = directory / "small.toml", directory / "run"
-    write(scene, SMALL + "[walls]\nfibre_stiffness = 1.0\nfibre_angle = 30.0\n" + ALL_FIELDS)
+    walls = "[walls]\nfibre_stiffness = 1.0\nfibre_angle = 30.0\n"
+    write(scene, SMALL + walls + '[feedback]\ncue = "stress"\nrate = 0.5\n' + ALL_FIELDS)
     assert run(scene, outdir) == 0
     return scene, outdir
 

@@ -97,7 +97,8 @@ buckling point: the loss of ellipticity warns, once. (A pressure in Pa against E
 the macro walls: they stay in tension and elliptic, docs/stability.md.)"""
 WARNINGS = {  # name -> (scene, the warnings' key phrases in order of appearance)
     "units": ('[material]\nE = 1e6\n[pressure]\nP1 = 0.3e6\n[growth]\nlaw = "stress"\n',
-              ["pressure.P1 / material.E = 0.3", "largest elastic strain", "clamp"]),
+              ["pressure.P1 / material.E = 0.3", "grows the tissue's area",
+               "largest elastic strain", "clamp"]),
     "radians": ('[cell]\ntheta = 0.5236\n[growth]\nlaw = "stress"\n',
                 ["cell.theta = 0.5236 degrees", "largest elastic strain"]),
     "pre_grown": ('[growth]\nlaw = "stress"\nFg0 = [[1.5, 0], [0, 1]]\n',

@@ -25,6 +25,18 @@ class RunError(RuntimeError):
     """A run that failed numerically; the message names the step, time, place and cause."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """SIGINT stopped a run cleanly after a completed step (every completed step is saved). A
+    KeyboardInterrupt, so that ``except Exception`` in a loop over runs does not go on after
+    Ctrl-C (the CLI's exit code 130)."""
+
+    def __init__(self, step: int, t: float) -> None:
+        super().__init__(
+            f"interrupted after step {step} (t = {t:g}); every completed step is saved"
+        )
+        self.step, self.t = step, t
+
+
 USER_ERRORS = (InputError, GeometryError)
 T = TypeVar("T")
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import sys
 
-from plantgrowth.base.errors import USER_ERRORS, InputError
+from plantgrowth.base.errors import USER_ERRORS, InputError, Interrupted
 from plantgrowth.cli.console import QUIET, configure_logging, discard_stdout, solver_signals
 from plantgrowth.cli.mpi_start import world
 from plantgrowth.cli.parser import build_parser
@@ -51,6 +51,10 @@ def main(argv: list[str] | None = None) -> int:
         if world().rank == 0:
             print(f"plantgrowth: error: {err}", file=sys.stderr)
         return 2
+    except Interrupted as stop:  # Ctrl-C in a command without its own hint (compare)
+        if world().rank == 0:
+            print(f"plantgrowth: {stop}", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # the reader of stdout is gone: nothing left to tell it
         discard_stdout()
         return 0

@@ -150,8 +150,9 @@ def _run_failed(err: RunError, comm: MPI.Comm) -> int:
 
 
 def run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from plantgrowth.api import run
-    from plantgrowth.runner.timeloop import Interrupted
+    from plantgrowth.api import run_with
+    from plantgrowth.base.errors import Interrupted
+    from plantgrowth.runner.rundir import CLI_OPTIONS
     from plantgrowth.scene import load_scene
 
     scene = load_scene(args.scene)
@@ -159,13 +160,12 @@ def run_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     if resume:
         if args.output is not None and args.output != args.resume:
             raise InputError("give either -o DIR or --resume DIR, not two different directories")
-        if args.overwrite:
-            raise InputError("give either --overwrite or --resume, not both")
         outdir = args.resume
     else:
         outdir = args.output if args.output is not None else Path("results") / args.scene.stem
     try:
-        run(
+        run_with(
+            CLI_OPTIONS,
             scene,
             outdir,
             comm,

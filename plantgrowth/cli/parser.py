@@ -201,8 +201,8 @@ def _add_render_parser(sub) -> None:
     render.add_argument(
         "--field", required=True, metavar="NAME",
         help="a written field: u, Fg, G, sigma_hom, eps_hom, E1111 ..., trG, growth_anisotropy, "
-        "growth_direction, stress_direction, elastic_strain, stability, cell_id (an unknown name "
-        "lists the run's fields)",
+        "growth_direction, stress_direction, elastic_strain, stability, cue_anisotropy, cell_id "
+        "(an unknown name lists the run's fields and the one it may mean)",
     )  # fmt: skip
     render.add_argument(
         "--time", type=_time, default=None, metavar="T",

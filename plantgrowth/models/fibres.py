@@ -24,6 +24,10 @@ from mpi4py import MPI
 
 from plantgrowth.base import principal
 
+CUE_FIELD = "cue_anisotropy"
+"""The output field of the feedback's cue (macro: per fine cell; micro: per cell): its anisotropy
+A, the factor of the turning rate k A."""
+
 
 class Cue(NamedTuple):
     """The cue of a stack of symmetric 2x2 tensors Q (n, 2, 2), each entry (n,)."""

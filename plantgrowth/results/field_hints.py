@@ -1,7 +1,9 @@
 """The messages of ``plantgrowth render`` for a field a run did not write and for a wrong
 ``--component``: each names what the run has and how to get what was asked for.
 
-Example: ``--field trG`` on a run that wrote G but not trG::
+An unknown name gets "did you mean" (:func:`plantgrowth.scene.field_names.close_fields`: the
+written fields it may mean, else the fields a scene may ask for). Example: ``--field trG`` on a
+run that wrote G but not trG::
 
     --field = 'trG' is not written in results/a: it wrote G, u; trG is tr G: give --field G
     --component tr; a field is written when the scene's [output] fields lists it: add it there
@@ -10,10 +12,11 @@ Example: ``--field trG`` on a run that wrote G but not trG::
 
 from __future__ import annotations
 
-import difflib
 import re
 
 from plantgrowth.results.reader import ResultSeries
+from plantgrowth.scene.field_names import close_fields
+from plantgrowth.scene.limits import OUTPUT_FIELDS
 
 DERIVED = {"trG": ("G", "tr")}
 """A field that is a component of another written field: name -> (field, component)."""
@@ -30,12 +33,14 @@ def missing_field(series: ResultSeries, name: str) -> str:
     if name in DERIVED and DERIVED[name][0] in names:
         source, component = DERIVED[name]
         return f"{text}; {name} is a component of {source}: give --field {source} --component {component}"
-    close = difflib.get_close_matches(name, names, n=3, cutoff=0.6)
+    close = close_fields(name, names)
     if close:
         return f"{text}; did you mean {' or '.join(close)}?"
+    unwritten = [] if name in OUTPUT_FIELDS else close_fields(name, OUTPUT_FIELDS)
+    meant = f" (did you mean {' or '.join(unwritten)}?)" if unwritten else ""
     return (
-        f"{text}; a field is written when the scene's [output] fields lists it: add it there "
-        "and run the scene again (docs/outputs.md lists the fields)"
+        f"{text}{meant}; a field is written when the scene's [output] fields lists it: add it "
+        "there and run the scene again (docs/outputs.md lists the fields)"
     )
 
 

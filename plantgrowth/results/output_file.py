@@ -16,13 +16,16 @@ def check_new_file(
     output: Path, directory: Path, replace: bool, replace_flag: str,
     error: type[InputError] = InputError,
 ) -> None:  # fmt: skip
-    """``-o FILE`` is not a directory, is new unless ``replace`` (the option ``replace_flag``
-    allows it), lies in an existing directory and outside the run ``directory``: plantgrowth
-    never writes into a run after it. Raises ``error``."""
+    """:func:`check_place` and :func:`check_new` together. Raises ``error``."""
+    check_place(output, directory, error)
+    check_new(output, replace, replace_flag, error)
+
+
+def check_place(output: Path, directory: Path, error: type[InputError] = InputError) -> None:
+    """``-o FILE`` is not a directory, lies in an existing directory and outside the run
+    ``directory``: plantgrowth never writes into a run after it. Raises ``error``."""
     if output.is_dir():
         raise error(f"-o {output}: is a directory; give a file name ending in {output.suffix}")
-    if output.exists() and not replace:
-        raise error(f"-o {output}: the file exists; give {replace_flag} to replace it")
     if not output.parent.resolve().is_dir():
         raise error(f"-o {output}: the directory {output.parent} does not exist")
     run = directory.resolve()
@@ -31,6 +34,14 @@ def check_new_file(
             f"-o {output}: inside the run directory {directory}; plantgrowth never writes "
             "into a run after it: choose a path outside it"
         )
+
+
+def check_new(
+    output: Path, replace: bool, replace_flag: str, error: type[InputError] = InputError
+) -> None:
+    """``-o FILE`` is new unless ``replace`` (the option ``replace_flag`` allows it)."""
+    if output.exists() and not replace:
+        raise error(f"-o {output}: the file exists; give {replace_flag} to replace it")
 
 
 @contextmanager

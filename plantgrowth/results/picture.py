@@ -13,7 +13,9 @@ from plantgrowth.results.fibre_glyphs import check_fibres
 from plantgrowth.results.output_file import written_atomically
 from plantgrowth.results.render import (
     ALL_TIMES,
+    check_field,
     check_limits,
+    check_new,
     check_output,
     draw,
     open_run,
@@ -37,8 +39,10 @@ def render(
     directory, output = Path(directory), Path(output)
     animation = time == ALL_TIMES
     check_limits(vmin, vmax)
-    check_output(output, directory, force, animation)
+    check_output(output, directory, animation)
     series = open_run(directory)
+    check_field(series, name)  # a wrong field name before "the file exists"
+    check_new(output, force)
     times = pick_times(series, time)
     view = plan_view(series, name, component, times, vmin, vmax)
     if fibres:

@@ -29,7 +29,7 @@ from matplotlib.tri import Triangulation
 from plantgrowth.base.errors import InputError
 from plantgrowth.results.fibre_glyphs import draw_fibres
 from plantgrowth.results.field_hints import bad_component, missing_field
-from plantgrowth.results.output_file import check_new_file
+from plantgrowth.results import output_file
 from plantgrowth.results.reader import COMPONENTS, ResultSeries, boundary_outline, read_series
 from plantgrowth.results.region_outlines import region_outlines
 
@@ -52,9 +52,9 @@ class RenderError(InputError):
     """A render request that cannot be met; the message starts with the option."""
 
 
-def check_output(output: Path, directory: Path, force: bool, animation: bool = False) -> None:
+def check_output(output: Path, directory: Path, animation: bool = False) -> None:
     """FILE must be a picture (.png, .pdf, .svg; .gif for an animation) outside DIR, in an
-    existing directory, new unless ``force``."""
+    existing directory (whether it is new: :func:`check_new`, once the field is known)."""
     suffix = output.suffix.lower()
     if animation and suffix != ".gif":
         raise RenderError(f"-o {output}: --time all writes an animation: give a .gif file")
@@ -63,7 +63,12 @@ def check_output(output: Path, directory: Path, force: bool, animation: bool = F
             f"-o {output}: the picture must be a {', '.join(PICTURES)} file (or, with --time "
             "all, a .gif animation)"
         )
-    check_new_file(output, directory, force, "--force", RenderError)
+    output_file.check_place(output, directory, RenderError)
+
+
+def check_new(output: Path, force: bool) -> None:
+    """FILE must be new unless ``force``."""
+    output_file.check_new(output, force, "--force", RenderError)
 
 
 def check_limits(vmin: float | None, vmax: float | None) -> None:
@@ -117,12 +122,18 @@ def pick_time(series: ResultSeries, time: float | None) -> float:
     return min(times, key=lambda s: abs(s - time))
 
 
+def check_field(series: ResultSeries, name: str) -> None:
+    """RenderError unless the run wrote the field ``name`` (with what it wrote, and the field
+    it may mean)."""
+    if name not in series.names:
+        raise RenderError(missing_field(series, name))
+
+
 def field_values(
     series: ResultSeries, name: str, t: float, component: str | None
 ) -> tuple[np.ndarray, bool]:
     """(values, on nodes): (n,) for a scalar or a component, (n, 2) for a vector."""
-    if name not in series.names:
-        raise RenderError(missing_field(series, name))
+    check_field(series, name)
     on_nodes = name == "u"
     data = series.displacement(t) if on_nodes else series.cell_field(name, t)
     if data.ndim == 2 and data.shape[1] == 9:

@@ -20,6 +20,7 @@ import re
 import socket
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from mpi4py import MPI
@@ -27,6 +28,19 @@ from mpi4py import MPI
 from plantgrowth.base.errors import InputError, on_rank_zero
 from plantgrowth.runner.output import remove_run_files, run_files
 from plantgrowth.scene import Scene, load_scene
+
+
+@dataclass(frozen=True)
+class Options:
+    """How the messages name a run's options: the CLI's flags or the Python API's arguments."""
+
+    overwrite: str
+    resume: str
+    resume_at: str  # the option with the run's directory, ``{}``
+
+
+CLI_OPTIONS = Options("--overwrite", "--resume", "--resume {}")
+API_OPTIONS = Options("overwrite=True", "resume=True", "resume=True (outdir {})")
 
 LOCK_NAME = ".plantgrowth.lock"
 COMPARE_TABLE = "compare.csv"
@@ -120,20 +134,22 @@ def _describe(holder: str) -> str:
 
 
 def claim(
-    directory: Path, comm: MPI.Comm, resume: bool = False, overwrite: bool = False
-) -> DirectoryLock | None:
+    directory: Path, comm: MPI.Comm, resume: bool = False, overwrite: bool = False,
+    options: Options = CLI_OPTIONS,
+) -> DirectoryLock | None:  # fmt: skip
     """Collective: create and lock ``directory`` for this run (rank 0 holds the lock and gets
     it back; other ranks get None). A new run refuses a directory that holds an earlier run's
-    files unless ``overwrite``, which removes those files and only those.
+    files unless ``overwrite``, which removes those files and only those; the message names
+    the options as ``options`` do.
 
     Raises:
         InputError: on every rank: the directory is in use, holds an earlier run, or cannot be
             written. Nothing is changed then.
     """
-    return on_rank_zero(comm, lambda: _claim(directory, resume, overwrite))
+    return on_rank_zero(comm, lambda: _claim(directory, resume, overwrite, options))
 
 
-def _claim(directory: Path, resume: bool, overwrite: bool) -> DirectoryLock:
+def _claim(directory: Path, resume: bool, overwrite: bool, options: Options) -> DirectoryLock:
     try:
         directory.mkdir(parents=True, exist_ok=True)
         lock = DirectoryLock(directory)
@@ -147,9 +163,10 @@ def _claim(directory: Path, resume: bool, overwrite: bool) -> DirectoryLock:
             names = [str(p.relative_to(directory)) for p in earlier]
             shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
             raise InputError(
-                f"{directory} holds an earlier run ({shown}): use --overwrite to replace it "
-                f"(removes only plantgrowth's own files), --resume {directory} to continue it, "
-                "or another output directory"
+                f"{directory} holds an earlier run ({shown}): use {options.overwrite} to "
+                f"replace it (removes only plantgrowth's own files), "
+                f"{options.resume_at.format(directory)} to continue it, or another output "
+                "directory"
             )
         if earlier:
             remove_earlier_outputs(directory)
@@ -159,12 +176,14 @@ def _claim(directory: Path, resume: bool, overwrite: bool) -> DirectoryLock:
     return lock
 
 
-def check_resumable(directory: Path, scene: Scene) -> bool:
+def check_resumable(directory: Path, scene: Scene, options: Options = CLI_OPTIONS) -> bool:
     """Whether ``scene`` extends the run in ``directory`` (a larger ``time.t_max``, the only change
-    allowed); raise InputError naming the keys if it changes anything else."""
+    allowed); raise InputError naming the keys (and the option as ``options`` do) if it changes
+    anything else."""
     saved_path = directory / "scene.toml"
+    resume = options.resume_at.format(directory)
     if not saved_path.is_file():
-        raise InputError(f"--resume {directory}: no scene.toml there, so no run to resume")
+        raise InputError(f"{resume}: no scene.toml there, so no run to resume")
     saved = load_scene(saved_path)
     changed = changed_keys(saved, scene)
     if not changed:
@@ -173,11 +192,11 @@ def check_resumable(directory: Path, scene: Scene) -> bool:
         return True
     if changed == ["time.t_max"]:
         raise InputError(
-            f"--resume {directory}: time.t_max = {scene.time.t_max:g} is smaller than the run's "
+            f"{resume}: time.t_max = {scene.time.t_max:g} is smaller than the run's "
             f"{saved.time.t_max:g}; a resumed run can only be extended"
         )
     raise InputError(
-        f"--resume {directory}: the scene differs from the one the run started with in "
+        f"{resume}: the scene differs from the one the run started with in "
         f"{', '.join(changed)}; only a larger time.t_max may change (to extend the run)"
     )
 

@@ -16,13 +16,13 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from plantgrowth.base.errors import RunError
+from plantgrowth.base.errors import InputError, Interrupted, RunError
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.model import model_on
 from plantgrowth.models.micro.model import MicroModel
 from plantgrowth.runner.output import atomic_write_text, prepare_directory
-from plantgrowth.runner.rundir import check_resumable, claim
-from plantgrowth.runner.timeloop import Interrupted, run_model
+from plantgrowth.runner.rundir import CLI_OPTIONS, Options, check_resumable, claim
+from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import Scene
 from plantgrowth.scene.places import check_macro_places, check_micro_places, needs_place_checks
 from plantgrowth.scene.plausibility import warn_about
@@ -58,11 +58,13 @@ def check_used_values(scene: Scene, comm: MPI.Comm) -> None:
 
 @contextmanager
 def run_directory(
-    outdir: Path, scene: Scene, comm: MPI.Comm, resume: bool = False, overwrite: bool = False
-) -> Iterator[None]:
-    """Hold the output directory for the run (see :mod:`plantgrowth.runner.rundir`), write the
-    resolved scene and log into run.log (appended to on resume) until the block ends."""
-    lock = claim(outdir, comm, resume=resume, overwrite=overwrite)
+    outdir: Path, scene: Scene, comm: MPI.Comm, resume: bool = False, overwrite: bool = False,
+    options: Options = CLI_OPTIONS,
+) -> Iterator[None]:  # fmt: skip
+    """Hold the output directory for the run (see :mod:`plantgrowth.runner.rundir`; its
+    messages name the options as ``options`` do), write the resolved scene and log into run.log
+    (appended to on resume) until the block ends."""
+    lock = claim(outdir, comm, resume=resume, overwrite=overwrite, options=options)
     handler = None
     try:
         if comm.rank == 0:
@@ -104,21 +106,23 @@ def run_micro(
 
 def run_scene(
     scene: Scene, outdir: Path, comm: MPI.Comm, what: str, resume: bool = False,
-    overwrite: bool = False,
+    overwrite: bool = False, options: Options = CLI_OPTIONS,
 ) -> None:  # fmt: skip
     """Run a scene into ``outdir`` on ``comm`` as ``plantgrowth run`` does: check it where the
     run uses it, hold the directory, write scene.toml and run.log (its first line names the run
-    as ``what``), warn, run.
+    as ``what``), warn, run. The messages name ``resume`` and ``overwrite`` as ``options`` do.
 
     Raises:
         InputError: a field is out of range where the run uses it (SceneError), the directory
-            is busy, holds an earlier run, or cannot be resumed.
+            is busy, holds an earlier run, or cannot be resumed; ``resume`` with ``overwrite``.
         RunError: a step failed (logged in run.log).
         Interrupted: SIGINT stopped the run after a completed step (logged in run.log).
     """
+    if resume and overwrite:
+        raise InputError(f"give either {options.overwrite} or {options.resume}, not both")
     domain = checked_domain(scene, comm)  # before anything is written
-    extends = resume and check_resumable(outdir, scene)
-    with run_directory(outdir, scene, comm, resume, overwrite):
+    extends = resume and check_resumable(outdir, scene, options)
+    with run_directory(outdir, scene, comm, resume, overwrite, options):
         log.info("%s -> %s on %d rank(s)", what, outdir, comm.size)
         if extends:
             log.info("extending the run to time.t_max = %g", scene.time.t_max)

@@ -13,9 +13,11 @@
 - singular points (non-elliptic sets within one cell: plantgrowth.models.nonelliptic_sets) are
   reported once per place (:meth:`StepWarnings.singular_points`), never a stop;
 - the clamp M is active (some ``|G_ij| = M``) on more than ``MAX_CLAMPED_FRACTION`` (10%) of the
-  tissue, area-weighted (macro: fine cells, micro: biological cells by their reference areas).
+  tissue, area-weighted (macro: fine cells, micro: biological cells by their reference areas);
+- one step grows the tissue's area by more than ``MAX_STEP_GROWTH`` (:meth:`StepWarnings.growth`:
+  usually eta in the wrong units, which the warning names for the growth law).
 
-The clamp and the loads: each at most once per run.
+The clamp, the loads and the step growth: each at most once per run.
 """
 
 from __future__ import annotations
@@ -38,6 +40,16 @@ has 0.224 (linear) against 0.248 (finite), and its finite run fails at t = 24; s
 against 0.39 at t = 39. So 20% is where the linear model stops being trustworthy (the old 5%
 warned on the pull example and most gradients), 50% and 100% where the wall law itself is far
 outside its range (soft_patch's linear run reaches 0.52 at t = 52 and 1.05 at t = 60)."""
+MAX_STEP_GROWTH = 1.5
+"""Largest plausible growth of the tissue's area in one step, ``exp(growth_rate_area dt)`` (what
+the step's advance does to the reference-area mean of det Fg: known before the step is taken).
+Measured (scripts/studies/area_growth.py: the 47 shipped scenes and hard cases, draft meshes,
+each scene's own dt; benchmarks/results/area_growth.json): the examples, biology, shape and
+gradient scenes reach at most 1.020 per step (gradient_l_stress), the hard cases 1.061 and
+1.128 (thin_wall_w0.01, w0.005: walls 5 and 10 times thinner) and 1.057 (long_run, dt = 5).
+1.5 is 3.4 times the log of the largest (ln 1.5 = 0.41 against 0.12) and well below the
+clamp's bound exp(2 M dt) = 7.4 (M = 1, dt = 1), which a run with eta in the wrong units
+reaches at once (E = 300, P1 = 0.3 in MPa at eta = 1: 54 times the area in 2 steps)."""
 MAX_CLAMPED_FRACTION = 0.10
 WARN_LOAD_IMBALANCE = 0.01
 MAX_LOAD_IMBALANCE = 0.10
@@ -120,6 +132,20 @@ class StepWarnings:
             )
         return out
 
+    def growth(self, step: int, t: float, rate: float, dt: float, law: str) -> list[str]:
+        """The warning (once per run) of a step that grows the tissue's area by more than
+        MAX_STEP_GROWTH: the mean areal growth rate ``rate`` (summary.csv's growth_rate_area)
+        over ``dt``, under the growth ``law``."""
+        factor = math.exp(rate * dt)
+        if not factor > MAX_STEP_GROWTH:
+            return []
+        return self._once(
+            "growth",
+            f"step {step}, t = {t:g}: the mean growth rate tr G = {rate:.3g} grows the tissue's "
+            f"area by a factor {factor:.3g} in one step of dt = {dt:g} (more than "
+            f"{MAX_STEP_GROWTH:g}): {eta_units(law)}",
+        )
+
     def _strain(self, step: int, t: float, peak: StrainPeak) -> list[str]:
         """The warning of a higher strain band than any reached before (none otherwise)."""
         band = bisect_right(STRAIN_BANDS, peak.value)
@@ -178,4 +204,21 @@ def strain_advice(band: int, kinematics: str) -> str:
         f"only{law} turgor P1, loads, E and Fg0 (too soft walls or too strong loads?) and growth "
         'contrasts (eta, tau: a smaller time.dt or time.integrator = "adaptive" follows fast '
         "growth more closely)"
+    )
+
+
+def eta_units(law: str) -> str:
+    """What the units of growth.eta are under a growth law, and what to do when it is too large."""
+    if law == "stress":
+        return (
+            "are growth.eta's units right? Under the stress law eta is a rate per unit stress per "
+            "unit time (G = eta [sigma / phi_w - tau]_+), so eta = 1 suits the non-dimensional "
+            "E = 1, P1 = 0.001; with E and P1 in MPa (E = 300, P1 = 0.3) it must scale as 1/E "
+            "(eta / E: 1/300 there), or give E and P1 in units of E (docs/model.md section 11); "
+            'a smaller time.dt (or time.integrator = "adaptive") follows fast growth more closely'
+        )
+    return (
+        "is growth.eta too large? Under the strain law eta is a rate per unit strain per unit time "
+        "(G = eta [eps / phi_w - tau]_+), independent of the units of E and P1: lower eta (or "
+        "time.dt, to follow fast growth more closely)"
     )

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.base.errors import RunError
+from plantgrowth.base.errors import Interrupted, RunError
 from plantgrowth.models import growth
 from plantgrowth.models.regions import region_columns
 from plantgrowth.models.step import GrowthModel
@@ -67,16 +67,6 @@ def summary_columns(scene: Scene) -> list[str]:
     held = HELD_COLUMNS if scene.supports else []
     fibres = FIBRE_COLUMNS if scene.has_director else []
     return SUMMARY_COLUMNS + newton + loads + held + fibres + region_columns(scene.regions)
-
-
-class Interrupted(Exception):
-    """SIGINT stopped a run cleanly after a completed step."""
-
-    def __init__(self, step: int, t: float) -> None:
-        super().__init__(
-            f"interrupted after step {step} (t = {t:g}); every completed step is saved"
-        )
-        self.step, self.t = step, t
 
 
 @contextmanager
@@ -246,6 +236,8 @@ def run_model(
             summary.write(row)
             state.write(step, t, snapshot)
             rows.append(row)
+            for text in warnings.growth(step, t, row["growth_rate_area"], dt, scene.growth.law):
+                log.warning("warning: %s%s", prefix, text)
             left = (time.perf_counter() - start) / (step + 1 - first) * (n_steps - step)
             newton = (
                 f"  Newton {result.newton_iterations} it., residual {result.newton_residual:.1e}"

@@ -68,7 +68,10 @@ inclined wall length l2 = 1)::
                                # (same for sigma_hom; micro: the cells' mean wall stress),
                                # "elastic_strain" (largest principal |strain|: eps_el, or Ee;
                                # micro: each cell's wall mean), "elastic_strain_tensor",
-                               # "fibre_direction" (macro, the fibre director; needs [walls]).
+                               # "fibre_direction" (macro, the fibre director; needs [walls]),
+                               # "cue_anisotropy" (A of the feedback's cue; needs [feedback]).
+                               # Not given: the list above, plus fibre_direction for a scene
+                               # with a director and cue_anisotropy with [feedback].
                                # Micro runs write u, Fg, G, cell_id and the growth outputs
                                # listed, plus cells.csv and cells.xdmf (cell outlines)
     every = 1                  # fields at t = 0, every k-th step and t_max (summary.csv has

@@ -39,9 +39,13 @@ STRAIN_FIELDS = ("elastic_strain", "elastic_strain_tensor")
 """Elastic strain: largest principal magnitude, tensor (plantgrowth/models/elastic_strain.py)."""
 OUTPUT_FIELDS = (
     "u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", "stability", *GROWTH_FIELDS, *STRAIN_FIELDS,
-    "fibre_direction",
+    "fibre_direction", "cue_anisotropy",
 )  # fmt: skip
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
+DIRECTOR_OUTPUT = ("fibre_direction",)
+"""Added to DEFAULT_OUTPUT for a scene with a fibre director (when it does not list fields)."""
+FEEDBACK_OUTPUT = ("cue_anisotropy",)
+"""Added to DEFAULT_OUTPUT for a scene with ``[feedback]`` (when it does not list fields)."""
 EDGES = ("left", "right", "top")
 CUES = ("stress", "strain")
 """``feedback.cue``: the tensor whose principal direction the fibre director turns toward."""

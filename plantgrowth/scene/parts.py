@@ -15,6 +15,7 @@ from plantgrowth.base.errors import InputError, SceneError, check_growth_tensor
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.scene import loads as edge_loads
 from plantgrowth.scene.expression import Expression, parse_expression
+from plantgrowth.scene.field_names import close_fields
 from plantgrowth.scene.fields import AnyField, ExprField, Field
 from plantgrowth.scene.limits import (
     BIG,
@@ -309,7 +310,7 @@ class Output:
                 f"output.fields: expected an array of strings, got {show(self.fields)}"
             )
         for i, name in enumerate(self.fields):
-            choice(f"output.fields[{i}]", name, OUTPUT_FIELDS)
+            choice(f"output.fields[{i}]", name, OUTPUT_FIELDS, close_fields(name, OUTPUT_FIELDS))
         if len(set(self.fields)) != len(self.fields):
             raise SceneError(f"output.fields = {list(self.fields)} names a field twice")
         integer("output.every", self.every, 1, int(MAX_STEPS))

@@ -6,7 +6,9 @@ The model is non-dimensional (docs/model.md sections 1, 4, 9: wall E = 1, turgor
 Warnings, before anything runs:
 
 - a non-zero ``P1 / E`` outside ``P1_OVER_E`` ([1e-5, 1e-1]): usually P1 and E in different units;
-- ``cell.theta`` below ``MIN_THETA`` (5 degrees): usually radians where degrees are expected.
+- an angle key (``ANGLES``: ``cell.theta``, ``walls.fibre_angle``) other than 0 but below
+  ``MIN_ANGLE`` (5 degrees) in magnitude: usually radians where degrees are expected (pi / 2 =
+  1.5708 for 90 degrees).
 """
 
 from __future__ import annotations
@@ -18,17 +20,24 @@ import numpy as np
 from plantgrowth.scene.schema import Scene
 
 P1_OVER_E = (1e-5, 1e-1)
-MIN_THETA = 5.0  # degrees
+MIN_ANGLE = 5.0
+"""Degrees: a non-zero angle key smaller in magnitude is likely radians (a radian value of a
+right angle or less, pi / 2 = 1.5708, is below it; so are pi and 2 pi / 3)."""
+ANGLES = {
+    "cell.theta": "such flat walls make the cell extremely compliant",
+    "walls.fibre_angle": "the fibres then lie almost along x1",
+}
+"""Every angle key of a scene (degrees) -> what so small a value means."""
 
 log = logging.getLogger("plantgrowth")
 
 
 def scene_warnings(scene: Scene) -> list[str]:
-    """Warnings about a scene's parameters (P1 / E, theta) at the tissue's corners, before
-    anything runs."""
+    """Warnings about a scene's parameters (P1 / E, the angles) at the tissue's corners,
+    before anything runs."""
     x1, x2 = np.array(scene.corners()).T
     with np.errstate(all="ignore"):  # an expression may be undefined at a corner never used
-        P1, E, theta = scene.P1(x1, x2), scene.material.E(x1, x2), scene.cell.theta(x1, x2)
+        P1, E = scene.P1(x1, x2), scene.material.E(x1, x2)
     ratios = [float(p / e) for p, e in zip(P1, E, strict=True) if p != 0.0 and np.isfinite(p / e)]
     out = []
     low, high = P1_OVER_E
@@ -39,14 +48,20 @@ def scene_warnings(scene: Scene) -> list[str]:
             "model is non-dimensional (wall E = 1, reference turgor P1 = 0.001); are P1 and E "
             "in the same units?"
         )
-    theta = float(np.nanmin(theta))
-    if theta < MIN_THETA:
-        out.append(
-            f"cell.theta = {theta:g} degrees is below {MIN_THETA:g}: theta is in degrees "
-            f"(radians? {theta:g} rad = {np.degrees(theta):.4g} degrees); such flat walls make "
-            "the cell extremely compliant"
-        )
+    fields = scene.parameter_fields()
+    for key in (k for k in ANGLES if k in fields):
+        with np.errstate(all="ignore"):
+            values = np.broadcast_to(fields[key](x1, x2), x1.shape)
+        out += [radians_hint(key, float(a)) for a in values if 0.0 < abs(a) < MIN_ANGLE][:1]
     return out
+
+
+def radians_hint(key: str, angle: float) -> str:
+    """The warning of an angle key (degrees) whose value looks like radians."""
+    return (
+        f"{key} = {angle:g} degrees is below {MIN_ANGLE:g} in magnitude: {key} is in degrees "
+        f"(radians? {angle:g} rad = {np.degrees(angle):.4g} degrees); {ANGLES[key]}"
+    )
 
 
 def warn_about(scene: Scene) -> None:

@@ -17,6 +17,7 @@ from plantgrowth.meshes.honeycomb import GeometryError
 from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.scene import loads as edge_loads
+from plantgrowth.scene import walls as fibre_walls
 from plantgrowth.scene.field_syntax import parse_field
 from plantgrowth.scene.fields import AnyField, Field
 from plantgrowth.scene.limits import (
@@ -58,7 +59,7 @@ from plantgrowth.scene.values import (
     set_fields,
     show,
 )
-from plantgrowth.scene.walls import Feedback, Walls, feedback_from, walls_from
+from plantgrowth.scene.walls import Feedback, Walls
 
 
 @dataclass(frozen=True)
@@ -95,12 +96,7 @@ class Scene:
                 "walls.fibre_stiffness (E_f / E, >= 0) and walls.fibre_angle (the director at "
                 "t = 0, degrees from x1), or remove [feedback]"
             )
-        if "fibre_direction" in self.output.fields and not self.has_director:
-            raise SceneError(
-                "output.fields: fibre_direction is the fibre director, but the scene has none: "
-                "give walls.fibre_stiffness (E_f / E, > 0) and walls.fibre_angle (degrees from "
-                "x1), or remove fibre_direction"
-            )
+        fibre_walls.check_outputs(self.output.fields, self.walls, self.feedback)
         self.P1.check("pressure.P1", *RANGES["pressure.P1"])
         for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
             if isinstance(f, Field) and f.width != self.tissue.width:
@@ -150,8 +146,7 @@ class Scene:
     def has_director(self) -> bool:
         """Whether the run carries a fibre director (docs/fibres.md): fibred walls
         (``walls.fibre_stiffness`` other than the constant 0), or ``[feedback]`` turning one."""
-        walls = self.walls
-        return walls is not None and (walls.fibred or self.feedback is not None)
+        return fibre_walls.carries_director(self.walls, self.feedback)
 
     @property
     def pinned(self) -> bool:
@@ -444,6 +439,9 @@ def _parse(data: dict, directory: Path) -> Scene:
             else row
             for i, row in enumerate(Fg0)
         ]
+    walls = fibre_walls.walls_from(data, t["walls"], tissue, constants)
+    feedback = fibre_walls.feedback_from(data, t["feedback"])
+    output = {"fields": fibre_walls.default_fields(walls, feedback)} | t["output"]
     return Scene(
         model=data.get("model", "macro"),
         tissue=tissue,
@@ -453,7 +451,7 @@ def _parse(data: dict, directory: Path) -> Scene:
         growth=Growth(**(t["growth"] | f["growth"])),
         time=Time(**t["time"]),
         loads=dict(t["loads"]),
-        output=Output(**t["output"]),
+        output=Output(**output),
         accuracy=Accuracy(**t["accuracy"]),
         micro_nx=t["micro"].get("nx", 16),
         micro_resolution=t["micro"].get("resolution", 2),
@@ -463,8 +461,8 @@ def _parse(data: dict, directory: Path) -> Scene:
         parameters=constants,
         regions=parse_regions(data.get("regions", {}), constants),
         supports=dict(t["supports"]),
-        walls=walls_from(data, t["walls"], tissue, constants),
-        feedback=feedback_from(data, t["feedback"]),
+        walls=walls,
+        feedback=feedback,
     )
 
 

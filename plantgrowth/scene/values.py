@@ -4,6 +4,7 @@ SceneError naming the dotted key."""
 from __future__ import annotations
 
 import difflib
+from collections.abc import Sequence
 
 from plantgrowth.base.errors import InputError, SceneError, check_number
 from plantgrowth.scene.limits import EDGES
@@ -64,12 +65,15 @@ def integer(key: str, value: object, low: int, high: int) -> int:
     return value
 
 
-def choice(key: str, value: object, choices: tuple[str, ...]) -> str:
+def choice(key: str, value: object, choices: tuple[str, ...], close: Sequence[str] = ()) -> str:
+    """``value`` if it is one of ``choices``, else SceneError naming ``key``, the choices and
+    the ``close`` ones it may mean ("did you mean")."""
     options = ", ".join(map(repr, choices))
     if not isinstance(value, str):
         raise SceneError(f"{key}: expected a string (one of {options}), got {show(value)}")
     if value not in choices:
-        raise SceneError(f"{key} = {value!r} is invalid: it must be one of {options}")
+        hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else ""
+        raise SceneError(f"{key} = {value!r} is invalid: it must be one of {options}{hint}")
     return value
 
 

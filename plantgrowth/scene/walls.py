@@ -9,7 +9,14 @@ from typing import TYPE_CHECKING
 from plantgrowth.base.errors import SceneError
 from plantgrowth.scene.field_syntax import parse_field
 from plantgrowth.scene.fields import AnyField
-from plantgrowth.scene.limits import BIG, CUES, RANGES
+from plantgrowth.scene.limits import (
+    BIG,
+    CUES,
+    DEFAULT_OUTPUT,
+    DIRECTOR_OUTPUT,
+    FEEDBACK_OUTPUT,
+    RANGES,
+)
 from plantgrowth.scene.values import choice, in_range, set_fields
 
 if TYPE_CHECKING:
@@ -97,3 +104,35 @@ def feedback_from(data: dict, table: dict) -> Feedback | None:
         if key not in table:
             raise SceneError(f"feedback.{key} is required in [feedback]: {valid}")
     return Feedback(**table)
+
+
+def carries_director(walls: Walls | None, feedback: Feedback | None) -> bool:
+    """Whether a run carries a fibre director (docs/fibres.md): fibred walls
+    (``walls.fibre_stiffness`` other than the constant 0), or ``[feedback]`` turning one."""
+    return walls is not None and (walls.fibred or feedback is not None)
+
+
+def default_fields(walls: Walls | None, feedback: Feedback | None) -> tuple[str, ...]:
+    """``output.fields`` of a scene that lists none: DEFAULT_OUTPUT, with the director
+    (``fibre_direction``) when the run carries one and the cue's anisotropy
+    (``cue_anisotropy``) with ``[feedback]``, so that ``render --fibres`` and ParaView's glyphs
+    find them."""
+    director = DIRECTOR_OUTPUT if carries_director(walls, feedback) else ()
+    return DEFAULT_OUTPUT + director + (FEEDBACK_OUTPUT if feedback is not None else ())
+
+
+def check_outputs(fields: tuple[str, ...], walls: Walls | None, feedback: Feedback | None) -> None:
+    """``output.fields`` may list ``fibre_direction`` only with a director and
+    ``cue_anisotropy`` only with ``[feedback]``: SceneError otherwise."""
+    if "fibre_direction" in fields and not carries_director(walls, feedback):
+        raise SceneError(
+            "output.fields: fibre_direction is the fibre director, but the scene has none: "
+            "give walls.fibre_stiffness (E_f / E, > 0) and walls.fibre_angle (degrees from "
+            "x1), or remove fibre_direction"
+        )
+    if "cue_anisotropy" in fields and feedback is None:
+        raise SceneError(
+            "output.fields: cue_anisotropy is the anisotropy of the [feedback] cue, but the "
+            'scene has no [feedback]: give it (cue = "stress" or "strain", rate >= 0) with '
+            "fibred [walls], or remove cue_anisotropy"
+        )

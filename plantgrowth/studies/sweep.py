@@ -58,7 +58,6 @@ from mpi4py import MPI
 from plantgrowth.base.errors import InputError, RunError
 from plantgrowth.models.regions import region_columns
 from plantgrowth.runner.output import atomic_write_text, last_summary_step
-from plantgrowth.runner.timeloop import Interrupted
 from plantgrowth.scene import Scene
 from plantgrowth.studies.sweep_directory import (
     RESULT,
@@ -166,7 +165,7 @@ def _run_one(sweep: Sweep, run: Run, outdir: Path, group: MPI.Comm, run_scene: R
             run_scene(run.scene, run_dir, group, what, resume)
         except RunError as err:
             status, error = "failed", str(err)
-        except (Interrupted, KeyboardInterrupt) as err:
+        except KeyboardInterrupt as err:  # Interrupted after a step, or during the set-up
             status, error = "interrupted", str(err) or "interrupted during the set-up"
         except InputError as err:  # held by another process, or changed since the check
             log.warning("warning: skipped: %s", err)

@@ -5,25 +5,53 @@ xauth); without a display, under a virtual X server (pvbatch needs one to render
     xvfb-run -a pvbatch scripts/figures/check_paraview.py results/reference_stress/fields.xdmf
 Prints one JSON line: the time values, point/cell counts and the array names at the last time.
 With ``--png FILE`` it also renders the last time (coloured by u, or by the first point array
-where there is no u, as in ``coarse.xdmf``) into FILE.
+where there is no u, as in ``coarse.xdmf``) into FILE. A file that is absent, or that ParaView
+reads no time from, ends the script with one line naming it (exit 2), checked before ParaView is
+loaded: a run writes ``coarse.xdmf`` only when its scene's ``[output] fields`` has ``E_hom``.
 """
 
 import argparse
 import json
+import sys
+from pathlib import Path
 
-from paraview import servermanager
-from paraview.simple import ColorBy, GetActiveViewOrCreate, SaveScreenshot, Show, Xdmf3ReaderS
+
+def fail(message: str) -> None:
+    """End with one line on stderr, exit code 2."""
+    print(f"check_paraview.py: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def check_file(xdmf: Path) -> None:
+    """The XDMF file must exist (what a run writes: docs/outputs.md)."""
+    if xdmf.is_file():
+        return
+    hint = ""
+    if xdmf.name == "coarse.xdmf":
+        hint = (
+            ": a run writes coarse.xdmf only when its scene's [output] fields lists E_hom "
+            "(macro runs); open fields.xdmf, or add E_hom and run the scene again"
+        )
+    elif xdmf.suffix != ".xdmf":
+        hint = ": give a run's fields.xdmf (or coarse.xdmf, cells.xdmf)"
+    fail(f"{xdmf}: no such file{hint}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description="ParaView's view of a plantgrowth run")
-    parser.add_argument("xdmf", help="the run's fields.xdmf")
+    parser.add_argument("xdmf", type=Path, help="the run's fields.xdmf")
     parser.add_argument("--png", default=None, help="also render the last time into this file")
     args = parser.parse_args()
-    reader = Xdmf3ReaderS(FileName=[args.xdmf])
+    check_file(args.xdmf)
+    from paraview import servermanager
+    from paraview.simple import ColorBy, GetActiveViewOrCreate, SaveScreenshot, Show, Xdmf3ReaderS
+
+    reader = Xdmf3ReaderS(FileName=[str(args.xdmf)])
     reader.UpdatePipelineInformation()
     values = reader.TimestepValues  # a bare float when the series has one time
     times = [values] if isinstance(values, float) else list(values)
+    if not times:
+        fail(f"{args.xdmf}: ParaView reads no time from it: is it a plantgrowth run's XDMF file?")
     reader.UpdatePipeline(times[-1])
     data = servermanager.Fetch(reader)
     points, cells = data.GetPointData(), data.GetCellData()

@@ -20,6 +20,7 @@ import argparse
 import csv
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from mpi4py import MPI
@@ -61,6 +62,23 @@ def largest(summary: Path) -> dict:
     }
 
 
+def run_measured(
+    scene: pg.Scene, outdir: Path, name: str, measure: Callable[[Path], dict], comm: MPI.Comm
+) -> dict[str, dict]:
+    """Run ``scene`` into ``outdir`` (a RunError is its ``stop``); ``measure(summary.csv)`` and
+    the stop of each side, by key: ``name``, or ``name/macro`` and ``name/micro``."""
+    stop = ""
+    try:
+        pg.run(scene, outdir, comm, overwrite=True, label=f"{Path(sys.argv[0]).stem} {name}")
+    except pg.RunError as err:
+        stop = str(err)
+    sides = ["macro", "micro"] if scene.model == "both" else [""]
+    return {
+        f"{name}/{side}" if side else name: measure(outdir / side / "summary.csv") | {"stop": stop}
+        for side in sides
+    }
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", type=lambda s: s.split(","), default=None, help="scene names")
@@ -76,18 +94,10 @@ def main(argv: list[str] | None = None) -> None:
             continue
         scene = variant(path, args.kinematics, "draft", args.t_max, extra)
         name = name if args.kinematics == "linear" else f"{name}/{args.kinematics}"
-        outdir = args.out / name
-        stop = ""
-        try:
-            pg.run(scene, outdir, comm, overwrite=True, label=f"strain_bands {name}")
-        except pg.RunError as err:
-            stop = str(err)
-        sides = ["macro", "micro"] if scene.model == "both" else [""]
-        for side in sides:
-            key = f"{name}/{side}" if side else name
-            found[key] = largest(outdir / side / "summary.csv") | {"stop": stop}
+        for key, row in run_measured(scene, args.out / name, name, largest, comm).items():
+            found[key] = row
             if comm.rank == 0:
-                print(key, json.dumps(found[key]), flush=True)
+                print(key, json.dumps(row), flush=True)
     if comm.rank == 0:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(found, indent=1, sort_keys=True) + "\n")

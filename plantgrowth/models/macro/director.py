@@ -58,6 +58,15 @@ class MacroDirector:
         if FIBRE_FIELD in fields:
             space = fem.VectorFunctionSpace(mesh, ("DG", 0))
             self.function = fem.Function(space, name=FIBRE_FIELD)
+        self.anisotropy = None
+        if fibres.CUE_FIELD in fields and feedback is not None:
+            scalar = fem.FunctionSpace(mesh, ("DG", 0))
+            self.anisotropy = fem.Function(scalar, name=fibres.CUE_FIELD)
+
+    @property
+    def functions(self) -> list[fem.Function]:
+        """The output functions asked for (``fibre_direction``, ``cue_anisotropy``)."""
+        return [f for f in (self.function, self.anisotropy) if f is not None]
 
     def angles_at_nodes(
         self, W_owned: sp.csr_matrix, areas: np.ndarray, active: np.ndarray, comm: MPI.Comm
@@ -78,11 +87,16 @@ class MacroDirector:
         if self.feedback is not None:
             self.angle = fibres.follow_cue(self.angle, Q, self.feedback.rate, dt)
 
-    def fill(self, set_values: Callable[[fem.Function, np.ndarray], None]) -> None:
-        """The output field, if asked for: m = (cos a, sin a) per fine cell (the padding to
-        (x1, x2, 0) is the XDMF writer's)."""
+    def fill(
+        self, set_values: Callable[[fem.Function, np.ndarray], None], Q: np.ndarray | None = None
+    ) -> None:
+        """The output fields asked for: m = (cos a, sin a) per fine cell (the padding to
+        (x1, x2, 0) is the XDMF writer's) and the anisotropy A of the step's cue tensors Q
+        (n_cells, 2, 2), with feedback."""
         if self.function is not None:
             set_values(self.function, fibres.director(self.angle))
+        if self.anisotropy is not None and Q is not None:
+            set_values(self.anisotropy, fibres.cue(Q).anisotropy)
 
     def measures(self, areas: np.ndarray, comm: MPI.Comm) -> dict[str, float]:
         """Collective: summary.csv's ``fibre_order`` and ``fibre_angle_mean`` of the owned

@@ -148,8 +148,7 @@ class MacroModel:
         self._cue = None  # the last step's cue tensor per fine cell (feedback only)
         self._fibre_row: dict[str, float] = {}  # the last step's fibre_order, fibre_angle_mean
         self.outputs = self.out.functions + (
-            [] if self.director is None or self.director.function is None
-            else [self.director.function]
+            [] if self.director is None else self.director.functions
         )  # fmt: skip
         self.side_output = coarse_output(self.grid, scene.output.fields)
         self.cell_table = None  # per-cell rows (cells.csv): micro only
@@ -312,10 +311,10 @@ class MacroModel:
         self.out.growth.fill(G, sigma, problem.set_cell_values)
         self.out.strain.fill(eps_el, problem.set_cell_values)
         if self.director is not None:
-            self.director.fill(problem.set_cell_values)
-            self._fibre_row = self.director.measures(problem.areas, self.comm)
             if self.scene.feedback is not None:
                 self._cue = sigma if self.scene.feedback.cue == "stress" else eps_hom
+            self.director.fill(problem.set_cell_values, self._cue)
+            self._fibre_row = self.director.measures(problem.areas, self.comm)
         if self.side_output.fields:
             self._fill_coarse_E_hom(C)
         t3 = time.perf_counter()

@@ -152,6 +152,10 @@ class MicroModel:
         growth_outputs = list(self.growth_fields.functions.values())
         strain_outputs = list(self.strain_fields.functions.values())
         self.outputs = [self.u_out, self.Fg, self.G_out, ids, *growth_outputs, *strain_outputs]
+        self.cue_out = None  # the feedback cue's anisotropy, when asked for
+        if scene.feedback is not None and fibres.CUE_FIELD in scene.output.fields:
+            self.cue_out = fem.Function(Q0, name=fibres.CUE_FIELD)
+            self.outputs.append(self.cue_out)
         self.stability_out = None
         if "stability" in scene.output.fields:
             self.stability_out = fem.Function(Q0, name="stability")
@@ -265,6 +269,8 @@ class MicroModel:
             self.outlines.fibre_angle = self.director.angle  # the director this step used
             if self.director.feedback is not None:
                 self._cue = self._cue_means(means)
+                if self.cue_out is not None:
+                    self._set(self.cue_out, fibres.cue(self._cue).anisotropy)
         if self.growth_fields.functions:
             stress = None
             if self.growth_fields.needs_stress:
