@@ -323,7 +323,8 @@ def unstable_state(model: MacroModel) -> dict[str, Any]:
 
 
 def _angle(v: np.ndarray) -> float:
-    return float(np.degrees(np.arctan2(v[1], v[0])) % 180.0)
+    """Whole degrees from x1 in [0, 180)."""
+    return float(round(float(np.degrees(np.arctan2(v[1], v[0])))) % 180)
 
 
 def _read_summary(path: Path, comm: MPI.Comm) -> list[dict[str, float]]:

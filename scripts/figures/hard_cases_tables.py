@@ -108,12 +108,16 @@ def render(summary: dict) -> str:
 
 
 def _first_loss(r: dict | None) -> str:
-    """Where the law was first not elliptic: the stop itself (``"stop"``), or the run's warning
-    (``"warn"``; '-' if the law stayed elliptic)."""
+    """Where the law was first not elliptic on a set larger than a cell: the stop itself
+    (``"stop"``), or the run's warning (``"warn"``); else the steps with singular points only, or
+    '-' if the law stayed elliptic."""
     stop = (r or {}).get("stop") or {}
     loss = stop if stop.get("kind") == "loss of ellipticity" else (r or {}).get("instability")
     if not loss:
-        return "-"
+        first = (r or {}).get("first_singular_step")
+        if first is None:
+            return "-"
+        return f"singular points only, from step {first} ({r['singular_steps']} steps)"
     x = loss.get("x") or [math.nan] * 2
     return (
         f"{hc.stop_at(loss)} at ({x[0]:.3g}, {x[1]:.3g}), {_pct(loss['nonelliptic_area_fraction'])}"
@@ -293,48 +297,35 @@ def _range(values: list[float], digits: int = 2) -> str:
 
 
 MEANING = {
-    "E_contrast_100": (
-        "(E from 0.02 at x1 = 0 to 2 at x1 = width, stress law): the softest end (a strip along"
-        " x1 = 0 over nearly the whole height) cannot hold its turgor. Free along x1 but held "
-        "along x2 by the stiffer tissue beside it, its walls stretch a lot (most along x1) and "
-        "still pull less than the turgor pushes: the cells press on each other in both "
-        "directions with a net stress of several times the tissue's shear stiffness. The walls "
-        "themselves are stretched; what is compressive is turgor minus wall tension. A real "
-        "tissue would bulge or wrinkle there at once: the scene is outside the model from t = "
-        "0, in both kinematics."
-    ),
     "E_contrast_100_strain": (
-        "(the same stiffness contrast under the strain law): the same state as E_contrast_100 "
-        "at t = 0 (the growth law acts only after the first step): the soft end cannot hold its"
-        " turgor."
-    ),
-    "P1_steep": (
-        "(turgor P1 from 0 at x1 = 0 to 0.005, 5x the reference, at x1 = width): the cells at "
-        "the high-turgor edge grow fastest (strain law); along that edge (x2) they are held "
-        "back by the slower tissue beside them and press on each other along the edge, more "
-        "than its stiffness carries: the edge would buckle into waves, first in one column of "
-        "cells next to a corner, after the tissue has grown about fivefold in area."
-    ),
-    "clamp_shear": (
-        "(P1_steep's turgor gradient with eta = 50, M = 0.01): at the high-turgor edge the "
-        "clamp saturates G to a shear (eigenvalues 2M and 0: growth along one diagonal only); "
-        "after six steps a strip along that edge is pressed together along a diagonal beyond "
-        "what its stiffness carries: it would buckle."
+        "(E from 0.02 at x1 = 0 to 2 at x1 = width, strain law): the softest end stretches its "
+        "walls by 100% or more under turgor (the walls are in tension: no loss of ellipticity "
+        "at t = 0, where the old net-stress criterion stopped it), and the strain law then "
+        "grows it so fast that the geometrically linear model inverts an element within a few "
+        "steps; with finite kinematics Newton finds no equilibrium at the same step."
     ),
     "long_run_gradient_E": (
         "(E from 0.5 to 2 along x1, grown to t = 600 at dt = 5): the soft edge (x1 = 0) grows "
         "fastest under the strain law; along the edge (x2) it is held to the length of the "
-        "stiffer, slower tissue beside it, so after the tissue has grown about 2.5-fold in area"
-        " it is pressed together along x2 beyond what its stiffness carries: the soft margin "
-        "would buckle into waves, first near the corner x2 = 0."
+        "stiffer, slower tissue beside it. Its corner at x2 = 0 turns non-elliptic on a single "
+        "fine cell (a singular point, reported; under the old criterion the run stopped there "
+        "at t = 75-80) and the run goes on until the linear model inverts an element at the "
+        "soft edge, at elastic strains near 300%, after the tissue has grown about fourfold."
     ),
     "anisotropic_Fg0_x1": (
         "(pre-grown 4:1 along x1, Fg0 = diag(4, 1)): cells pre-grown 4:1 along x1 have long, "
         "nearly flat inclined walls and are so compliant across x2 that the linear response to "
         "turgor alone inverts elements at t = 0, before any step completes (the geometrically "
         "linear model's limit). With finite kinematics there is no expanded equilibrium: Newton"
-        " ends on the collapsed branch (Ee = -1/2, i.e. Fe = 0) and the law is not elliptic on "
-        "the whole tissue."
+        " ends on the collapsed branch (Ee = -1/2, i.e. Fe = 0), where the walls are compressed"
+        " and the law is not elliptic on the whole tissue."
+    ),
+    "anisotropic_Fg0_x2": (
+        "(pre-grown 4:1 along x2, Fg0 = diag(1, 4)), finite kinematics only: its elastic strain "
+        "is 6 (600%) in both kinematics; with the lumens' water a follower pressure the finite "
+        "rates part from the linear ones at O(Ee), here by a factor of several, and the cells "
+        "degenerate (E_hom no longer positive definite) at t = 35. The linear run reaches "
+        "t = 60."
     ),
 }
 """Each limit scene (scenes/hard/<name>.toml) and which physical limit it reaches, in words
@@ -352,7 +343,7 @@ def _state(r: dict | None) -> str:
         f"the least elliptic ({u['x'][0]:.3g}, {u['x'][1]:.3g}) principal elastic strains "
         f"{_g(u['strain'][0], 2)} / {_g(u['strain'][1], 2)}, the walls' stress S_w "
         f"{_g(u['wall_stress_over_mu'][0], 2)} / {_g(u['wall_stress_over_mu'][1], 2)} x the shear "
-        f"modulus, the first at {u['compression_angle']:.0f} deg from x1"
+        f"modulus, the first at {round(u['compression_angle']) % 180} deg from x1"
     )
 
 
@@ -366,15 +357,19 @@ def limits_text(summary: dict) -> str:
                             if f["finite"].get("error") and n not in limits]  # fmt: skip
     lines = [
         "### Which physical limit each stopping case reached\n",
-        "A loss of ellipticity (plantgrowth.models.stability) means: the law's stiffness against",
-        "a short wave in some direction, which includes the net stress (wall stress plus turgor),",
-        "is negative; a real tissue would buckle or wrinkle there, below the model's resolution,",
-        "and the model has no unique smooth solution past that point. In every such stop but the",
-        "collapsed anisotropic_Fg0_x1 the net stress at the least elliptic cell is compressive",
-        "along one direction, and the non-elliptic cells are a strip within 0.24 of the tissue's",
-        "edge (cells are 1.73 wide) which narrows under refinement (area 0.05-0.9% at h = 0.05,",
-        "0.1-1.3% at h = 0.1): the onset is a boundary layer that homogenization does not",
-        "resolve. An inverted element is the geometrically linear model's own limit. The first",
+        "A loss of ellipticity (plantgrowth.models.stability) means: the walls' stiffness",
+        "against a short wave in some direction, with the walls' own stress S_w (the lumens'",
+        "water, a follower pressure, resists no shear), is negative; the walls would buckle or",
+        "wrinkle there, and the model has no unique smooth solution past that point. Under the",
+        "old net-stress criterion (wall stress plus turgor) E_contrast_100 and",
+        "E_contrast_100_strain stopped at t = 0, clamp_shear at t = 6, P1_steep at t = 45 and",
+        "long_run_gradient_E at t = 75-80, on strips along an edge whose walls were in tension;",
+        "with the walls' criterion E_contrast_100, P1_steep and clamp_shear run to t = 60 (the",
+        "last two with singular points at their corners from t = 51 and 37), and no run of this",
+        "study loses ellipticity on a set larger than a cell in linear kinematics. What stops",
+        "runs now is the geometrically linear model's own limit, an inverted element, at",
+        "elastic strains of 250-330%, or, with finite kinematics, Newton on the collapsed branch",
+        "or degenerate cells. The first",
         "stopping",
         f"place is within 2 h of a corner in {sum(located)} of {len(located)} stopped runs.",
         "",

@@ -194,7 +194,8 @@ class _InstabilityWarning(logging.Handler):
 def _summary_totals(path: Path) -> dict:
     """Totals over the steps of a run's summary.csv: growth sub-steps (adaptive: accepted
     sub-steps; euler/exp: 1 per step), cell solves, solve and cell-problem seconds, Newton
-    iterations, the largest non-elliptic area fraction and the first step with one > 0."""
+    iterations, the largest non-elliptic area fraction and the first step with one > 0, the
+    steps with singular points (non-elliptic sets within a cell) and the first of them."""
     import csv
 
     if not path.is_file():
@@ -207,7 +208,10 @@ def _summary_totals(path: Path) -> dict:
 
     fractions = [(int(float(r["step"])), float(r.get("nonelliptic_area_fraction") or 0.0))
                  for r in rows]  # fmt: skip
+    singular = [int(float(r["step"])) for r in rows if float(r.get("singular_points") or 0) > 0]
     return {
+        "singular_steps": len(singular),
+        "first_singular_step": singular[0] if singular else None,
         "nonelliptic_area_fraction_max": max((f for _, f in fractions), default=0.0),
         "first_nonelliptic_step": next((k for k, f in fractions if f > 0.0), None),
         "newton_iterations_total": total("newton_iterations"),
@@ -226,7 +230,9 @@ def run_job(job: dict, out: Path, force: bool = False) -> dict | None:
     outdir = out / job["label"]
     if job.get("skip"):
         path = outdir / "result.json"
-        return json.loads(path.read_text()) if path.is_file() else None
+        if not path.is_file():
+            return None
+        return dict(json.loads(path.read_text()), **_summary_totals(outdir / "summary.csv"))
     if not force and (outdir / "result.json").is_file():
         print(f"{job['label']:44s} (result exists, reused; --force reruns it)", flush=True)
         return json.loads((outdir / "result.json").read_text())
@@ -260,7 +266,7 @@ RUN_KEYS = (
     "G_lambda_min", "growth_log_rate_max", "growth_excess_max", "criteria", "seconds",
     "substeps_total", "advances", "n_cell_solves_total", "clamp", "kinematics", "on_instability",
     "instability", "nonelliptic_area_fraction_max", "first_nonelliptic_step", "max_elastic_strain",
-    "newton_iterations_total", "unstable_state",
+    "newton_iterations_total", "unstable_state", "singular_steps", "first_singular_step",
 )  # fmt: skip
 """The values kept for the runs of the large-step study, the long runs, the limits and the
 finite-kinematics runs."""
