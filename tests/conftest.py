@@ -3,6 +3,7 @@
 import gc
 import os
 
+import handler_leaks
 import pytest
 from mpi4py import MPI
 
@@ -24,6 +25,18 @@ def _collect_garbage_and_sync():
     yield
     gc.collect()
     MPI.COMM_WORLD.Barrier()
+
+
+@pytest.fixture(autouse=True)
+def _no_logging_handler_left():
+    """Fail a test that leaves a handler on the ``plantgrowth`` or root logger, or one on a closed
+    stream (tests/handler_leaks.py); what it added is removed, so the next test starts clean."""
+    before = handler_leaks.handlers()
+    yield
+    problems = handler_leaks.leaks(before)
+    handler_leaks.remove_added(before)
+    if problems:
+        pytest.fail("logging handlers left behind: " + "; ".join(problems), pytrace=False)
 
 
 @pytest.fixture
