@@ -2,6 +2,7 @@
 
 import gc
 import os
+import zlib
 
 import handler_leaks
 import pytest
@@ -11,6 +12,23 @@ from mpi4py import MPI
 # (or monkeypatched mutants) left in ~/.cache, and tests write nothing there. Set here, before the
 # test modules are imported, because they copy os.environ for their subprocesses at import.
 os.environ["PLANTGROWTH_CACHE_DIR"] = "off"
+
+
+MPI_SAMPLE = 10
+"""1 in MPI_SAMPLE of the tests not marked ``mpi`` is marked ``mpi_sample``: scripts/test.sh runs
+``mpi or mpi_sample`` on 2 ranks (scripts/README.md, "Tests")."""
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Mark ``mpi_sample`` the tests, not ``mpi`` nor ``skip_in_parallel``, whose node id's CRC-32
+    is 0 modulo MPI_SAMPLE: a fixed, uniform pseudo-random sample (the same on every rank and in
+    every run, independent of what a test does)."""
+    for item in items:
+        if item.get_closest_marker("mpi") or item.get_closest_marker("skip_in_parallel"):
+            continue
+        if zlib.crc32(item.nodeid.encode()) % MPI_SAMPLE == 0:
+            item.add_marker(pytest.mark.mpi_sample)
 
 
 def pytest_runtest_setup(item):

@@ -22,6 +22,8 @@ from plantgrowth.models.macro.model import macro_model
 from plantgrowth.scene import Scene, load_scene
 from plantgrowth.unitcell.homogenization import Homogenizer
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 ROOT = Path(__file__).resolve().parents[1]
 DISC = ROOT / "scenes/examples/soft_disc.toml"
 CENTRE, RADIUS = np.array([4.0, 2.0]), 1.0

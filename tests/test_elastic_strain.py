@@ -32,6 +32,8 @@ from plantgrowth.models.step import StepResult
 from plantgrowth.results.run_results import read_results
 from plantgrowth.runner.step_warnings import STRAIN_BANDS, StepWarnings
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 ROUND_OFF = 1e-12  # closed-form 2x2 algebra on O(1) numbers: a few ulps
 SOLVE = 1e-9
 """The written fields (float64) against the strain recomputed from the written u: both come from

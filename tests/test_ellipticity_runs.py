@@ -47,6 +47,7 @@ def run(directory: Path, text: str, capsys) -> tuple[int, str, list[dict]]:
     return code, err, MPI.COMM_WORLD.bcast(rows, root=0)
 
 
+@pytest.mark.mpi
 def test_the_pulled_L_stops_naming_the_buckling_walls_place_and_time(mpi_tmp_path, capsys):
     """Exit 3 after step 0 is written; the message says what happened in a biologist's words,
     where (beside the re-entrant corner: within 0.3, a few fine cells) and when."""
@@ -63,6 +64,7 @@ def test_the_pulled_L_stops_naming_the_buckling_walls_place_and_time(mpi_tmp_pat
         assert (mpi_tmp_path / "out" / "fields.xdmf").exists()
 
 
+@pytest.mark.mpi
 def test_on_instability_warn_goes_on_and_warns_once(mpi_tmp_path, capsys):
     """``[numerics] on_instability = "warn"``: the run reaches t_max, warns once (stderr and
     run.log), and the column records the non-elliptic fraction."""
@@ -141,6 +143,7 @@ class FailingNaturalSolves:
         return getattr(self.ksp, name)
 
 
+@pytest.mark.mpi
 def test_a_failed_natural_monotonicity_solve_stops_the_run():
     """The line search's second solve (Deuflhard's natural monotonicity test, used at t = 0 by
     the pulled L, whose residual first grows) has its convergence checked like Newton's own:

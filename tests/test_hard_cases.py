@@ -75,12 +75,23 @@ FINITE_LIMITS = {  # name -> first failing step at the cheap resolution (None: a
     "P1_steep": None,  # t = 45 here (57 at h = 0.1)
     "long_run_gradient_E": None,  # t = 270 here
 }
+ON_2_RANKS = {"clamp_active", "E_contrast_100", "anisotropic_Fg0_x1"}
+"""The variants also run on 2 ranks (marked ``mpi``): every test runs the same distributed code
+(a macro run on COMM_WORLD, the observer's reductions, a collective stop and its gathers); these
+are the cheapest that reach each outcome (all criteria over 20 steps, a loss of ellipticity with
+both kinematics, an inverted element), each at step 0 or in a few steps."""
 WARN = {"on_instability": "warn"}
+
 HOMOGENEOUS = [
     "reference", "thin_wall_w0.01", "thin_wall_w0.005", "nu_0.49", "elongated_l1_3",
     "elongated_l1_third", "theta_10", "theta_60", "anisotropic_Fg0_x2", "clamp_active",
     "long_run",
 ]  # fmt: skip
+
+
+def variants(names) -> list:
+    """``names`` for parametrize, those of ON_2_RANKS marked ``mpi``."""
+    return [pytest.param(n, marks=pytest.mark.mpi) if n in ON_2_RANKS else n for n in names]
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +138,7 @@ def test_every_scene_is_covered():
     assert not set(FINITE_PASSING) & set(FINITE_LIMITS)
 
 
-@pytest.mark.parametrize("name", PASSING)
+@pytest.mark.parametrize("name", variants(PASSING))
 def test_criteria_hold(run, name):
     """All criteria of plantgrowth.studies.hard_cases hold at every step (integrator 'adaptive')."""
     r = run(name, PASSING[name])
@@ -164,7 +175,7 @@ def stops_where_ellipticity_is_lost(r: dict, step: int | None) -> None:
     assert all(r["criteria"].values()), _failed(r)
 
 
-@pytest.mark.parametrize("name", ELLIPTICITY_LIMITS)
+@pytest.mark.parametrize("name", variants(ELLIPTICITY_LIMITS))
 def test_ellipticity_limit_stops_cleanly(run, name):
     """Where the homogenized law loses strong ellipticity (compression beyond the walls'
     buckling point: a soft end beside a stiff one, a steep turgor gradient, long differential
@@ -173,7 +184,7 @@ def test_ellipticity_limit_stops_cleanly(run, name):
     stops_where_ellipticity_is_lost(run(name, t_max_dt), step)
 
 
-@pytest.mark.parametrize("name", FINITE_LIMITS)
+@pytest.mark.parametrize("name", variants(FINITE_LIMITS))
 def test_finite_limit_stops_cleanly(run, name):
     """The same with finite kinematics (Newton converges; the law is not elliptic there)."""
     stops_where_ellipticity_is_lost(run(name, kinematics="finite"), FINITE_LIMITS[name])
@@ -287,6 +298,7 @@ def amplifications(directory: Path, integrator: str, dt: float, steps: int = 10)
     return factors
 
 
+@pytest.mark.mpi
 def test_lagged_coupling_needs_the_adaptive_integrator(shared_dir):
     """Linear stability of uniform growth (the homogeneous long run, seeded with a bump of Fg0).
 
@@ -316,7 +328,7 @@ def test_lagged_coupling_needs_the_adaptive_integrator(shared_dir):
     assert 2.0 * (1.0 + math.sqrt(beyond)) / 15.0 == pytest.approx(k, rel=0.02)
 
 
-@pytest.mark.parametrize("name", KNOWN_LIMITS)
+@pytest.mark.parametrize("name", variants(KNOWN_LIMITS))
 def test_known_limit_stops_cleanly(run, name):
     """The geometrically linear macro model inverts elements (4:1 pre-grown cells under the
     reference pressure, before any loss of ellipticity): the run stops with a RunError naming the

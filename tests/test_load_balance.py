@@ -20,6 +20,8 @@ from mpi4py import MPI
 from plantgrowth.scene import SceneError, parse_scene
 from plantgrowth.scene.loads import EdgeForce
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 TRACTION = "left = [-2e-4, 0]\nright = [2e-4, 0]\n"
 FORCE = "left = {force = [-3e-4, 0]}\nright = {force = [3e-4, 0]}\n"  # 2e-4 x height 1.5
 

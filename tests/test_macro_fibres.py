@@ -36,6 +36,8 @@ from plantgrowth.runner.timeloop import run_model, summary_columns
 from plantgrowth.scene import parse_scene
 from plantgrowth.unitcell.solver import CellSolver
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 ROUND_OFF = 1e-9  # LU round-off of the macro and cell solves (module docstring)
 COMM = MPI.COMM_WORLD
 FIBRES = {"fibre_stiffness": 5.0, "fibre_angle": 90.0}

@@ -32,6 +32,8 @@ from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import parse_scene
 from plantgrowth.scene.toml_text import dict_to_toml
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 COMM = MPI.COMM_WORLD
 ROUND_OFF = 1e-8  # module docstring
 FIBRES = {"fibre_stiffness": 5.0, "fibre_angle": 90.0}

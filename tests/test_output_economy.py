@@ -35,6 +35,8 @@ from plantgrowth.runner import output
 from plantgrowth.runner.output import Schedule
 from plantgrowth.scene import SceneError, parse_scene
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 RTOL = 1e-10
 ULP32 = 2.0**-23
 NOT_COMPARED = ("n_cell_solves", "residual")  # the cache restarts empty; round-off

@@ -37,6 +37,8 @@ from mpi4py import MPI
 
 from plantgrowth.runner.rundir import LOCK_NAME, earlier_outputs, remove_earlier_outputs
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 TIMEOUT = 120.0  # s; a run of SCENE takes ~3 s serial, ~5 s on 2 ranks
 
 

@@ -23,6 +23,8 @@ from mpi4py import MPI
 from plantgrowth.models.step import clamped_fraction, largest_strain
 from plantgrowth.scene import SceneError, parse_scene
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 BASE = "[tissue]\nh = 0.5\n[accuracy]\ncell_resolution = 1\n[time]\nt_max = 2\n"
 
 

@@ -34,6 +34,8 @@ from plantgrowth.results.region_outlines import region_outlines
 from plantgrowth.scene import parse_scene
 from plantgrowth.studies.sweep_file import NUMBERS, load_sweep
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 DISC = "(x1 - 3.5)**2 + (x2 - 1.5)**2 < 1"
 SCENE = """\
 model = "{model}"

@@ -58,6 +58,7 @@ def runs(tmp_path_factory):
                              {"macro": MACRO, "micro": MICRO, "bare": BARE})  # fmt: skip
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize(
     "model, field",
     [("macro", ["trG"]), ("macro", ["G", "--component", "tr"]), ("macro", ["growth_direction"]),
@@ -289,6 +290,7 @@ def test_titles_and_legends_fit_in_the_figure(runs, model, field, component, tit
         assert len(text.splitlines()) >= 3  # 330 characters: wrapped, not shrunk nor cut
 
 
+@pytest.mark.mpi
 def test_time_all_writes_one_frame_per_written_time(runs, capsys):
     dirs, pictures = runs
     gif = pictures / "run.gif"

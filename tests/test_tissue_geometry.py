@@ -97,6 +97,7 @@ def test_bad_nx_raises_geometry_error_naming_micro_nx(nx):
 # --- walls mesh -------------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_walls_mesh_has_one_tag_per_cell(walls):
     layout, msh, cell_tags, _ = walls
     n_owned = msh.topology.index_map(2).size_local
@@ -108,6 +109,7 @@ def test_walls_mesh_has_one_tag_per_cell(walls):
     assert counts[0] == counts[1]
 
 
+@pytest.mark.mpi
 def test_wall_areas_are_hexagon_minus_void(walls):
     """Per cell and in total: |walls of cell i| = |hexagon_i| - |void_i above x2 = 0|; for a
     full cell that is phi_w |hexagon_i| (docs/model.md section 2)."""
@@ -127,6 +129,7 @@ def test_wall_areas_are_hexagon_minus_void(walls):
         assert area == pytest.approx(full * (0.5 if i < layout.nx else 1.0), rel=ROUND_OFF)
 
 
+@pytest.mark.mpi
 def test_membrane_length_is_the_voids_perimeter(walls):
     layout, msh, _, facet_tags = walls
     ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
@@ -142,6 +145,7 @@ def test_membrane_length_is_the_voids_perimeter(walls):
     assert bottom == pytest.approx(sum(widths) - sum(void_widths), rel=ROUND_OFF)
 
 
+@pytest.mark.mpi
 def test_walls_mesh_is_conforming(walls):
     """No duplicated nodes (each P1 node at a distinct point) and no untagged exterior facet
     (a seam between cells that is not glued would show as both)."""
@@ -169,6 +173,7 @@ def test_walls_mesh_is_conforming(walls):
 # --- outline mesh -----------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("nx", [4, 8])
 def test_outline_area_is_the_union_of_hexagons(nx):
     layout = TissueLayout(REFERENCE, nx)
