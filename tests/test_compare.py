@@ -101,7 +101,6 @@ def comparison(request, tmp_path_factory):
     return name, base, outdir, columns, rows
 
 
-@pytest.mark.mpi
 def test_compare_csv_has_the_columns_and_one_row_per_nx(comparison):
     _, _, outdir, columns, rows = comparison
     assert columns == COLUMNS
@@ -145,7 +144,6 @@ def test_errors_fall_with_nx_at_least_linearly_in_delta(comparison):
         assert rates[key] >= MIN_RATE[key], (key, rates[key])
 
 
-@pytest.mark.mpi
 def test_mean_growth_rate_at_t0_agrees_to_round_off(comparison):
     """Homogeneous scenes: the virial identity (test_micro.py) makes the micro tissue's mean
     rate at t = 0 equal the macro one; compare.csv keeps 10 significant digits."""

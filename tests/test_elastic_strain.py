@@ -32,8 +32,6 @@ from plantgrowth.models.step import StepResult
 from plantgrowth.results.run_results import read_results
 from plantgrowth.runner.step_warnings import STRAIN_BANDS, StepWarnings
 
-pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
-
 ROUND_OFF = 1e-12  # closed-form 2x2 algebra on O(1) numbers: a few ulps
 SOLVE = 1e-9
 """The written fields (float64) against the strain recomputed from the written u: both come from
@@ -93,6 +91,7 @@ def test_principal_magnitude_is_the_largest_absolute_eigenvalue():
     assert principal_magnitude(eps + skew) == pytest.approx(expected, rel=0, abs=ROUND_OFF)
 
 
+@pytest.mark.mpi
 def test_the_peak_place_is_the_same_however_the_units_are_shared_out():
     """Every rank holds a share of the same units; a tie (a uniform tissue, values equal to
     round-off) goes to the smallest (x1, x2), so serial and mpirun report the same place."""
@@ -185,6 +184,7 @@ def _expected_place(points: np.ndarray, values: np.ndarray) -> tuple[float, floa
     return tuple(tied[np.lexsort((key[:, 1], key[:, 0]))[0]])
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_macro_fields_and_columns_are_the_strain_of_the_written_displacement(
     tmp_path_factory, capsys, kinematics
@@ -212,6 +212,7 @@ def test_macro_fields_and_columns_are_the_strain_of_the_written_displacement(
         assert err.count(STRAIN_MESSAGE) == 1 and "step 0, t = 0" in err
 
 
+@pytest.mark.mpi
 def test_a_resumed_run_does_not_repeat_the_warning_of_a_band_already_reached(
     tmp_path_factory, capsys
 ):

@@ -47,7 +47,6 @@ def run(directory: Path, text: str, capsys) -> tuple[int, str, list[dict]]:
     return code, err, MPI.COMM_WORLD.bcast(rows, root=0)
 
 
-@pytest.mark.mpi
 def test_the_pulled_L_stops_naming_the_buckling_walls_place_and_time(mpi_tmp_path, capsys):
     """Exit 3 after step 0 is written; the message says what happened in a biologist's words,
     where (beside the re-entrant corner: within 0.3, a few fine cells) and when."""

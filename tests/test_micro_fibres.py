@@ -32,8 +32,6 @@ from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import parse_scene
 from plantgrowth.scene.toml_text import dict_to_toml
 
-pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
-
 COMM = MPI.COMM_WORLD
 ROUND_OFF = 1e-8  # module docstring
 FIBRES = {"fibre_stiffness": 5.0, "fibre_angle": 90.0}
@@ -122,6 +120,7 @@ def test_homogeneous_fibred_tissue_grows_across_the_fibres_toward_the_macro_rate
 # --- feedback ------------------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("cue", ["stress", "strain"])
 def test_each_director_turns_toward_its_own_wall_cue(cue):
     """With E_f = 0 the director does not act on the mechanics, so its cue is the isotropic
@@ -202,6 +201,7 @@ def test_resume_equals_an_uninterrupted_fibred_micro_run(tmp_path_factory):
     assert np.abs(last - initial).max() > 1e-3
 
 
+@pytest.mark.mpi
 def test_isotropic_micro_cells_csv_has_no_fibre_column(tmp_path_factory):
     directory = shared_dir(tmp_path_factory, "micro_plain_cells")
     if RANK0:

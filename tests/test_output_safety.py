@@ -37,8 +37,6 @@ from mpi4py import MPI
 
 from plantgrowth.runner.rundir import LOCK_NAME, earlier_outputs, remove_earlier_outputs
 
-pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
-
 TIMEOUT = 120.0  # s; a run of SCENE takes ~3 s serial, ~5 s on 2 ranks
 
 
@@ -156,6 +154,7 @@ def test_a_killed_run_leaves_a_lock_that_does_not_block_resume(tmp_path):
     assert not (outdir / LOCK_NAME).exists()
 
 
+@pytest.mark.mpi
 def test_a_lock_held_by_a_live_process_refuses_the_run(tmp_path_factory, capsys):
     """In-process (under mpirun: rank 0 takes the lock, every rank returns 2): a directory
     whose lock another live process holds is refused, naming it, with nothing written; once
@@ -197,6 +196,7 @@ def test_a_lock_held_by_a_live_process_refuses_the_run(tmp_path_factory, capsys)
 # --- no silent overwrite ------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_an_earlier_run_is_refused_and_overwrite_removes_only_plantgrowth_files(
     tmp_path_factory, capsys
 ):
@@ -287,6 +287,7 @@ def _cut_last_step(outdir: Path) -> None:
     MPI.COMM_WORLD.Barrier()
 
 
+@pytest.mark.mpi
 def test_resume_appends_to_run_log(tmp_path_factory, capsys):
     directory = shared_dir(tmp_path_factory, "resume_log")
     scene, outdir = directory / "scene.toml", directory / "out"

@@ -58,7 +58,6 @@ def runs(tmp_path_factory):
                              {"macro": MACRO, "micro": MICRO, "bare": BARE})  # fmt: skip
 
 
-@pytest.mark.mpi
 @pytest.mark.parametrize(
     "model, field",
     [("macro", ["trG"]), ("macro", ["G", "--component", "tr"]), ("macro", ["growth_direction"]),
@@ -81,6 +80,7 @@ def test_render_writes_a_png_and_leaves_the_run_alone(runs, model, field, capsys
         assert not list(pictures.glob(".*"))  # no temporary file left
 
 
+@pytest.mark.mpi
 def test_existing_picture_is_refused_unless_force(runs, capsys):
     dirs, pictures = runs
     picture = pictures / "mine.png"

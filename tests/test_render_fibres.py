@@ -94,7 +94,6 @@ def fg_tensors(series, t: float) -> np.ndarray:
     return series.cell_field("Fg", t)[:, [0, 1, 3, 4]].reshape(-1, 2, 2).astype(float)
 
 
-@pytest.mark.mpi
 def test_macro_glyphs_are_the_written_director_in_the_drawn_tissue(runs):
     """Each glyph sits on a picked fine triangle's current midpoint, along F Fg^-1 m of that
     triangle's written m, GLYPH_LENGTH grid spacings times sqrt(det F) long; the same material
@@ -134,7 +133,6 @@ def test_macro_glyphs_are_the_written_director_in_the_drawn_tissue(runs):
     assert triangles_drawn[0] == triangles_drawn[1]
 
 
-@pytest.mark.mpi
 def test_micro_glyphs_are_the_cells_directors_in_the_drawn_tissue(runs):
     """One glyph per cell at cells.csv's current centroid, along F Fg^-1 m of its fibre_angle
     (F: the affine fit of the cell's outline), inside the cell; at t = 0 m is the scene's angle

@@ -318,7 +318,6 @@ def test_sweep_rows_equal_stand_alone_runs_of_their_scenes(reference, tmp_path_f
     assert len({r["area"] for r in rows}) == 4
 
 
-@pytest.mark.mpi
 def test_a_failing_run_is_recorded_the_others_finish_and_it_is_retried(tmp_path_factory, capsys):
     text = HEAD + '"growth.Fg0" = [[[1, 0], [0, 1]], [[4, 0], [0, 1]], [[1.05, 0], [0, 1]]]\n'
     directory = sweep_dir(tmp_path_factory, "failing", text)

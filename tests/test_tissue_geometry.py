@@ -97,7 +97,6 @@ def test_bad_nx_raises_geometry_error_naming_micro_nx(nx):
 # --- walls mesh -------------------------------------------------------------------------------
 
 
-@pytest.mark.mpi
 def test_walls_mesh_has_one_tag_per_cell(walls):
     layout, msh, cell_tags, _ = walls
     n_owned = msh.topology.index_map(2).size_local
@@ -129,7 +128,6 @@ def test_wall_areas_are_hexagon_minus_void(walls):
         assert area == pytest.approx(full * (0.5 if i < layout.nx else 1.0), rel=ROUND_OFF)
 
 
-@pytest.mark.mpi
 def test_membrane_length_is_the_voids_perimeter(walls):
     layout, msh, _, facet_tags = walls
     ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
