@@ -11,9 +11,11 @@ Some scenes reach a limit of the model (docs/stability.md) and must stop cleanly
 step, place and cause named and every other criterion holding up to that step: most where the
 homogenized law loses strong ellipticity (the tissue is compressed beyond where its thin walls
 would buckle: plantgrowth.models.stability, the default ``numerics.on_instability = "stop"``),
-one where the geometrically linear model inverts an element. Studies of the integrators
-(large steps, the lagged coupling) go on past a loss of ellipticity (``"warn"``): they measure
-the time stepping, not the model's validity.
+one where the geometrically linear model inverts an element. The anisotropy grown by the long
+E-gradient run goes on past a loss of ellipticity (``"warn"``): it measures what the time
+stepping reaches, not the model's validity. The lagged coupling is measured by the per-step
+factor of a seeded perturbation (linear stability), not by an instability's amplitude, which
+round-off would seed.
 
 With ``kinematics = "finite"`` (docs/model.md section 10) every scene runs again to its own
 t_max: the FINITE_PASSING ones keep every criterion (and the homogeneous ones the exact rate); the
