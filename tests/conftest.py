@@ -24,9 +24,12 @@ tests and a fifth of the 2-rank phase's time to the ~290 ``mpi`` tests."""
 def pytest_collection_modifyitems(config, items):
     """Mark ``mpi_sample`` the tests, not ``mpi`` nor ``skip_in_parallel``, whose node id's CRC-32
     is 0 modulo MPI_SAMPLE: a fixed, uniform pseudo-random sample (the same on every rank and in
-    every run, independent of what a test does)."""
+    every run, independent of what a test does). A module that chooses its 2-rank variants
+    itself (a module-level ``ON_2_RANKS``, tests/test_hard_cases.py) is left out."""
     for item in items:
         if item.get_closest_marker("mpi") or item.get_closest_marker("skip_in_parallel"):
+            continue
+        if hasattr(getattr(item, "module", None), "ON_2_RANKS"):
             continue
         if zlib.crc32(item.nodeid.encode()) % MPI_SAMPLE == 0:
             item.add_marker(pytest.mark.mpi_sample)
