@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import logging
 import os
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -22,6 +21,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from plantgrowth.base.errors import InputError
+from plantgrowth.base.std_streams import StdStreamHandler
 from plantgrowth.meshes.honeycomb import GeometryError
 from plantgrowth.results.run_results import Results, read_results
 from plantgrowth.runner.rundir import API_OPTIONS, Options
@@ -86,8 +86,7 @@ def _progress_logged(comm: MPI.Comm) -> Iterator[None]:
     if log.level != logging.NOTSET or log.handlers:
         yield
         return
-    console = logging.StreamHandler(sys.stderr)
-    console.setLevel(logging.WARNING)
+    console = StdStreamHandler("stderr", logging.WARNING)
     console.addFilter(lambda record: record.levelno < logging.ERROR)
     console.setFormatter(logging.Formatter("plantgrowth: %(message)s"))
     log.addHandler(console)
@@ -99,6 +98,7 @@ def _progress_logged(comm: MPI.Comm) -> Iterator[None]:
         log.setLevel(logging.NOTSET)
         log.propagate = propagate
         log.removeHandler(console)
+        console.close()
 
 
 def cell(

@@ -2,7 +2,9 @@
 
 import gc
 import os
+import zlib
 
+import handler_leaks
 import pytest
 from mpi4py import MPI
 
@@ -10,6 +12,27 @@ from mpi4py import MPI
 # (or monkeypatched mutants) left in ~/.cache, and tests write nothing there. Set here, before the
 # test modules are imported, because they copy os.environ for their subprocesses at import.
 os.environ["PLANTGROWTH_CACHE_DIR"] = "off"
+
+
+MPI_SAMPLE = 20
+"""1 in MPI_SAMPLE of the tests not marked ``mpi`` is marked ``mpi_sample``: scripts/test.sh runs
+``mpi or mpi_sample`` on 2 ranks (scripts/README.md, "Tests"). 20: the sample adds about 60
+tests and a fifth of the 2-rank phase's time to the ~290 ``mpi`` tests."""
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Mark ``mpi_sample`` the tests, not ``mpi`` nor ``skip_in_parallel``, whose node id's CRC-32
+    is 0 modulo MPI_SAMPLE: a fixed, uniform pseudo-random sample (the same on every rank and in
+    every run, independent of what a test does). A module that chooses its 2-rank variants
+    itself (a module-level ``ON_2_RANKS``, tests/test_hard_cases.py) is left out."""
+    for item in items:
+        if item.get_closest_marker("mpi") or item.get_closest_marker("skip_in_parallel"):
+            continue
+        if hasattr(getattr(item, "module", None), "ON_2_RANKS"):
+            continue
+        if zlib.crc32(item.nodeid.encode()) % MPI_SAMPLE == 0:
+            item.add_marker(pytest.mark.mpi_sample)
 
 
 def pytest_runtest_setup(item):
@@ -24,6 +47,18 @@ def _collect_garbage_and_sync():
     yield
     gc.collect()
     MPI.COMM_WORLD.Barrier()
+
+
+@pytest.fixture(autouse=True)
+def _no_logging_handler_left():
+    """Fail a test that leaves a handler on the ``plantgrowth`` or root logger, or one on a closed
+    stream (tests/handler_leaks.py); what it added is removed, so the next test starts clean."""
+    before = handler_leaks.handlers()
+    yield
+    problems = handler_leaks.leaks(before)
+    handler_leaks.remove_added(before)
+    if problems:
+        pytest.fail("logging handlers left behind: " + "; ".join(problems), pytrace=False)
 
 
 @pytest.fixture

@@ -159,6 +159,7 @@ def test_replace_preset_moves_the_keys_left_to_it(scene_file):
 # --- pg.run -------------------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_run_returns_the_summary_plantgrowth_run_writes(runs):
     results, cli_dir = runs
     assert isinstance(results, pg.Results)
@@ -169,6 +170,7 @@ def test_run_returns_the_summary_plantgrowth_run_writes(runs):
     assert "fields.xdmf" in files(cli_dir) and "fields/step_000002.h5" in files(cli_dir)
 
 
+@pytest.mark.mpi
 def test_run_of_a_bad_scene_raises_and_writes_nothing(mpi_tmp_path):
     """nu out of range on part of the tissue: only the run's own places find it."""
     bad = pg.Scene.from_dict(
@@ -196,6 +198,7 @@ def test_run_refuses_an_earlier_run_unless_overwrite(runs, mpi_tmp_path):
     assert_same_summary(again.summary, results.summary, rtol=1e-12)
 
 
+@pytest.mark.mpi
 def test_run_logs_into_run_log_and_shows_only_warnings(mpi_tmp_path, capsys):
     """In a script that never called the CLI (the ``plantgrowth`` logger left unset): run.log
     records the run as under the CLI, the console shows only its warnings (cell.theta = 3 and
@@ -232,6 +235,7 @@ def test_run_logs_into_run_log_and_shows_only_warnings(mpi_tmp_path, capsys):
     assert "cell.theta = 3 degrees" in lines[0]
 
 
+@pytest.mark.mpi
 def test_run_of_model_both_returns_macro_and_micro(mpi_tmp_path):
     scene = pg.Scene.from_dict(
         tomllib.loads(SCENE) | {"model": "both", "micro": {"nx": 2, "resolution": 1}}
@@ -293,6 +297,7 @@ def read_now(outdir: Path) -> tuple | Exception:
         return err
 
 
+@pytest.mark.mpi
 def test_read_results_of_a_run_going_on_and_of_a_failed_run(runs, mpi_tmp_path, monkeypatch):
     """Read in the middle of a run (rank 0, from inside the solves of steps 0 and 2), then
     after step 2's solve failed (RunError): steps 0 and 1. A row being appended (no end of line
@@ -338,6 +343,7 @@ def test_read_results_of_a_run_going_on_and_of_a_failed_run(runs, mpi_tmp_path, 
         np.testing.assert_array_equal(u, pg.read_results(outdir).field("u", t=1))
 
 
+@pytest.mark.mpi
 def test_read_results_of_an_mpi_run_equals_the_serial_run(scene_file, mpi_tmp_path):
     """pg.run on COMM_WORLD (two ranks under mpirun) against pg.run on COMM_SELF (rank 0)."""
     scene = pg.load_scene(scene_file).replace(**{"output.precision": "float64"})

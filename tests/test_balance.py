@@ -10,9 +10,12 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from mpi4py import MPI
 
 from plantgrowth.unitcell.scheduler import SETUP_SOLVES, CellScheduler
+
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
 
 
 def scheduler(size: int) -> CellScheduler:

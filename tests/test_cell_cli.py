@@ -36,6 +36,7 @@ def _last_json(text: str) -> dict:
 # --- output formats ------------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_json_output(capsys):
     argv = ["cell", "--json", "--resolution", "1", "--l1", "1.5", "--Fg", "1.2,0.1,0,1"]
     assert main(argv) == 0
@@ -58,6 +59,7 @@ def test_json_output(capsys):
             assert data[key] == pytest.approx(expected[key], rel=1e-8, abs=1e-14), key
 
 
+@pytest.mark.mpi
 def test_table_output(capsys):
     assert main(["cell", "--resolution", "1", "--E", "2", "--nu", "0.25"]) == 0
     out = capsys.readouterr().out

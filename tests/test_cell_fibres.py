@@ -83,6 +83,7 @@ def _family_areas(cell: HoneycombCell) -> np.ndarray:
     return areas
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize(
     "cell, shape, origin",
     [
@@ -222,6 +223,7 @@ def _json(capsys) -> dict | None:
     return json.loads(out.strip().splitlines()[-1]) if RANK0 else None
 
 
+@pytest.mark.mpi
 def test_cli_fibre_flags_and_strain_averages(capsys):
     """``--fibre-stiffness``, ``--fibre-angle`` reach the solver, and ``--json`` prints dbar_w
     and dbar_v as the solver computes them (COMM_SELF against the CLI's COMM_WORLD: MUMPS vs
@@ -296,6 +298,7 @@ def reference():
     solvers.clear()
 
 
+@pytest.mark.mpi
 def test_exact_path_keys_fibres(reference):
     """Directors 30 and 210 degrees are one director (one solve); fibre_stiffness = 0 is the
     isotropic cell whatever the angle; each matches CellSolver's solve."""
@@ -316,6 +319,7 @@ def test_exact_path_keys_fibres(reference):
     assert _rel(tensors.C[0], tensors.C[2]) > 0.1  # the fibres count (measured 2.5x)
 
 
+@pytest.mark.mpi
 def test_surrogate_turns_the_director_back(reference):
     """Fg = R (a pure rotation by 30 degrees), director 45 degrees: the surrogate asks the
     fibred table at director 15 degrees and zero stretch (a node of the angle lattice and a

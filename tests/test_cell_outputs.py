@@ -26,6 +26,8 @@ from plantgrowth.models.micro.outlines import CELL_COLUMNS
 from plantgrowth.results.reader import read_series
 from plantgrowth.scene.limits import GROWTH_FIELDS
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 NX = 4
 N_CELLS = NX * NX // 2
 WRITTEN = [0, 2, 3]  # every = 2, t_max = 3

@@ -104,6 +104,7 @@ def test_wall_tensor_is_plane_stress_isotropic():
 # --- 1. symmetries and positive definiteness ---------------------------------------------------
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("cell, Fg", CASES, ids=CASE_IDS)
 def test_symmetries_and_positive_definiteness(solver, cell, Fg):
     r = solver(cell).solve(Fg, E_WALL, NU_WALL)
@@ -280,6 +281,7 @@ def test_fundamental_domain_does_not_matter(solver, cell, Fg):
             assert m[key] == pytest.approx(m_ref[key], rel=DISCRETIZATION_RES3), key
 
 
+@pytest.mark.mpi
 def test_comm_self_equals_comm_world(solver):
     """The distributed solve (MUMPS under mpirun) reproduces the rank-local one (PETSc LU)."""
     Fg = np.array([[1.3, 0.1], [0.0, 1.0]])
@@ -352,6 +354,7 @@ def test_convergence_under_refinement(solver, mpi_tmp_path):
 # --- 9. Gibson-Ashby thin-wall limit -----------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_gibson_ashby_thin_walls(solver):
     """E1/E -> (t/l)^3 cos(theta) / ((l1/l2 + sin theta) sin^2 theta), t = 2w, and nu12 -> 1.
 

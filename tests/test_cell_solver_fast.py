@@ -188,6 +188,7 @@ def test_stiffness_weights_are_the_lame_expansion():
         assert _rel(S, S.T) < 1e-15
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("comm", COMMS)
 @pytest.mark.parametrize("geometry", GEOMETRIES)
 def test_matrix_equals_direct_assembly(pair, geometry, comm):
@@ -236,6 +237,7 @@ def test_solve_equals_direct_assembly(pair, geometry, comm, case):
                 assert _rel(value, expected[name]) < ROUND_OFF, (name, pressure, strain_averages)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("comm", COMMS)
 def test_last_solution_is_the_pressure_corrector(pair, comm):
     """The field left in the solver is the back-substituted pressure corrector v of the reference.

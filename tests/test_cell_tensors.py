@@ -57,6 +57,7 @@ def test_soft_disc_growth_rate_at_draft_and_balanced():
     assert abs(disc_mean_trG("balanced") / fine - 1.0) < 0.01 - 0.0013
 
 
+@pytest.mark.mpi
 def test_each_cell_takes_its_own_E():
     """Fg = I: every cell's E_hom is E at its own midpoint times the E = 1 tensor (the E factor
     is exact), so the disc's stiffness is round at any H: relative round-off (1e-12)."""
@@ -79,6 +80,7 @@ def _growth(points: np.ndarray) -> np.ndarray:
     return Fg
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("scene_file", ["scenes/examples/soft_disc.toml",
                                         "scenes/gradient_w_strain.toml"])  # fmt: skip
 def test_a_cells_tensors_do_not_depend_on_the_ranks(scene_file):
@@ -168,6 +170,7 @@ def test_shipped_scenes_do_not_warn_about_their_fields_resolution():
         assert [s.warning for s in model.sampling if s.warning] == [], name
 
 
+@pytest.mark.mpi
 def test_the_disc_at_draft_warns_naming_the_field_place_and_key(tmp_path_factory, capsys):
     """``draft`` (h = 0.2): E's samples misplace 3.4% of its variation (> 3%); the warning
     goes to stderr and run.log once, names material.E, a place on the disc's edge and

@@ -19,6 +19,8 @@ from plantgrowth.results.run_results import read_results
 from plantgrowth.scene import Scene, parse_scene
 from plantgrowth.scene.toml_text import dict_to_toml
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 SMALL = {
     "tissue": {"h": 0.5},
     "growth": {"law": "stress"},

@@ -30,6 +30,7 @@ INVERTING = SMALL.format(growth="Fg0 = [[4, 0], [0, 1]]\n", t_max=2)
 """Pre-grown 4:1: every element inverts at step 0 (the hard case anisotropic_Fg0_x1)."""
 
 
+@pytest.mark.mpi
 def test_no_arguments_lists_the_commands(capsys):
     code, out, err = call([], capsys)
     assert code == 2
@@ -77,6 +78,7 @@ def test_piping_the_progress_into_head_ends_quietly(tmp_path):
         assert [int(r["step"]) for r in csv.DictReader(f)] == list(range(21))
 
 
+@pytest.mark.mpi
 def test_a_failure_is_printed_once_and_names_ranks_only_under_mpi(tmp_path_factory, capsys):
     directory = shared_dir(tmp_path_factory, "failure")
     scene = directory / "inverting.toml"
@@ -117,6 +119,7 @@ def test_compare_errors_at_t_max_are_the_first_steps_without_growth(tmp_path_fac
     assert float(row["err_u2"]) > 0.0
 
 
+@pytest.mark.mpi
 def test_compare_says_which_model_and_nx_and_leaves_t_max_empty(tmp_path_factory, capsys):
     """Progress lines name the model and Nx; the errors are labelled relative; with
     --first-step-only the t_max columns are empty instead of repeating t = 0."""

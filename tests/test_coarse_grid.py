@@ -139,6 +139,7 @@ def test_projection_of_a_linear_field_is_exact_at_interior_nodes_only():
     assert error[interior].max() < slope * WIDTH / 20
 
 
+@pytest.mark.mpi
 def test_projection_split_over_ranks_equals_the_serial_one():
     """Each rank holds a share of the fine cells (as in the coupled loop); the sums are reduced."""
     comm = MPI.COMM_WORLD

@@ -58,6 +58,7 @@ def test_director_error_is_the_area_weighted_rms_of_axial_differences():
     assert director_error(micro, weights, centres, macro) == pytest.approx(expected, rel=1e-12)
 
 
+@pytest.mark.mpi
 def test_compare_with_feedback_reports_the_directors(tmp_path_factory, capsys):
     """compare.csv's fibre columns: each model's fibre_order at t_max is its summary's, the
     directors turned (fibre_order < 1), and err_fibre_angle_tmax equals the RMS difference

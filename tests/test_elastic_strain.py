@@ -91,6 +91,7 @@ def test_principal_magnitude_is_the_largest_absolute_eigenvalue():
     assert principal_magnitude(eps + skew) == pytest.approx(expected, rel=0, abs=ROUND_OFF)
 
 
+@pytest.mark.mpi
 def test_the_peak_place_is_the_same_however_the_units_are_shared_out():
     """Every rank holds a share of the same units; a tie (a uniform tissue, values equal to
     round-off) goes to the smallest (x1, x2), so serial and mpirun report the same place."""
@@ -183,6 +184,7 @@ def _expected_place(points: np.ndarray, values: np.ndarray) -> tuple[float, floa
     return tuple(tied[np.lexsort((key[:, 1], key[:, 0]))[0]])
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_macro_fields_and_columns_are_the_strain_of_the_written_displacement(
     tmp_path_factory, capsys, kinematics
@@ -210,6 +212,7 @@ def test_macro_fields_and_columns_are_the_strain_of_the_written_displacement(
         assert err.count(STRAIN_MESSAGE) == 1 and "step 0, t = 0" in err
 
 
+@pytest.mark.mpi
 def test_a_resumed_run_does_not_repeat_the_warning_of_a_band_already_reached(
     tmp_path_factory, capsys
 ):

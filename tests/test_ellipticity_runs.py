@@ -112,6 +112,7 @@ def test_stiff_walls_pushed_past_their_shear_modulus_stop_naming_the_compression
         assert (mpi_tmp_path / "out" / "fields.xdmf").exists()
 
 
+@pytest.mark.mpi
 def test_on_instability_warn_goes_on_and_warns_once(mpi_tmp_path, capsys):
     """``[numerics] on_instability = "warn"``: the stiff push reaches t_max, warns once (stderr
     and run.log: the non-elliptic area does not double after it appeared), the column records
@@ -248,6 +249,7 @@ class FailingNaturalSolves:
         return getattr(self.ksp, name)
 
 
+@pytest.mark.mpi
 def test_a_failed_natural_monotonicity_solve_stops_the_run():
     """The line search's second solve (Deuflhard's natural monotonicity test, used at t = 0 by
     the pulled L, whose residual first grows) has its convergence checked like Newton's own:

@@ -130,6 +130,7 @@ def test_bad_fibre_keys_are_named_errors(tables, fragment):
     assert fragment in str(error.value)
 
 
+@pytest.mark.mpi
 def test_an_expression_out_of_range_is_named_where_the_run_uses_it():
     """A fibre field given as an expression is checked at every place of the mesh, like the
     other fields (scene/places.py), before the runner runs (or refuses) the fibres."""
@@ -190,6 +191,7 @@ def test_validate_accepts_fibred_micro_scenes(top, extra, tmp_path_factory, caps
     assert code == 0, err
 
 
+@pytest.mark.mpi
 def test_walls_of_zero_fibre_stiffness_run_as_the_paper_s(tmp_path_factory, capsys):
     """fibre_stiffness = 0 is the paper's model: it runs, and it writes the walls into the
     resolved scene.toml it runs."""

@@ -188,6 +188,7 @@ def test_two_perpendicular_families_of_equal_area_have_order_zero():
     assert abs(order - 0.5 / 3.5) <= 1e-15 and abs(mean - 20.0) <= 1e-12
 
 
+@pytest.mark.mpi
 def test_statistics_serial_equals_mpirun():
     """Each rank holds an interleaved share of one global field; the collective statistics
     equal those of the whole field on one rank (to the round-off of a reordered sum)."""

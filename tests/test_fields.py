@@ -206,6 +206,7 @@ def test_x2_linear_geometry_is_checked_at_its_ends():
 SMALL = {"tissue": {"h": 0.5, "H": 2.0}, "accuracy": {"cell_resolution": 1}}
 
 
+@pytest.mark.mpi
 def test_a_bad_value_in_the_interior_is_found_and_named():
     """nu = 0.6 for x1 > 3 (the ends are fine): the first coarse node past x1 = 3 (grid
     step 6.93/3 = 2.31: node 2 at x1 = 4.62) is named, with the range."""
@@ -218,6 +219,7 @@ def test_a_bad_value_in_the_interior_is_found_and_named():
     )
 
 
+@pytest.mark.mpi
 def test_a_bad_value_between_the_coarse_nodes_is_found_on_the_fine_cells():
     """eta < 0 on 0.5 < x1 < 1.5 only: no coarse node there (x1 = 0, 2.31, ...), but fine
     cells; the one with the smallest (x1, x2) is named, the same on every rank."""
@@ -232,6 +234,7 @@ def test_a_bad_value_between_the_coarse_nodes_is_found_on_the_fine_cells():
     assert len(set(MPI.COMM_WORLD.allgather(text))) == 1
 
 
+@pytest.mark.mpi
 def test_nan_and_infinite_values_are_named():
     s = scene(SMALL | {"pressure": {"P1": {"expr": "0.001 * log(x1 - 1)"}}})
     with pytest.raises(
@@ -245,12 +248,14 @@ def test_nan_and_infinite_values_are_named():
         check_used_values(s, MPI.COMM_WORLD)
 
 
+@pytest.mark.mpi
 def test_the_cell_geometry_is_checked_at_the_coarse_nodes():
     s = scene(SMALL | {"cell": {"w": {"expr": "where(x1 > 3, 0.9, 0.05)"}}})
     with pytest.raises(SceneError, match=r"^cell\.w = 0\.9 .*\(at x1 = 4\.6188, x2 = 0 \(coarse "):
         check_used_values(s, MPI.COMM_WORLD)
 
 
+@pytest.mark.mpi
 def test_micro_fields_are_checked_at_the_cell_centres():
     """Nx = 4: two rows of cells, centres at x2 = 0 and 1.5; P1 < 0 for x2 > 1 hits the top
     row only."""
@@ -268,6 +273,7 @@ def test_valid_expressions_pass_and_linear_fields_need_no_meshes(monkeypatch):
     check_used_values(scene(SMALL | {"material": {"E": {"from": 1, "to": 2}}}), MPI.COMM_WORLD)
 
 
+@pytest.mark.mpi
 def test_the_cli_refuses_a_bad_interior_value_before_writing(tmp_path_factory, capsys):
     directory = shared_dir(tmp_path_factory, "bad_field")
     path = directory / "scene.toml"
@@ -287,6 +293,7 @@ def test_the_cli_refuses_a_bad_interior_value_before_writing(tmp_path_factory, c
 # --- Fg0 per component, loads along their edge -------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_Fg0_entries_may_be_fields_and_det_is_checked_where_used():
     Fg0 = [[{"expr": "1 + 0.1 * x2"}, 0], [0, {"from": 1, "to": 2}]]
     s = scene(SMALL | {"growth": {"law": "stress", "Fg0": Fg0}})
@@ -356,6 +363,7 @@ def runs(tmp_path_factory):
     return shared_dir(tmp_path_factory, "field_runs"), {}
 
 
+@pytest.mark.mpi
 def test_an_expression_equal_to_linear_fields_gives_the_same_run(runs, capsys):
     """P1 along x1 (grad P1, P2 terms), E along x2, an Fg0 entry along x1 and a load, as
     numbers or {from, to} and as expressions: the same cell inputs (key_tolerance rounds them
@@ -400,6 +408,7 @@ def test_a_pressure_gradient_along_x2_grows_the_top_faster(runs, capsys):
     assert trace[left].mean() == pytest.approx(trace[right].mean(), rel=0.05)
 
 
+@pytest.mark.mpi
 def test_a_load_growing_along_the_edge_stretches_the_top_more(runs, capsys):
     """Static solve (law none): f1 = +-4e-5 s / 3 on the right and left edges (balanced: equal
     and opposite; small, as E_hom ~ 2e-3) against the constant load of the same resultant

@@ -198,6 +198,7 @@ def test_follower_loads_act_on_the_deformed_edge():
     np.testing.assert_allclose(length, [np.linalg.norm(t)], rtol=1e-12)
 
 
+@pytest.mark.mpi
 def test_micro_walls_rotated_by_growth_stay_unloaded():
     """The micro model's St Venant-Kirchhoff walls with Fg = R in every cell: u = 0."""
     model = MicroModel(rotation_scene("finite", "micro"), MPI.COMM_WORLD)
@@ -313,6 +314,7 @@ def test_linear_predictor_saves_newton_iterations():
     assert iterations[0] <= 4 and max(iterations[1:]) <= 3, iterations
 
 
+@pytest.mark.mpi
 def test_newton_failure_names_step_place_and_cause(mpi_tmp_path, monkeypatch):
     """Newton allowed a single iteration (it needs 4-6 here) stops the run with a RunError that
     names the step, the place of the largest residual and the cause."""
@@ -358,6 +360,7 @@ def l_tissue_rows(directory: Path, solver: str, pull: float) -> tuple[list[dict]
         return list(csv.DictReader(f)), (out / "run.log").read_text()
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("pull, krylov_max_it, hands_over", [(1e-5, None, False), (2e-4, 5, True)])
 def test_iterative_newton_hands_a_jacobian_gmres_cannot_solve_to_lu(
     mpi_tmp_path, monkeypatch, pull, krylov_max_it, hands_over
@@ -409,6 +412,7 @@ def test_newton_avoids_the_collapsed_branch_and_the_check_sees_it(monkeypatch):
 # --- the rest of the program ---------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("model", ["macro", "both"])
 def test_cli_runs_a_finite_scene_with_the_adaptive_integrator_preset_and_surrogate(
     model, mpi_tmp_path
@@ -449,6 +453,7 @@ def state_arrays(outdir: Path, step: int) -> dict[str, np.ndarray]:
         return {key: f[f"step_{step:06d}"][key][...] for key in ("Fg", "G", "u")}
 
 
+@pytest.mark.mpi
 def test_distributed_run_equals_the_single_rank_run(mpi_tmp_path):
     """The run on COMM_WORLD against the same run on COMM_SELF (on every rank): the resume
     states (canonical order) agree to LU round-off (MUMPS vs PETSc LU ~1e-14) carried through
@@ -467,6 +472,7 @@ def test_distributed_run_equals_the_single_rank_run(mpi_tmp_path):
             )
 
 
+@pytest.mark.mpi
 def test_resumed_run_equals_the_straight_run(mpi_tmp_path):
     """Two steps, then --resume to four: the state equals the straight run's (u is in the
     state, so the resumed Newton starts from the same guess and repeats its arithmetic):
@@ -492,6 +498,7 @@ def test_resumed_run_equals_the_straight_run(mpi_tmp_path):
                 )
 
 
+@pytest.mark.mpi
 def test_distributed_micro_run_equals_the_single_rank_run(mpi_tmp_path):
     """The micro model (Nx = 4, turgor and a gradient of eta: walls that bend and rotate) on
     COMM_WORLD against COMM_SELF, three steps: the summary measures agree to 1e-8 relative

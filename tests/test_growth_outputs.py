@@ -126,6 +126,7 @@ def run(factory, name: str, eta: str, capsys, fields=FIELDS) -> tuple:
     return scene, directory / "out"
 
 
+@pytest.mark.mpi
 def test_homogeneous_growth_is_isotropic_at_the_exact_rate(tmp_path_factory, capsys):
     _, outdir = run(tmp_path_factory, "homogeneous", "1.0", capsys)
     series = read_series(outdir)
@@ -144,6 +145,7 @@ def test_homogeneous_growth_is_isotropic_at_the_exact_rate(tmp_path_factory, cap
         assert np.all(series.cell_field("stress_direction", t) == 0.0)
 
 
+@pytest.mark.mpi
 def test_gradient_growth_is_anisotropic_with_unit_directions(tmp_path_factory, capsys):
     """eta from 0.5 to 2: by t = 2 the differential growth has built anisotropic stresses."""
     _, outdir = run(tmp_path_factory, "gradient", "{from = 0.5, to = 2.0}", capsys)

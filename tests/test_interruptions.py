@@ -39,6 +39,8 @@ from plantgrowth.models.linear import SolveReport
 from plantgrowth.models.macro import problem as macro_problem
 from plantgrowth.scene.limits import MACRO_RTOL
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 N_STEPS = 40
 SCENE = """\
 model = "macro"

@@ -69,6 +69,7 @@ def test_tractions_drift_out_of_balance_and_warn(mpi_tmp_path, capsys, kinematic
         assert "loads' net x1 force" in log
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_total_forces_stay_balanced_at_every_step(mpi_tmp_path, capsys, kinematics):
     """The same forces as totals: balanced to round-off at every step (1e-10: the issue's bar;
@@ -79,6 +80,7 @@ def test_total_forces_stay_balanced_at_every_step(mpi_tmp_path, capsys, kinemati
     assert "loads' net x1 force" not in err
 
 
+@pytest.mark.mpi
 def test_a_large_drift_stops_the_run_and_keeps_the_steps(mpi_tmp_path, capsys):
     """Above 10% the run stops with a named error (exit 3) after writing the step; the rows
     before it are kept; the message names the balancing change."""

@@ -33,6 +33,8 @@ from plantgrowth.models.macro.problem import rectangle_mesh
 from plantgrowth.scene import load_scene, parse_scene
 from plantgrowth.unitcell.solver import CellSolver
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 ROOT = Path(__file__).resolve().parents[1]
 ROUND_OFF = 1e-9  # LU round-off of the macro and cell solves (module docstring)
 

@@ -75,6 +75,7 @@ def _two_steps(model: MacroModel) -> tuple[np.ndarray, np.ndarray] | None:
 # --- consequence (1): fibre_stiffness = 0 is the paper's model ----------------------------------
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("cell_tolerance", [0.0, 1e-3])
 def test_zero_fibre_stiffness_reproduces_the_isotropic_run(cell_tolerance):
     """A fibre_stiffness field that is 0 throughout the tissue (an expression, so the run takes
@@ -106,6 +107,7 @@ def fibred_cell():
     return solver.solve(np.eye(2), 1.0, 0.3, fibre_stiffness=5.0, fibre_angle=90.0)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("cell_tolerance", [0.0, 1e-3])
 def test_homogeneous_strain_law_grows_fastest_across_the_fibres(fibred_cell, cell_tolerance):
     """Consequence (4) through the scene keys: every fine cell's G is the formula's from the
@@ -120,6 +122,7 @@ def test_homogeneous_strain_law_grows_fastest_across_the_fibres(fibred_cell, cel
     assert abs(expected[0, 1]) <= ROUND_OFF * expected[0, 0]  # orthotropic (consequence 3)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_homogeneous_stress_law_grows_isotropically(kinematics):
     """Under the stress law sigma_hom = (1 - phi_w) P1 I whatever the walls (docs/model.md
@@ -190,6 +193,7 @@ def test_stress_feedback_under_a_lateral_pull_follows_the_closed_form(
         assert all(row["fibre_order"] == pytest.approx(1.0, abs=1e-12) for row in rows)
 
 
+@pytest.mark.mpi
 def test_an_isotropic_cue_leaves_the_director_unchanged(tmp_path_factory):
     """Turgor alone in a homogeneous tissue: sigma_hom = (1 - phi_w) P1 I (section 4) is
     isotropic, A = 0 up to round-off (~1e-13), so the director (30 degrees) does not turn: less
@@ -208,6 +212,7 @@ def test_an_isotropic_cue_leaves_the_director_unchanged(tmp_path_factory):
 # --- output field, summary columns --------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_fibre_direction_is_the_director_per_fine_cell():
     """fibre_direction holds m = (cos a, sin a) of the scene's angle field at each fine cell's
     midpoint (a linear field: the cells see different angles), a reduced to (-90, 90] (an axis:
@@ -225,6 +230,7 @@ def test_fibre_direction_is_the_director_per_fine_cell():
     assert np.allclose(m, np.column_stack([np.cos(a), np.sin(a)]), rtol=0, atol=1e-12)
 
 
+@pytest.mark.mpi
 def test_fibre_columns_and_field_only_for_fibred_scenes():
     assert "fibre_order" not in summary_columns(_scene())
     assert summary_columns(_scene(FIBRES))[-2:] == ["fibre_order", "fibre_angle_mean"]

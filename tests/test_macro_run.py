@@ -45,6 +45,8 @@ from plantgrowth.scene.toml_text import dict_to_toml
 from plantgrowth.unitcell.homogenization import Homogenizer
 from plantgrowth.unitcell.solver import CellSolver
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 BIN = Path(sys.executable).parent
 PLANTGROWTH = str(BIN / "plantgrowth")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")

@@ -32,6 +32,8 @@ from plantgrowth.scene.limits import MACRO_RTOL
 from plantgrowth.scene.parts import Solver
 from plantgrowth.scene.toml_text import dict_to_toml
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 HONEYCOMB = np.array([[0.030507, 0.029324, 0.0], [0.029324, 0.030507, 0.0], [0.0, 0.0, 0.000591]])

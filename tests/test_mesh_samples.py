@@ -5,11 +5,14 @@ inside a cell is found at the exact minimum of its quadratic."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
 from plantgrowth.base.mesh_samples import MeshSamples, det_degree, quadratic_minima
+
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
 
 A = -0.7
 """u = (A x1^2, 0): det F = 1 + 2 A x1, -0.4 at x1 = 1, positive at both cells' centroids of

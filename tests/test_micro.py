@@ -265,6 +265,7 @@ def xdmf_first_step(outdir: Path) -> tuple[int, dict[str, np.ndarray], int]:
     return n_triangles, values, len(grids)
 
 
+@pytest.mark.mpi
 def test_micro_fields_file_holds_u_Fg_G_and_cell_id(micro_run):
     _, outdir = micro_run
     n_triangles, fields, n_times = xdmf_first_step(outdir)
@@ -281,6 +282,7 @@ def test_micro_fields_file_holds_u_Fg_G_and_cell_id(micro_run):
     np.testing.assert_allclose(Fg[:, diagonal], 1.0, atol=1e-15)
 
 
+@pytest.mark.mpi
 def test_micro_summary_has_the_columns(micro_run):
     _, outdir = micro_run
     columns, rows = read_summary(outdir / "summary.csv")
@@ -372,6 +374,7 @@ def test_pressure_gradient_makes_growth_rise_along_x1():
     np.testing.assert_allclose(rate[:, 1:-1], local[:, 1:-1], rtol=0.01)
 
 
+@pytest.mark.mpi
 def test_fields_run_between_the_ends_of_the_simulated_micro_tissue():
     """docs/model.md section 7: a {from, to} field spans the tissue actually simulated, here x1 in
     [0, 7.79] at Nx = 4, not the scene's 6.93 rectangle; no value leaves [from, to]. Before
@@ -390,6 +393,7 @@ def test_fields_run_between_the_ends_of_the_simulated_micro_tissue():
     assert nu.min() > 0.0 and nu.max() < 0.45
 
 
+@pytest.mark.mpi
 def test_macro_side_of_a_comparison_spans_the_same_tissue():
     """The macro side of ``both``/``compare`` runs on the micro tissue's outline, with the
     fields over its x1 extent: its coarse nodes reach x1 = 7.79 (Nx = 4) with E = 0.1 there."""
@@ -401,6 +405,7 @@ def test_macro_side_of_a_comparison_spans_the_same_tissue():
     np.testing.assert_allclose(E, 1.0 - 0.9 * x1 / x1.max(), rtol=1e-12)
 
 
+@pytest.mark.mpi
 def test_model_both_runs_macro_on_the_micro_tissue(mpi_tmp_path):
     """model = "both": the macro side's domain is the region the micro cells cover (docs/model.md
     section 7), so its mesh area is the sum of the cells' (cut) hexagon areas, not the scene's

@@ -120,6 +120,7 @@ def test_homogeneous_fibred_tissue_grows_across_the_fibres_toward_the_macro_rate
 # --- feedback ------------------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("cue", ["stress", "strain"])
 def test_each_director_turns_toward_its_own_wall_cue(cue):
     """With E_f = 0 the director does not act on the mechanics, so its cue is the isotropic
@@ -200,6 +201,7 @@ def test_resume_equals_an_uninterrupted_fibred_micro_run(tmp_path_factory):
     assert np.abs(last - initial).max() > 1e-3
 
 
+@pytest.mark.mpi
 def test_isotropic_micro_cells_csv_has_no_fibre_column(tmp_path_factory):
     directory = shared_dir(tmp_path_factory, "micro_plain_cells")
     if RANK0:

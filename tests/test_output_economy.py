@@ -203,6 +203,7 @@ def runs(tmp_path_factory) -> dict[str, Path]:
     }
 
 
+@pytest.mark.mpi
 def test_every_writes_t0_each_kth_and_the_last_step_and_every_row(runs):
     outdir = runs["every4"]
     assert step_files(outdir) == [0, 4, 8, 10]
@@ -213,6 +214,7 @@ def test_every_writes_t0_each_kth_and_the_last_step_and_every_row(runs):
         assert sorted(f) == ["step_000009", "step_000010"]
 
 
+@pytest.mark.mpi
 def test_every_changes_what_is_written_not_the_numbers(runs):
     """The written steps of every = 4 equal those steps of every = 1 (bitwise in serial; under
     mpirun the parallel solves' round-off, ~1e-14, can move a float32 rounding by one ulp)."""
@@ -221,6 +223,7 @@ def test_every_changes_what_is_written_not_the_numbers(runs):
     assert_same_fields_and_state(sparse, dense, step_files(sparse))
 
 
+@pytest.mark.mpi
 def test_e_hom_lives_on_the_coarse_grid_only(runs):
     outdir = runs["every4"]
     fine = {a.get("Name") for a in ET.parse(outdir / "fields.xdmf").getroot().iter("Attribute")}
@@ -252,6 +255,7 @@ def test_the_reader_gives_e_hom_on_the_fine_cells_as_the_model_interpolates_it(r
     assert np.ptp(E1111) > 1e-3 * E1111.max()  # the eta gradient makes E_hom vary
 
 
+@pytest.mark.mpi
 def test_fields_are_compressed_in_their_precision_and_the_state_is_float64(runs):
     """float32 fields are the float64 state rounded once; float64 fields equal it; every
     DataItem declares the precision of its dataset."""
@@ -290,6 +294,7 @@ def test_meshio_reads_both_series(runs):
 # --- resume stays exact -------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("kill", [6, 8], ids=["off_schedule", "written_step"])
 def test_a_run_stopped_before_a_state_resumes_to_the_same_outputs(
     runs, tmp_path_factory, capsys, monkeypatch, kill

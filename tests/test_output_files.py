@@ -27,6 +27,8 @@ from plantgrowth.cli import main
 from plantgrowth.scene import load_scene
 from plantgrowth.scene.limits import OUTPUT_FIELDS
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 BIN = Path(sys.executable).parent
 PLANTGROWTH = str(BIN / "plantgrowth")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")

@@ -154,6 +154,7 @@ def test_a_killed_run_leaves_a_lock_that_does_not_block_resume(tmp_path):
     assert not (outdir / LOCK_NAME).exists()
 
 
+@pytest.mark.mpi
 def test_a_lock_held_by_a_live_process_refuses_the_run(tmp_path_factory, capsys):
     """In-process (under mpirun: rank 0 takes the lock, every rank returns 2): a directory
     whose lock another live process holds is refused, naming it, with nothing written; once
@@ -195,6 +196,7 @@ def test_a_lock_held_by_a_live_process_refuses_the_run(tmp_path_factory, capsys)
 # --- no silent overwrite ------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_an_earlier_run_is_refused_and_overwrite_removes_only_plantgrowth_files(
     tmp_path_factory, capsys
 ):
@@ -285,6 +287,7 @@ def _cut_last_step(outdir: Path) -> None:
     MPI.COMM_WORLD.Barrier()
 
 
+@pytest.mark.mpi
 def test_resume_appends_to_run_log(tmp_path_factory, capsys):
     directory = shared_dir(tmp_path_factory, "resume_log")
     scene, outdir = directory / "scene.toml", directory / "out"

@@ -26,6 +26,8 @@ from plantgrowth.runner.output import FieldSeries, Schedule, StateFile
 from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import parse_scene
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 WORLD = MPI.COMM_WORLD
 ULP32 = 2.0**-23  # one float32 unit in the last place (relative)
 

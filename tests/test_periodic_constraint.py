@@ -20,6 +20,8 @@ from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.meshes.unit_cell import domain_polygon, periodic_domain
 from plantgrowth.unitcell.solver import CellSolver
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 # A coarse cell (resolution 1, thick walls): small matrices for the explicit reduction.
 SMALL = HoneycombCell(w=0.2)
 ELONGATED = HoneycombCell(l1=1.5, theta_deg=40.0, w=0.15)

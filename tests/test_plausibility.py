@@ -60,6 +60,7 @@ def test_balanced_loads_and_x2_loads_are_accepted(loads):
     assert scene.loads
 
 
+@pytest.mark.mpi
 def test_the_cli_refuses_an_unbalanced_load_and_writes_nothing(tmp_path_factory, capsys):
     directory = shared_dir(tmp_path_factory, "unbalanced")
     scene = directory / "scene.toml"
@@ -73,6 +74,7 @@ def test_the_cli_refuses_an_unbalanced_load_and_writes_nothing(tmp_path_factory,
         ), err
 
 
+@pytest.mark.mpi
 def test_a_balanced_pull_gives_a_uniform_stress(tmp_path_factory, capsys):
     directory = shared_dir(tmp_path_factory, "pull")
     scene, outdir = directory / "scene.toml", directory / "out"
@@ -143,6 +145,7 @@ def test_implausible_physics_warns_once_on_stderr_and_in_run_log(name, tmp_path_
     assert "warning" not in out
 
 
+@pytest.mark.mpi
 def test_validate_shows_the_scene_warnings(tmp_path_factory, capsys):
     directory = shared_dir(tmp_path_factory, "validate")
     scene = directory / "scene.toml"
@@ -154,6 +157,7 @@ def test_validate_shows_the_scene_warnings(tmp_path_factory, capsys):
         assert warnings_in(err) == [err.strip()] and "cell.theta = 0.5236 degrees" in err
 
 
+@pytest.mark.mpi
 def test_largest_strain_and_clamped_fraction():
     """Principal magnitudes (a shear has +-gamma); the clamp share is weighted; both are
     reduced over the ranks (each rank passes its own share here: the same arrays)."""

@@ -86,6 +86,7 @@ def run(factory, name: str, text: str, capsys) -> Path:
     return directory / "out"
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("model", ["macro", "micro"])
 def test_a_region_of_the_whole_tissue_gives_the_global_columns(tmp_path_factory, capsys, model):
     out = run(tmp_path_factory, f"whole_{model}", scene_text(model), capsys)
@@ -99,6 +100,7 @@ def test_a_region_of_the_whole_tissue_gives_the_global_columns(tmp_path_factory,
         assert 0.0 < row["disc.area"] < 0.5 * row["area"]
 
 
+@pytest.mark.mpi
 def test_region_columns_equal_the_written_fields_of_their_fine_cells(tmp_path_factory, capsys):
     """Membership by reference midpoint, means weighted by reference area, area in the current
     configuration: recomputed from fields.xdmf (float64) with numpy (the deformed triangles'
@@ -237,6 +239,7 @@ def test_bad_parameters_and_regions_are_named_errors(data, fragments):
         assert fragment in str(caught.value)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize(
     ("model", "disc", "fragments"),
     [
@@ -311,6 +314,7 @@ def test_parameters_and_regions_round_trip_through_the_resolved_scene():
     assert "parameters" not in parse_scene({"growth": {"law": "none"}}).to_dict()
 
 
+@pytest.mark.mpi
 def test_micro_region_columns_equal_the_cells_table(tmp_path_factory, capsys):
     """Micro: the cells whose centre (TissueLayout.centres) lies in the region; area: the sum of
     cells.csv's deformed areas; rates: cells.csv's tr G weighted by its reference areas

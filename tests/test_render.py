@@ -80,6 +80,7 @@ def test_render_writes_a_png_and_leaves_the_run_alone(runs, model, field, capsys
         assert not list(pictures.glob(".*"))  # no temporary file left
 
 
+@pytest.mark.mpi
 def test_existing_picture_is_refused_unless_force(runs, capsys):
     dirs, pictures = runs
     picture = pictures / "mine.png"
@@ -289,6 +290,7 @@ def test_titles_and_legends_fit_in_the_figure(runs, model, field, component, tit
         assert len(text.splitlines()) >= 3  # 330 characters: wrapped, not shrunk nor cut
 
 
+@pytest.mark.mpi
 def test_time_all_writes_one_frame_per_written_time(runs, capsys):
     dirs, pictures = runs
     gif = pictures / "run.gif"

@@ -10,10 +10,13 @@ projection computed in double precision from vectors of norm ~1 on a matrix of c
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from plantgrowth.models.solution_history import SolutionHistory
+
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
 
 N = 400
 EXACT = 1e-10

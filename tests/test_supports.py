@@ -141,6 +141,7 @@ def confined_stretch(C11: float, f: float) -> float:
     return float(max(r.real for r in roots if abs(r.imag) < 1e-12)) - 1.0
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("solver", ["direct", "iterative"])
 @pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_a_clamped_strip_with_a_roller_on_top_is_in_confined_tension(kinematics, solver):
@@ -291,6 +292,7 @@ def test_the_fuzzer_class_bad_supports_gives_named_errors(tmp_path_factory, caps
             assert not found, f"{case.name}: {found}"
 
 
+@pytest.mark.mpi
 def test_a_clamp_holds_the_pull_on_the_growing_edge():
     """The example scene, 4 steps: the clamp's x1 force balances the loads' x1 resultant on the
     grown right edge at every step (the symmetry plane holds no x1), which grows with the
@@ -328,6 +330,7 @@ def summary(directory: Path) -> dict[str, np.ndarray]:
     return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
 
 
+@pytest.mark.mpi
 def test_the_held_and_pulled_example_runs(tmp_path_factory, capsys):
     """scenes/examples/held_and_pulled.toml: held on the left, pulled on the right; it runs,
     grows faster along the pull, and writes no load_imbalance (the held edge carries the load)."""

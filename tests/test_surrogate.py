@@ -27,6 +27,8 @@ from plantgrowth.base.tensors import (
 from plantgrowth.unitcell import surrogate
 from plantgrowth.unitcell.homogenization import Homogenizer
 
+pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
+
 ROUND_OFF = 1e-12
 GEOMETRY = np.array([[1.5, 1.0, 30.0, 0.1]])  # l1 = 1.5: orthotropic, so rotations show
 

@@ -132,6 +132,7 @@ def long_reference(tmp_path_factory) -> Path:
 # --- expansion ------------------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_grid_runs_every_combination_first_key_slowest(tmp_path_factory):
     directory = sweep_dir(tmp_path_factory, "grid")
     sweep = load_sweep(directory / "sweep.toml")
@@ -289,6 +290,7 @@ def test_dry_run_lists_the_runs_and_writes_nothing(tmp_path_factory, capsys):
 # --- results ------------------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_sweep_rows_equal_stand_alone_runs_of_their_scenes(reference, tmp_path_factory, capsys):
     rows = table(reference) if RANK0 else None
     rows = MPI.COMM_WORLD.bcast(rows, root=0)
@@ -412,6 +414,7 @@ def test_a_run_that_is_starting_is_not_taken_for_foreign_files(tmp_path_factory)
         check_run_directory(run_dir, run)
 
 
+@pytest.mark.mpi
 def test_a_sweep_is_refused_while_another_holds_the_directory(tmp_path_factory, capsys):
     """An exclusive lock (a sweep, or a run) refuses job-array elements, a shared one (array
     elements) refuses a plain sweep but not another element."""
@@ -550,6 +553,7 @@ def test_the_job_array_and_group_split_covers_every_run_once(n_runs):
                     assert s.group_runs(n_runs, rank, size) == s.group_runs(n_runs, leader, size)
 
 
+@pytest.mark.mpi
 def test_job_array_elements_each_run_their_share(tmp_path_factory, capsys):
     text = HEAD + '"material.nu" = [0.2, 0.25]\n"time.t_max" = [1, 2]\n'
     directory = sweep_dir(tmp_path_factory, "array", text)

@@ -108,6 +108,7 @@ def test_walls_mesh_has_one_tag_per_cell(walls):
     assert counts[0] == counts[1]
 
 
+@pytest.mark.mpi
 def test_wall_areas_are_hexagon_minus_void(walls):
     """Per cell and in total: |walls of cell i| = |hexagon_i| - |void_i above x2 = 0|; for a
     full cell that is phi_w |hexagon_i| (docs/model.md section 2)."""
@@ -142,6 +143,7 @@ def test_membrane_length_is_the_voids_perimeter(walls):
     assert bottom == pytest.approx(sum(widths) - sum(void_widths), rel=ROUND_OFF)
 
 
+@pytest.mark.mpi
 def test_walls_mesh_is_conforming(walls):
     """No duplicated nodes (each P1 node at a distinct point) and no untagged exterior facet
     (a seam between cells that is not glued would show as both)."""
@@ -169,6 +171,7 @@ def test_walls_mesh_is_conforming(walls):
 # --- outline mesh -----------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("nx", [4, 8])
 def test_outline_area_is_the_union_of_hexagons(nx):
     layout = TissueLayout(REFERENCE, nx)

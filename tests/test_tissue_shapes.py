@@ -204,6 +204,7 @@ def test_a_mesh_file_names_its_loadable_edges_and_is_relative_to_the_scene(msh_f
 # --- the coarse grid ----------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_coarse_nodes_outside_the_tissue_take_no_part():
     """The L's coarse grid (H = 1) covers [0, 4] x [0, 3]; the four nodes of the empty corner
     x1 > 2, x2 > 1 weigh no fine cell and get no cell problem."""
@@ -242,6 +243,7 @@ def test_an_outline_equal_to_the_rectangle_gives_the_rectangle_run(tmp_path_fact
     assert polygon["u1_max"][0] > 0.0 and box["area"][-1] > box["area"][0]
 
 
+@pytest.mark.mpi
 def test_a_mesh_file_gives_the_run_of_the_same_outline(msh_files, tmp_path_factory, capsys):
     """write_polygon_msh and the outline mesher build the same gmsh mesh: loads by group name
     on the file and by edge index on the outline agree to round-off."""
@@ -256,6 +258,7 @@ def test_a_mesh_file_gives_the_run_of_the_same_outline(msh_files, tmp_path_facto
     assert_same_run(from_file, polygon)
 
 
+@pytest.mark.mpi
 def test_an_l_shape_runs_grows_and_writes_readable_fields(tmp_path_factory, capsys):
     directory = shared_dir(tmp_path_factory, "L")
     rows = run(directory, "L", outline(L_SHAPE) + "[loads]\nedge1 = [3e-5, 0.0]\n"

@@ -18,7 +18,7 @@ from __future__ import annotations
 import sys
 
 from plantgrowth.base.errors import USER_ERRORS, InputError, Interrupted
-from plantgrowth.cli.console import QUIET, configure_logging, discard_stdout, solver_signals
+from plantgrowth.cli.console import QUIET, console_logging, discard_stdout, solver_signals
 from plantgrowth.cli.mpi_start import world
 from plantgrowth.cli.parser import build_parser
 
@@ -40,12 +40,12 @@ def main(argv: list[str] | None = None) -> int:
             )
         args = parser.parse_args(argv)
         comm = world()
-        configure_logging(comm)
-        QUIET.on = getattr(args, "quiet", False)
-        if args.solves:
-            solver_signals()
-        code = args.handler(args, comm)
-        sys.stdout.flush()
+        with console_logging(comm):
+            QUIET.on = getattr(args, "quiet", False)
+            if args.solves:
+                solver_signals()
+            code = args.handler(args, comm)
+            sys.stdout.flush()
         return code
     except USER_ERRORS as err:
         if world().rank == 0:

@@ -7,7 +7,11 @@ import logging
 import os
 import signal
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING
+
+from plantgrowth.base.std_streams import StdStreamHandler
 
 if TYPE_CHECKING:
     from mpi4py import MPI
@@ -39,8 +43,9 @@ class _Quiet(logging.Filter):
 QUIET = _Quiet()
 
 
-class _Console(logging.StreamHandler):
-    """A console handler that goes quiet when its reader is gone (``plantgrowth ... | head``)."""
+class _Console(StdStreamHandler):
+    """A console handler on sys.stdout or sys.stderr as they are when a record is written, that
+    goes quiet when its reader is gone (``plantgrowth ... | head``)."""
 
     def handleError(self, record: logging.LogRecord) -> None:  # noqa: N802 (logging's name)
         if isinstance(sys.exc_info()[1], BrokenPipeError):
@@ -59,33 +64,52 @@ def discard_stdout() -> None:
         pass
 
 
-def configure_logging(comm: MPI.Comm) -> None:
-    """Progress of ``plantgrowth`` on rank 0 to stdout, its warnings to stderr (as
+@contextmanager
+def console_logging(comm: MPI.Comm) -> Iterator[None]:
+    """While active: progress of ``plantgrowth`` on rank 0 to stdout, its warnings to stderr (as
     ``plantgrowth: warning: ...``); errors are printed by ``main`` and the handlers, once; other
-    libraries' warnings only.
+    libraries' warnings only. Afterwards the ``plantgrowth`` and root loggers are as they were:
+    ``main`` called in process (a script, a test) leaves no handler behind.
 
-    The root handler drops INFO records: the JIT's build tool raises the root level to INFO
-    when it compiles a form, which would otherwise flood the output.
+    The root handler (added only if the root logger has none) drops INFO records: the JIT's
+    build tool raises the root level to INFO when it compiles a form, which would otherwise
+    flood the output.
     """
-    root_handler = logging.StreamHandler()
-    root_handler.setLevel(logging.WARNING)
-    logging.basicConfig(handlers=[root_handler], format="%(name)s: %(message)s")
-    for handler in list(log.handlers):
+    root = logging.getLogger()
+    root_handler = None
+    if not root.handlers:
+        root_handler = StdStreamHandler("stderr", logging.WARNING)
+        root_handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
+        root.addHandler(root_handler)
+    saved = (list(log.handlers), log.level, log.propagate)
+    for handler in saved[0]:  # the caller's, back on exit
         log.removeHandler(handler)
-        handler.close()
-    console = _Console(sys.stdout)  # the stdout of this call
+    console = _Console("stdout")
     console.setFormatter(logging.Formatter("%(message)s"))
     console.addFilter(_Below(logging.WARNING))
     QUIET.on = False
     console.addFilter(QUIET)
-    warnings = _Console(sys.stderr)
+    warnings = _Console("stderr", logging.WARNING)
     warnings.setFormatter(logging.Formatter("plantgrowth: %(message)s"))
-    warnings.setLevel(logging.WARNING)
     warnings.addFilter(_Below(logging.ERROR))
-    log.addHandler(console)
-    log.addHandler(warnings)
+    ours = (console, warnings)
+    for handler in ours:
+        log.addHandler(handler)
     log.propagate = False
     log.setLevel(logging.INFO if comm.rank == 0 else logging.ERROR)
+    try:
+        yield
+    finally:
+        for handler in ours:
+            log.removeHandler(handler)
+            handler.close()
+        if root_handler is not None:
+            root.removeHandler(root_handler)
+            root_handler.close()
+        for handler in saved[0]:
+            log.addHandler(handler)
+        log.setLevel(saved[1])
+        log.propagate = saved[2]
 
 
 def solver_signals() -> None:
