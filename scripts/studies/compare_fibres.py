@@ -115,18 +115,21 @@ def run_case(name: str, nxs: list[int], raw: Path) -> dict:
     }
 
 
-def single_cell(nx: int = 8, delta: float = 1.0, resolution: int | None = None) -> dict:
+def single_cell(
+    nx: int = 8, delta: float = 1.0, resolution: int | None = None, walls: str = "around"
+) -> dict:
     """The micro feedback's response to one turned director, elastic only (Fg = I, one step of
     dt = 1): ``feedback_a90``'s tissue at Nx with every director at 90 degrees but the cell
     nearest the tissue's middle at 90 + delta. Each director's turn over the step minus its
     turn when all are at 90 (the boundary's own cue), per degree of delta and unit rate k:
     the turned cell's (> 0: it turns further, the uniform director is unstable) and its six
-    neighbours'."""
+    neighbours'. ``walls``: the cue's ``feedback.walls``."""
     data = tomllib.loads(
         (ROOT / "scenes" / "compare" / f"{SCENES['feedback_a90']}.toml").read_text()
     )
     data["model"] = "micro"
     data["micro"]["nx"] = nx
+    data["feedback"]["walls"] = walls
     if resolution is not None:  # else the scene's
         data["micro"]["resolution"] = resolution
     scene = parse_scene(data)
@@ -144,7 +147,7 @@ def single_cell(nx: int = 8, delta: float = 1.0, resolution: int | None = None) 
         turned.append(fibres.reduce_angle(model.director.angle - angle))
     response = (turned[1] - turned[0])[near] / (delta * scene.feedback.rate)
     return {
-        "nx": nx, "resolution": scene.micro_resolution, "delta_degrees": delta,
+        "nx": nx, "resolution": scene.micro_resolution, "walls": walls, "delta_degrees": delta,
         "rate_k": scene.feedback.rate, "cell": middle, "centre": centres[middle].tolist(),
         "turn_per_degree_per_k": round(float(response[0]), 5),
         "neighbours_turn_per_degree_per_k": [round(float(r), 5) for r in response[1:]],
