@@ -13,6 +13,11 @@ strain law, the reference geometry):
   from 0.5 to 2: the directors turn in both models;
 - ``single_cell``: the micro feedback's response to one turned director (:func:`single_cell`).
 
+``--walls`` sets the feedback cases' ``feedback.walls`` (the micro cue's walls: "around", the
+default, both halves of every wall around the cell; "own", the cell's own halves, as before the
+option existed): their scene is then a copy in ``--raw`` with that key, and their entries are
+keyed ``<case>_<walls>`` (``single_cell_<walls>``).
+
 Each compare runs in this process through the CLI (one process; run it under ``nice -n 19`` on
 a shared machine); raw runs go to ``--raw`` (default ``results/compare_fibres``, git-ignored).
 ``--json`` (default ``benchmarks/results/compare_fibres.json``) gets, per case, the command,
@@ -21,6 +26,8 @@ fibre_angle_mean, area, rates) and the fitted rates, with the machine descriptio
 reruns some cases and keeps the others' entries.
 
     nice -n 19 python scripts/studies/compare_fibres.py [--only first_step] [--feedback-nx 4 8]
+    nice -n 19 python scripts/studies/compare_fibres.py --only feedback_a90 single_cell \
+        --walls own --json benchmarks/results/compare_feedback.json
 """
 
 from __future__ import annotations
@@ -42,6 +49,8 @@ from plantgrowth.cli import main as plantgrowth
 from plantgrowth.models import fibres
 from plantgrowth.models.micro.model import MicroModel
 from plantgrowth.scene import parse_scene
+from plantgrowth.scene.limits import FEEDBACK_WALLS
+from plantgrowth.scene.toml_text import dict_to_toml
 from plantgrowth.studies.compare import fitted_rate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -65,6 +74,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add("--feedback-nx", type=int, nargs="+", default=[4, 8, 16], help="Nx of the t = 60 cases")
     add("--only", nargs="+", choices=[*SCENES, "single_cell"], default=[*SCENES, "single_cell"],
         help="cases to run")  # fmt: skip
+    add("--walls", choices=FEEDBACK_WALLS, default=None,
+        help="feedback.walls of the feedback cases (default: the scenes')")  # fmt: skip
     add("--raw", type=Path, default=Path("results/compare_fibres"), help="raw run root")
     add("--json", type=Path, default=ROOT / "benchmarks/results/compare_fibres.json")
     return parser.parse_args(argv)
@@ -83,11 +94,26 @@ def rates(rows: list[dict[str, float]], keys: tuple[str, ...]) -> dict[str, floa
     return {k: round(fitted_rate(nx, [r[k] for r in rows]), 3) for k in present}
 
 
-def run_case(name: str, nxs: list[int], raw: Path) -> dict:
-    """One compare in this process; its rows, last summary rows, rates and seconds."""
+def case_scene(name: str, walls: str | None, raw: Path) -> Path:
+    """The case's scene: the shipped one, or (``walls``) a copy in ``raw`` with that
+    ``feedback.walls``."""
     scene = ROOT / "scenes" / "compare" / f"{SCENES[name]}.toml"
-    out = raw / name
-    command = ["compare", scene.relative_to(ROOT).as_posix(), "--nx", *map(str, nxs)]
+    if walls is None:
+        return scene
+    data = tomllib.loads(scene.read_text())
+    data["feedback"]["walls"] = walls
+    copy = raw / f"{SCENES[name]}_{walls}.toml"
+    copy.parent.mkdir(parents=True, exist_ok=True)
+    copy.write_text(dict_to_toml(data))
+    return copy
+
+
+def run_case(name: str, nxs: list[int], raw: Path, walls: str | None = None) -> dict:
+    """One compare in this process; its rows, last summary rows, rates and seconds."""
+    scene = case_scene(name, walls, raw)
+    out = raw / (name if walls is None else f"{name}_{walls}")
+    shown = scene.relative_to(ROOT).as_posix() if scene.is_relative_to(ROOT) else str(scene)
+    command = ["compare", shown, "--nx", *map(str, nxs)]
     command += ["--first-step-only"] if name == "first_step" else []
     argv = ["compare", str(scene), *command[2:], "-o", str(out), "--overwrite", "-q"]
     wall, cpu = time.perf_counter(), time.process_time()
@@ -105,7 +131,8 @@ def run_case(name: str, nxs: list[int], raw: Path) -> dict:
     }  # fmt: skip
     return {
         "exit_code": code,  # not 0: the Nx whose compare failed has no row (run.log says why)
-        "scene": scene.relative_to(ROOT).as_posix(),
+        "scene": shown,
+        "feedback_walls": walls or "the scene's",
         "command": shlex.join(["plantgrowth", *command]),
         "wall_seconds": round(wall, 1),
         "cpu_seconds": round(cpu, 1),
@@ -163,13 +190,16 @@ def main(argv: list[str] | None = None) -> int:
     )
     failed = []
     if "single_cell" in args.only:
-        results["single_cell"] = single_cell()
-        print(f"single cell: {results['single_cell']}", flush=True)
+        key = "single_cell" if args.walls is None else f"single_cell_{args.walls}"
+        results[key] = single_cell(walls=args.walls or "around")
+        print(f"{key}: {results[key]}", flush=True)
         write_results(results, args.json)
     for name in (n for n in args.only if n in SCENES):
         nxs = args.nx if name == "first_step" else args.feedback_nx
-        print(f"{name}: Nx = {nxs}", flush=True)
-        entry = results["cases"][name] = run_case(name, nxs, args.raw)
+        walls = None if name == "first_step" else args.walls
+        key = name if walls is None else f"{name}_{walls}"
+        print(f"{key}: Nx = {nxs}", flush=True)
+        entry = results["cases"][key] = run_case(name, nxs, args.raw, walls)
         print(f"{name}: {entry['wall_seconds']} s wall, rates {entry['fitted_rates']}", flush=True)
         failed += [name] if entry["exit_code"] != 0 else []
         write_results(results, args.json)  # after each case: a later failure keeps it
@@ -186,8 +216,10 @@ def write_results(results: dict, path: Path) -> None:
         "fitted_rates: least-squares p of e ~ delta^p over the case's Nx. last_summary_rows: "
         "each run's last summary.csv row (fibre_order, fibre_angle_mean the director the step "
         "used). single_cell: the micro feedback's response to one turned director "
-        "(single_cell's docstring in the script). study_command: the last invocation; with "
-        "--only it rewrites only the cases it names."
+        "(single_cell's docstring in the script). Keys ending _around or _own: the feedback "
+        "cases with that feedback.walls (the micro cue over the walls around each cell, or "
+        "over its own halves). study_command: the last invocation; with --only it rewrites "
+        "only the cases it names."
     )
     results["cases"] = dict(sorted(results["cases"].items()))
     path.write_text(json.dumps(results, indent=2) + "\n")
