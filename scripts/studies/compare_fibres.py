@@ -11,7 +11,9 @@ strain law, the reference geometry):
   director never turns; the micro directors do, cell by cell (docs/fibres.md);
 - ``feedback_gradient_E``: ``fibres_gradient_E_feedback.toml``, the same with E rising along x1
   from 0.5 to 2: the directors turn in both models;
-- ``single_cell``: the micro feedback's response to one turned director (:func:`single_cell`).
+- ``single_cell``: the micro feedback's response to one turned director (:func:`single_cell`);
+- ``macro_patch``: the homogenized model's response to a turned patch the size of one of those
+  cells (:func:`macro_patch`).
 
 ``--walls`` sets the feedback cases' ``feedback.walls`` (the micro cue's walls: "around", the
 default, both halves of every wall around the cell; "own", the cell's own halves, as before the
@@ -47,6 +49,7 @@ from mpi4py import MPI
 from plantgrowth.base.machine import machine_description
 from plantgrowth.cli import main as plantgrowth
 from plantgrowth.models import fibres
+from plantgrowth.models.macro.model import macro_model
 from plantgrowth.models.micro.model import MicroModel
 from plantgrowth.scene import parse_scene
 from plantgrowth.scene.limits import FEEDBACK_WALLS
@@ -72,8 +75,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add = parser.add_argument
     add("--nx", type=int, nargs="+", default=[4, 8, 16], help="Nx of the first-step case")
     add("--feedback-nx", type=int, nargs="+", default=[4, 8, 16], help="Nx of the t = 60 cases")
-    add("--only", nargs="+", choices=[*SCENES, "single_cell"], default=[*SCENES, "single_cell"],
-        help="cases to run")  # fmt: skip
+    cases = [*SCENES, "single_cell", "macro_patch"]
+    add("--only", nargs="+", choices=cases, default=cases, help="cases to run")
     add("--walls", choices=FEEDBACK_WALLS, default=None,
         help="feedback.walls of the feedback cases (default: the scenes')")  # fmt: skip
     add("--raw", type=Path, default=Path("results/compare_fibres"), help="raw run root")
@@ -181,6 +184,37 @@ def single_cell(
     }  # fmt: skip
 
 
+def macro_patch(radius: float = 0.45, delta: float = 1.0) -> dict:
+    """The homogenized model's response to a turned patch, elastic only (Fg = I, one step of
+    dt = 1): ``feedback_a90``'s scene as a macro run with every director at 90 degrees but in the
+    disc of ``radius`` around the tissue's middle (3.464, 1.5), at 90 + delta (radius 0.45: the
+    area of one cell at Nx = 8, 0.65). Each fine cell's turn over the step minus its turn when
+    all are at 90, per degree of delta and unit rate k, over the disc's fine cells (mean, least,
+    largest), to set beside :func:`single_cell`'s."""
+    data = tomllib.loads(
+        (ROOT / "scenes" / "compare" / f"{SCENES['feedback_a90']}.toml").read_text()
+    )
+    disc = f"((x1 - 3.464)**2 + (x2 - 1.5)**2 < {radius * radius!r})"
+    turned = []
+    for extra in (0.0, delta):
+        data["walls"]["fibre_angle"] = {"expr": f"90 + {extra!r} * {disc}"}
+        scene = parse_scene(data)
+        model = macro_model(scene, MPI.COMM_WORLD)
+        angle = model.director.angle.copy()
+        model.step(model.initial_growth())
+        model.end_step(1.0)
+        turned.append(fibres.reduce_angle(model.director.angle - angle))
+    inside = fibres.reduce_angle(angle - 90.0) > 0.5 * delta
+    response = (turned[1] - turned[0])[inside] / (delta * scene.feedback.rate)
+    response = np.concatenate(MPI.COMM_WORLD.allgather(response))  # this rank's fine cells
+    return {
+        "radius": radius, "delta_degrees": delta, "rate_k": scene.feedback.rate,
+        "fine_cells": len(response),
+        "turn_per_degree_per_k": {k: round(float(f(response)), 5) for k, f in
+                                  (("mean", np.mean), ("least", np.min), ("largest", np.max))},
+    }  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     results = json.loads(args.json.read_text()) if args.json.is_file() else {"cases": {}}
@@ -193,6 +227,10 @@ def main(argv: list[str] | None = None) -> int:
         key = "single_cell" if args.walls is None else f"single_cell_{args.walls}"
         results[key] = single_cell(walls=args.walls or "around")
         print(f"{key}: {results[key]}", flush=True)
+        write_results(results, args.json)
+    if "macro_patch" in args.only:
+        results["macro_patch"] = macro_patch()
+        print(f"macro_patch: {results['macro_patch']}", flush=True)
         write_results(results, args.json)
     for name in (n for n in args.only if n in SCENES):
         nxs = args.nx if name == "first_step" else args.feedback_nx
@@ -216,10 +254,11 @@ def write_results(results: dict, path: Path) -> None:
         "fitted_rates: least-squares p of e ~ delta^p over the case's Nx. last_summary_rows: "
         "each run's last summary.csv row (fibre_order, fibre_angle_mean the director the step "
         "used). single_cell: the micro feedback's response to one turned director "
-        "(single_cell's docstring in the script). Keys ending _around or _own: the feedback "
-        "cases with that feedback.walls (the micro cue over the walls around each cell, or "
-        "over its own halves). study_command: the last invocation; with --only it rewrites "
-        "only the cases it names."
+        "(single_cell's docstring in the script); macro_patch: the homogenized model's "
+        "response to a turned patch of one such cell's size (macro_patch's docstring). Keys "
+        "ending _around or _own: the feedback cases with that feedback.walls (the micro cue "
+        "over the walls around each cell, or over its own halves). study_command: the last "
+        "invocation; with --only it rewrites only the cases it names."
     )
     results["cases"] = dict(sorted(results["cases"].items()))
     path.write_text(json.dumps(results, indent=2) + "\n")
