@@ -19,7 +19,12 @@ from mpi4py import MPI
 from plantgrowth.base.mesh_samples import MeshSamples
 from plantgrowth.forms.elasticity import Fibres, walls_stress
 from plantgrowth.models.micro.wall_stability import WallStability
-from plantgrowth.models.stability import isotropic_voigt, normalised, svk_stress
+from plantgrowth.models.stability import (
+    isotropic_voigt,
+    normalised,
+    smallest_acoustic_eigenvalue,
+    svk_stress,
+)
 
 NU, E_F = 0.3, 5.0  # E = 1: the review's case, E_f = 5 E
 
@@ -58,8 +63,9 @@ def _constant(value: np.ndarray):
 @pytest.mark.parametrize("turn", [0.0, 20.0])
 def test_a_wall_compressed_along_its_fibres_is_judged_by_the_fibred_law(finite, turn):
     """A fibred wall compressed to a stretch of 0.90 along its fibres (q = 1), E_f = 5 E: the
-    fibred law has lost strong ellipticity (-0.193 of its shear modulus), the isotropic law has
-    not (+0.713), so the isotropic check the walls had before was not conservative. The wall's
+    fibred law has lost strong ellipticity (-0.193 of its mean shear modulus; the smallest
+    acoustic eigenvalue itself -0.195), the isotropic law has not (+0.713 of mu; +0.274), so the
+    isotropic check the walls had before was not conservative. The wall's
     tangent is turned by -``turn`` and grown by the rotation Fg = R(turn), so only the grown
     tangent t_g = Fg t / |Fg t| lies along the fibres (m = e1, grown frame): the check must use
     t_g. Linear kinematics: the elastic strain whose stretch sqrt(I + 2 eps) is the same.
@@ -75,6 +81,9 @@ def test_a_wall_compressed_along_its_fibres_is_judged_by_the_fibred_law(finite, 
                 for C in (fibred, isotropic)]  # fmt: skip
     assert expected[0] == pytest.approx(-0.19292517, abs=1e-8)  # computed once, kept as a guard
     assert expected[1] == pytest.approx(0.71318681, abs=1e-8)
+    raw = [smallest_acoustic_eigenvalue(A[None], svk_stress(A[None], C[None]), C[None])[0][0]
+           for C in (fibred, isotropic)]  # fmt: skip
+    assert raw == pytest.approx([-0.194780, 0.274303], abs=1e-6)  # the review's -0.195, +0.274
     u, Fg_f, E, nu, fibres = _walls(_constant(Fg), _constant(t), _constant([1.0, 0.0]),
                                     _constant(E_F))  # fmt: skip
     u.interpolate(lambda x: (B @ Fg - np.eye(2)) @ x[:2])

@@ -9,9 +9,9 @@ non-elliptic where one of its samples is.
 The wall's tensor is the one its equations use (docs/model.md, fibre-reinforced walls):
 ``C_w = C_iso(E, nu) + E_f q (t_g x t_g x t_g x t_g)`` on fibred walls, both in ``S = C_w Ee``
 and as the tangent. The isotropic law alone is not conservative there: a wall compressed along
-its fibres (q = 1) to a stretch of 0.9 is elliptic under C_iso (+0.71 of the shear modulus, E_f =
-5 E, nu = 0.3) and not under C_w (-0.19): the fibres' compressive stress ``E_f Ee_tt`` enters
-``N . S N`` (tests/test_micro_wall_stability.py).
+its fibres (q = 1) to a stretch of 0.9 is elliptic under C_iso (smallest acoustic eigenvalue
++0.274 E, E_f = 5 E, nu = 0.3) and not under C_w (-0.195 E): the fibres' compressive stress
+``E_f Ee_tt`` enters ``N . S N`` (tests/test_micro_wall_stability.py).
 """
 
 from __future__ import annotations
