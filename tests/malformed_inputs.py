@@ -6,12 +6,12 @@ random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, si
 numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
 the tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the
 mesh) and named parameters (undefined, shadowing x1, x2, s, pi or a function), bad fibre walls
-and feedback (and valid micro ones, which the runner refuses), output fields named by a word or
-a typo (the error says which field it may mean), zip sweeps whose lists differ in length), bad
-command lines (``render`` and ``export`` of runs that are not there, into files they must not
-write) and output paths that cannot be written. Every case must end with exit code 2 and a
-one-line ``plantgrowth: error: ...`` naming the field (``Case.expect``), before anything is
-written.
+and feedback (and valid micro ones, which the runner refuses), a ``feedback.walls`` neither
+"around" nor "own", output fields named by a word or a typo (the error says which field it may
+mean), zip sweeps whose lists differ in length), bad command lines (``render`` and ``export`` of
+runs that are not there, into files they must not write) and output paths that cannot be
+written. Every case must end with exit code 2 and a one-line ``plantgrowth: error: ...`` naming
+the field (``Case.expect``), before anything is written.
 
 A case is materialized in its own empty directory: ``files`` are written there and ``{dir}`` in
 ``argv`` and ``expect`` stands for that directory. Cases with ``isolate = True`` could run for
@@ -885,6 +885,20 @@ def _field_name(rng: random.Random, scene: dict):
     return scene, ("output.fields[1]", "did you mean", f"'{meant}'")
 
 
+FEEDBACK_WALLS_TYPOS = ["Around", "own ", "both", "halves", "", Raw("1"), Raw("true"),
+                        Raw('["around"]'), Raw('{walls = "own"}')]  # fmt: skip
+
+
+def _bad_feedback_walls(rng: random.Random, scene: dict):
+    """``feedback.walls`` (which walls the micro cue averages) neither "around" nor "own": a
+    named error listing both, in any scene with valid fibres and feedback."""
+    scene.pop("loads", None)  # so that compare reaches the feedback checks
+    scene["walls"] = {"fibre_stiffness": rng.uniform(0.1, 5.0), "fibre_angle": rng.uniform(-90, 90)}
+    scene["feedback"] = {"cue": rng.choice(["stress", "strain"]), "rate": rng.uniform(0.0, 2.0),
+                         "walls": rng.choice(FEEDBACK_WALLS_TYPOS)}  # fmt: skip
+    return scene, ("feedback.walls", "'around', 'own'")
+
+
 SCENE_MAKERS = {
     "wrong_type": _wrong_type,
     "missing_required": _missing_required,
@@ -909,6 +923,7 @@ SCENE_MAKERS = {
     "bad_supports": _bad_supports,
     "bad_fibres": _bad_fibres,
     "field_name": _field_name,
+    "bad_feedback_walls": _bad_feedback_walls,
 }
 
 TOML_ERRORS = [

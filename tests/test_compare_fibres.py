@@ -104,9 +104,10 @@ def test_compare_with_feedback_reports_the_directors(tmp_path_factory, capsys):
     assert row["err_fibre_angle_tmax"] == pytest.approx(expected, abs=FIELD_ANGLE)
 
 
-def test_a_turned_micro_director_turns_further_under_a_stress_cue():
-    """Why the micro directors of a homogeneous fibred tissue under stress feedback do not stay
-    at the macro model's uniform 90 degrees (docs/fibres.md, "Micro against macro"): with one
+def test_a_turned_micro_director_turns_further_under_its_own_walls_stress_cue():
+    """Why the micro directors of a homogeneous fibred tissue under stress feedback with the cue
+    of each cell's own halves of its walls (``feedback.walls = "own"``) do not stay at the macro
+    model's uniform 90 degrees (docs/fibres.md, "Micro against macro"): with one
     cell's director turned by 1 degree at Fg = I, that cell turns further over a step and its
     six neighbours turn the other way (scripts/studies/compare_fibres.py ``single_cell``, here
     at one element across a wall). Measured: +0.20 and -0.027 to -0.043 degrees per degree and
@@ -117,7 +118,7 @@ def test_a_turned_micro_director_turns_further_under_a_stress_cue():
     )
     study = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(study)
-    response = study.single_cell(nx=8, resolution=1)
+    response = study.single_cell(nx=8, resolution=1, walls="own")
     assert response["turn_per_degree_per_k"] > 0.1
     assert len(response["neighbours_turn_per_degree_per_k"]) == 6
     assert max(response["neighbours_turn_per_degree_per_k"]) < -0.01

@@ -13,6 +13,8 @@ range (-90, 90] (:func:`reduce_angle`).
   dt, with a_Q and A frozen at its start, exactly: ``tan(a_new - a_Q) = tan(a_old - a_Q)
   exp(-k A dt)`` (:func:`turn_director`).
 - The summary statistics of the director field, collective over MPI (:func:`fibre_statistics`).
+- The fibre part of the wall tensor in Voigt storage, for the pointwise stability checks
+  (:func:`fibre_voigt`).
 """
 
 from __future__ import annotations
@@ -88,6 +90,27 @@ def director(angle: np.ndarray) -> np.ndarray:
     """(n, 2) unit director m = (cos a, sin a) of the angles a (n,) in degrees."""
     radians = np.radians(np.asarray(angle, dtype=float))
     return np.stack([np.cos(radians), np.sin(radians)], axis=-1)
+
+
+def fibre_voigt(
+    stiffness: np.ndarray, director: np.ndarray, tangent: np.ndarray, Fg: np.ndarray
+) -> np.ndarray:
+    """(n, 3, 3) the fibre part ``E_f q (t_g x t_g x t_g x t_g)`` of the wall tensor C_w in
+    Voigt storage with engineering shear (``S = C [E11, E22, 2 E12]``, the storage of
+    :mod:`plantgrowth.models.stability`): ``E_f q v v^T`` with ``v = (t1^2, t2^2, t1 t2)`` of the
+    grown tangent ``t_g = Fg t / |Fg t|`` and ``q = (m . t_g)^2``, since ``t_g . E t_g = v . e``.
+
+    Args:
+        stiffness: (n,) E_f.
+        director: (n, 2) m, grown frame.
+        tangent: (n, 2) t, the reference tangent of the wall's mid-line segment.
+        Fg: (n, 2, 2) the growth tensor.
+    """
+    Ft = np.einsum("nij,nj->ni", Fg, tangent)
+    tg = Ft / np.linalg.norm(Ft, axis=1)[:, None]
+    q = np.einsum("ni,ni->n", director, tg) ** 2
+    v = np.stack([tg[:, 0] ** 2, tg[:, 1] ** 2, tg[:, 0] * tg[:, 1]], axis=1)
+    return (np.asarray(stiffness) * q)[:, None, None] * v[:, :, None] * v[:, None, :]
 
 
 def fibre_statistics(angle: np.ndarray, weight: np.ndarray, comm: MPI.Comm) -> tuple[float, float]:

@@ -114,9 +114,12 @@ inclined wall length l2 = 1)::
     [feedback]                 # the director turns toward the cue's principal direction (none
     cue = "stress"             # by default; needs both walls keys): "stress" | "strain"
     rate = 0.5                 # k >= 0 in da/dt = -(k A / 2) sin(2 (a - a_Q)) (models/fibres.py)
-                               # The macro model reads [walls] and [feedback] (output
-                               # "fibre_direction", the director); runs refuse them in micro
-                               # scenes and compare (plantgrowth/runner/scene_run.py)
+    walls = "around"           # micro cue: "around" (default), the walls around the cell, both
+                               # halves of each shared wall, each with its own cell's tensor;
+                               # "own", the cell's own halves only (unstable cell by cell,
+                               # docs/fibres.md); macro runs have no halves and ignore it
+                               # Both models read [walls] and [feedback] (macro output
+                               # "fibre_direction", micro cells.csv "fibre_angle": the director)
 
 The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
 holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is

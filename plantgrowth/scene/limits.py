@@ -49,6 +49,9 @@ FEEDBACK_OUTPUT = ("cue_anisotropy",)
 EDGES = ("left", "right", "top")
 CUES = ("stress", "strain")
 """``feedback.cue``: the tensor whose principal direction the fibre director turns toward."""
+FEEDBACK_WALLS = ("around", "own")
+"""``feedback.walls``: the micro cue's walls, both halves of every wall around the cell or only
+the cell's own halves."""
 SUPPORTS = ("clamped", "roller")
 """Kinds of held edge (``[supports]``): u = 0, or the normal component of u = 0."""
 RANGES = {

@@ -284,7 +284,8 @@ class Scene:
         if self.supports:
             out["supports"] = dict(self.supports)
         if self.feedback is not None:  # the walls are among the parameter fields
-            out["feedback"] = {"cue": self.feedback.cue, "rate": self.feedback.rate}
+            feedback = self.feedback
+            out["feedback"] = {"cue": feedback.cue, "rate": feedback.rate, "walls": feedback.walls}
         return out
 
     def dotted(self) -> dict[str, Any]:

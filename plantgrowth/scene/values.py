@@ -24,7 +24,7 @@ TABLES = {
     "solver": ("macro", "macro_threshold", "macro_rtol"),
     "numerics": ("on_instability",),
     "walls": ("fibre_stiffness", "fibre_angle"),
-    "feedback": ("cue", "rate"),
+    "feedback": ("cue", "rate", "walls"),
 }
 
 # --- checks shared by the dataclasses and the loader ----------------------------------------------

@@ -15,6 +15,7 @@ from plantgrowth.scene.limits import (
     DEFAULT_OUTPUT,
     DIRECTOR_OUTPUT,
     FEEDBACK_OUTPUT,
+    FEEDBACK_WALLS,
     RANGES,
 )
 from plantgrowth.scene.values import choice, in_range, set_fields
@@ -65,13 +66,17 @@ class Walls:
 class Feedback:
     """Mechanical feedback on the fibre director: ``da/dt = -(k A / 2) sin(2 (a - a_Q))``
     with k = ``rate`` >= 0, a_Q the principal direction of the ``cue`` tensor ("stress":
-    sigma_hom, "strain": eps_hom) and A its anisotropy (plantgrowth/models/fibres.py)."""
+    sigma_hom, "strain": eps_hom) and A its anisotropy (plantgrowth/models/fibres.py). The micro
+    model averages the cue over the ``walls`` around each cell, both halves of each ("around"),
+    or over the cell's own halves only ("own": unstable cell by cell, docs/fibres.md)."""
 
     cue: str
     rate: float
+    walls: str = "around"
 
     def __post_init__(self) -> None:
         choice("feedback.cue", self.cue, CUES)
+        choice("feedback.walls", self.walls, FEEDBACK_WALLS)
         set_fields(self, rate=in_range("feedback.rate", self.rate, 0.0, BIG, False, False))
 
 
@@ -94,7 +99,8 @@ def walls_from(
 
 
 def feedback_from(data: dict, table: dict) -> Feedback | None:
-    """``[feedback]`` (None if the scene has none): cue and rate, both required."""
+    """``[feedback]`` (None if the scene has none): cue and rate, both required; walls
+    (default "around")."""
     if "feedback" not in data:
         return None
     for key, valid in (

@@ -28,15 +28,20 @@ from plantgrowth.models import fibres
 from plantgrowth.scene.walls import Feedback, Walls
 
 
-def nearest_side_tangents(hexagons: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """(n, 2) unit tangent of the side of ``hexagons[i]`` (n, 6, 2) nearest to ``points[i]``
-    (n, 2): ``argmin_k |p_k + s (q_k - p_k) - x|``, s clipped to [0, 1]."""
+def nearest_sides(hexagons: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(n,) the side k (from vertex k to vertex k + 1 mod 6) of ``hexagons[i]`` (n, 6, 2) nearest
+    to ``points[i]`` (n, 2): ``argmin_k |p_k + s (q_k - p_k) - x|``, s clipped to [0, 1]."""
     p, q = hexagons, np.roll(hexagons, -1, axis=1)
     d = q - p
     s = np.clip(np.einsum("nki,nki->nk", points[:, None] - p, d) / np.sum(d * d, axis=2), 0, 1)
-    distance = np.linalg.norm(p + s[..., None] * d - points[:, None], axis=2)
-    side = d[np.arange(len(points)), np.argmin(distance, axis=1)]
-    return side / np.linalg.norm(side, axis=1)[:, None]
+    return np.argmin(np.linalg.norm(p + s[..., None] * d - points[:, None], axis=2), axis=1)
+
+
+def side_tangents(hexagons: np.ndarray, sides: np.ndarray) -> np.ndarray:
+    """(n, 2) unit tangent of the side ``sides[i]`` of ``hexagons[i]`` (n, 6, 2)."""
+    rows = np.arange(len(sides))
+    d = hexagons[rows, (sides + 1) % 6] - hexagons[rows, sides]
+    return d / np.linalg.norm(d, axis=1)[:, None]
 
 
 class MicroDirector:
@@ -74,10 +79,10 @@ class MicroDirector:
             [layout.delta_s * layout.cell.hexagon() + c for c in layout.centres]
         )  # uncut: the bottom row's cut at x2 = 0 is a symmetry plane, not a wall
         midpoints = mesh.compute_midpoints(msh, 2, np.arange(n_owned, dtype=np.int32))[:, :2]
+        self.side = nearest_sides(hexagons[cell_id], midpoints)
+        """(n_owned,) the side of its cell's hexagon each owned wall triangle belongs to."""
         dofs = vector.dofmap.list.array[:n_owned]
-        self.tangent.x.array.reshape(-1, 2)[dofs] = nearest_side_tangents(
-            hexagons[cell_id], midpoints
-        )
+        self.tangent.x.array.reshape(-1, 2)[dofs] = side_tangents(hexagons[cell_id], self.side)
         self.tangent.x.scatter_forward()
         self._fill()
 

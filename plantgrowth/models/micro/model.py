@@ -33,6 +33,7 @@ from plantgrowth.models import diagnostics, fibres, growth
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
+from plantgrowth.models.micro.around import WallsAround
 from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.outlines import CellOutlines
 from plantgrowth.models.micro.wall_stability import WallStability
@@ -105,7 +106,7 @@ class MicroModel:
         membrane = ds(FACET_TAGS["membrane"])
         self.bcs = self._boundary_conditions(facet_tags)
         self.finite = scene.kinematics == "finite"
-        self.stability = WallStability(self.u, self.Fg, E, nu, self.finite)
+        self.stability = WallStability(self.u, self.Fg, E, nu, self.finite, wall_fibres)
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
         rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx, wall_fibres)
         if np.any(self.pressure != 0.0):
@@ -138,6 +139,13 @@ class MicroModel:
         )
         areas = fem.petsc.assemble_vector(fem.form(ufl.TestFunction(Q0) * dx))
         self.wall_area = self._per_cell(areas.array.reshape(-1, 1), Q0)[:, 0]
+        self._around = None  # the feedback's cue over the walls around each cell
+        if self.director is not None and self.director.feedback is not None:
+            if self.director.feedback.walls == "around":
+                self._around = WallsAround(
+                    layout, self.cell_id, self.director.side,
+                    self._owned_rows(areas.array.reshape(-1, 1), Q0)[:, 0], comm,
+                )  # fmt: skip
         self.hexagon_area = np.array(
             [polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]
         )
@@ -199,9 +207,17 @@ class MicroModel:
         array[dofmap.list.array[: self.n_owned]] = values[self.cell_id]
         function.x.scatter_forward()
 
+    def _owned_rows(self, integrals: np.ndarray, space: fem.FunctionSpace) -> np.ndarray:
+        """(n_owned, bs) this rank's per-mesh-cell integrals, (n, bs) at a DG0 space's dofs, in
+        the order of the owned mesh cells."""
+        return integrals[space.dofmap.list.array[: self.n_owned]]
+
     def _per_cell(self, integrals: np.ndarray, space: fem.FunctionSpace) -> np.ndarray:
         """Sum per-mesh-cell integrals (owned dofs of a DG0 space) per biological cell."""
-        rows = integrals[space.dofmap.list.array[: self.n_owned]]
+        return self._sum_rows(self._owned_rows(integrals, space))
+
+    def _sum_rows(self, rows: np.ndarray) -> np.ndarray:
+        """Collective: (n_cells, bs) per-owned-mesh-cell rows summed per biological cell."""
         sums = np.stack(
             [
                 np.bincount(self.cell_id, rows[:, k], self.layout.n_cells)
@@ -248,7 +264,8 @@ class MicroModel:
             report = self._linear_solve()
         t1 = time.perf_counter()
         diagnostics.check_solution(report, self.u, self.comm)
-        means = self._cell_means(self.driving)
+        driving = self._tensor_rows(self.driving)
+        means = self._own_means(driving)
         ones = np.ones(self.layout.n_cells)
         if self.scene.growth.law == "none":
             G = np.zeros_like(Fg)
@@ -268,7 +285,7 @@ class MicroModel:
         if self.director is not None:
             self.outlines.fibre_angle = self.director.angle  # the director this step used
             if self.director.feedback is not None:
-                self._cue = self._cue_means(means)
+                self._cue = self._cue_means(driving)
                 if self.cue_out is not None:
                     self._set(self.cue_out, fibres.cue(self._cue).anisotropy)
         if self.growth_fields.functions:
@@ -315,12 +332,22 @@ class MicroModel:
 
     def _cell_means(self, form: fem.Form) -> np.ndarray:
         """(n_cells, 4) means of a tensor over each cell's own walls, ``form`` giving the
-        per-mesh-cell integrals; a cut bottom cell takes the full cell mirrored about x2 = 0:
-        its half-cell mean for 11 and 22, and no shear, which changes sign under the mirror
-        (docs/model.md section 7)."""
+        per-mesh-cell integrals (:meth:`_own_means`)."""
+        return self._own_means(self._tensor_rows(form))
+
+    def _tensor_rows(self, form: fem.Form) -> np.ndarray:
+        """(n_owned, 4) this rank's per-mesh-cell integrals of a tensor, ``form`` giving them."""
         integrals = fem.petsc.assemble_vector(form)
-        T0 = self.Fg.function_space
-        means = self._per_cell(integrals.array.reshape(-1, 4), T0) / self.wall_area[:, None]
+        return self._owned_rows(integrals.array.reshape(-1, 4), self.Fg.function_space)
+
+    def _own_means(self, rows: np.ndarray) -> np.ndarray:
+        """Collective: (n_cells, 4) means over each cell's own walls of the per-mesh-cell
+        integrals ``rows`` of a tensor (:meth:`_mirrored`)."""
+        return self._mirrored(self._sum_rows(rows) / self.wall_area[:, None])
+
+    def _mirrored(self, means: np.ndarray) -> np.ndarray:
+        """A cut bottom cell takes the full cell mirrored about x2 = 0: its half-cell mean for
+        11 and 22, and no shear, which changes sign under the mirror (docs/model.md section 7)."""
         means[self.layout.cut_cells, 1:3] = 0.0
         return means
 
@@ -362,15 +389,20 @@ class MicroModel:
     def check_growth(self, Fg: np.ndarray) -> None:
         diagnostics.stop_if(diagnostics.growth_problems(Fg, self.layout.centres), self.comm)
 
-    def _cue_means(self, means: np.ndarray) -> np.ndarray:
-        """(n_cells, 2, 2) the feedback's cue: each cell's own-wall average of the wall stress
-        or of the elastic strain (the growth law's ``means`` where law and cue agree)."""
+    def _cue_means(self, driving: np.ndarray) -> np.ndarray:
+        """(n_cells, 2, 2) the feedback's cue: the wall stress or elastic strain averaged over
+        the walls around each cell, both halves of each shared wall (``feedback.walls =
+        "own"``: over the cell's own halves), a cut bottom cell without shear; from the growth
+        law's per-mesh-cell integrals ``driving`` where law and cue agree."""
         cue = self.director.feedback.cue
+        rows = driving
         if cue != self.scene.growth.law:
-            means = self._cell_means(
+            rows = self._tensor_rows(
                 self._cue_stress_form if cue == "stress" else self._wall_strain_form
             )
-        return means.reshape(-1, 2, 2)
+        if self._around is None:
+            return self._own_means(rows).reshape(-1, 2, 2)
+        return self._mirrored(self._around.means(rows)).reshape(-1, 2, 2)
 
     @cached_property
     def _cue_stress_form(self) -> fem.Form:
