@@ -233,8 +233,8 @@ MUTANTS = (
         "micro_average_over_hexagon", "plantgrowth/models/micro/model.py", "wrong average",
         "per-cell micro growth driven by the wall integral divided by the cell's hexagon area "
         "instead of its wall area",
-        (("reshape(-1, 4), T0) / self.wall_area[:, None]",
-          "reshape(-1, 4), T0) / self.hexagon_area[:, None]"),),
+        (("return self._mirrored(self._sum_rows(rows) / self.wall_area[:, None])",
+          "return self._mirrored(self._sum_rows(rows) / self.hexagon_area[:, None])"),),
     ),
     Mutant(
         "micro_cut_cell_shear_kept", "plantgrowth/models/micro/model.py", "wrong average",
@@ -297,6 +297,12 @@ MUTANTS = (
         (("K = None if self.K is None else self.cell_values(self.K).reshape(-1, 2, 2)",
           "K = None if self.K is None else self.cell_values(self.K).reshape(-1, 2, 2) - (\n"
           "            1.0 - self.cell_values(self.phi_w)[:, :, None]) * np.eye(2)"),),
+    ),
+    Mutant(
+        "feedback_own_halves_default", "plantgrowth/scene/walls.py", "wrong average",
+        "the micro feedback cue over each cell's own halves of its walls by default (the "
+        "unstable cue of before issue 36) instead of both halves of the walls around it",
+        (('    walls: str = "around"', '    walls: str = "own"'),),
     ),
     Mutant(
         "resolution_by_fine_cells", "plantgrowth/models/nonelliptic_sets.py", "wrong scale",
