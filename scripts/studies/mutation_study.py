@@ -49,7 +49,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 OUTPUT = REPO / "benchmarks" / "results" / "mutants.json"
 DEFAULT_WORKDIR = Path("/tmp/plantgrowth-mutation-study")
-PYTEST_ARGS = ["-m", "pytest", "-q", "-m", "not slow", "-x", "-p", "no:cacheprovider", "tests"]
+PYTEST_ARGS = ["-m", "pytest", "-q", "-m", "not slow", "-x", "-p", "no:cacheprovider"]
+SUITE = ["tests"]
+"""What the mutants are run against: the CI suite; ``--tests`` names a part of it (a mutant
+that a part kills, the whole suite kills; one that survives a part is not thereby a survivor)."""
 RUN_TIMEOUT = 3600.0  # seconds per suite run; the whole serial suite takes ~3-5 min
 CATEGORIES = (
     "sign", "factor", "transposition", "wrong configuration", "wrong average",
@@ -414,6 +417,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         "--skip-baseline", action="store_true", help="do not run the unmutated suite first"
     )
     parser.add_argument("--timeout", type=float, default=RUN_TIMEOUT, help="seconds per run")
+    parser.add_argument(
+        "--tests", nargs="+", default=SUITE, metavar="PATH",
+        help="test files to run the mutants against (default: the whole suite, tests)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     names = [m.name for m in MUTANTS]
     unknown = sorted(set(args.only or ()) - set(names))
@@ -491,9 +498,12 @@ def apply(tree: Path, mutant: Mutant) -> None:
 FAILURE = re.compile(r"^(FAILED|ERROR) (\S+)", re.M)
 
 
-def run_suite(python: Path, tree: Path, basetemp: Path, log: Path, timeout: float) -> dict:
-    """The default serial suite with -x in ``tree``; returns outcome, killer, seconds."""
-    command = [str(python), *PYTEST_ARGS, "-rfE", f"--basetemp={basetemp}"]
+def run_suite(
+    python: Path, tree: Path, basetemp: Path, log: Path, timeout: float, tests: list[str]
+) -> dict:
+    """The default serial suite (or its ``tests``) with -x in ``tree``; returns outcome, killer,
+    seconds."""
+    command = [str(python), *PYTEST_ARGS, *tests, "-rfE", f"--basetemp={basetemp}"]
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     env["PATH"] = f"{python.parent}{os.pathsep}{env.get('PATH', '')}"
     start = time.perf_counter()
@@ -539,12 +549,14 @@ def main(argv: list[str] | None = None) -> int:
     check_patterns(lambda name: (tree / name).read_text(), chosen)
     python = make_venv(workdir / "venv", tree)
     logs.mkdir(parents=True, exist_ok=True)
-    command = " ".join(["python", *map(shlex.quote, PYTEST_ARGS)])
+    command = " ".join(["python", *map(shlex.quote, PYTEST_ARGS + args.tests)])
     print(f"commit {commit}; tree {tree}; logs {logs}\nsuite: {command}", flush=True)
 
     baseline = None
     if not args.skip_baseline:
-        baseline = run_suite(python, tree, basetemp, logs / "baseline.log", args.timeout)
+        baseline = run_suite(
+            python, tree, basetemp, logs / "baseline.log", args.timeout, args.tests
+        )
         print(f"baseline: {baseline['outcome']} in {baseline['seconds']} s", flush=True)
         if baseline["outcome"] != "passed":
             print(f"the unmutated suite does not pass: see {logs / 'baseline.log'}")
@@ -556,7 +568,9 @@ def main(argv: list[str] | None = None) -> int:
         for name, text in pristine.items():
             (tree / name).write_text(text)
         apply(tree, mutant)
-        result = run_suite(python, tree, basetemp, logs / f"{mutant.name}.log", args.timeout)
+        result = run_suite(
+            python, tree, basetemp, logs / f"{mutant.name}.log", args.timeout, args.tests
+        )
         killed = result["outcome"] in ("failed", "timeout")
         results.append(
             {
