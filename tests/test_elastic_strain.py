@@ -206,10 +206,16 @@ def test_macro_fields_and_columns_are_the_strain_of_the_written_displacement(
         assert summary["elastic_strain_max"][row] == pytest.approx(largest.max(), rel=ROUND_OFF)
         place = (summary["elastic_strain_max_x1"][row], summary["elastic_strain_max_x2"][row])
         assert place == pytest.approx(_expected_place(midpoints, largest), abs=1e-12)
-    # the pull starts the run in the first band: one warning, at step 0, naming the place
-    assert STRAIN_BANDS[0] < summary["elastic_strain_max"].max() < STRAIN_BANDS[1]
+    # linear: the pull starts the run in the first band (0.31 measured): one warning, at step 0,
+    # naming the place. finite: the same pull stretches the tissue by 0.12 (the lumens' water a
+    # follower pressure, issue 36; 0.22 with the former dead load), below the first band: none
+    if kinematics == "linear":
+        assert STRAIN_BANDS[0] < summary["elastic_strain_max"].max() < STRAIN_BANDS[1]
+    else:
+        assert 0.0 < summary["elastic_strain_max"].max() < STRAIN_BANDS[0]
     if MPI.COMM_WORLD.rank == 0:
-        assert err.count(STRAIN_MESSAGE) == 1 and "step 0, t = 0" in err
+        assert err.count(STRAIN_MESSAGE) == (1 if kinematics == "linear" else 0)
+        assert kinematics == "finite" or "step 0, t = 0" in err
 
 
 @pytest.mark.mpi
