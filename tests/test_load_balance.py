@@ -4,8 +4,9 @@ its stop, and total forces ``{force = [F1, F2]}`` whose resultant holds at every
 The scene is the review's: a 3 x 1.5 tissue, E from 0.5 to 2 along x1, strain law, tractions
 -/+2e-4 on the left and right edges. Tractions act per grown (linear) or current (finite)
 length; the soft right side grows and stretches more than the stiff left one, so the two
-resultants drift apart (measured at the balanced preset: 6.9% at t = 10 with linear kinematics,
-5.5% at t = 0 with finite). The draft preset (h = 0.2, H = 1) keeps each run to seconds.
+resultants drift apart (measured at the balanced preset: 6.9% at t = 10 with linear kinematics;
+at draft, with finite kinematics and the lumens' water a follower pressure, 0.6% at t = 0 and
+7.6% at t = 10). The draft preset (h = 0.2, H = 1) keeps each run to seconds.
 """
 
 from __future__ import annotations
@@ -50,17 +51,18 @@ def imbalance(rows) -> np.ndarray:
 
 @pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_tractions_drift_out_of_balance_and_warn(mpi_tmp_path, capsys, kinematics):
-    """Per-length tractions balanced on the reference edges are 5% out at t = 10 (linear: the
-    edges grow apart) or already at t = 0 (finite: they stretch apart), and the run warns once,
-    naming the step and the way out (total forces)."""
+    """Per-length tractions balanced on the reference edges are 5% out at t = 10: the edges grow
+    apart (linear: exact balance at t = 0, Fg = I; finite: already 0.6% out at t = 0, where they
+    stretch apart, 7.6% at t = 10, measured), and the run warns once, naming the step and the way
+    out (total forces)."""
     code, err, rows = run(mpi_tmp_path, kinematics, TRACTION, capsys)
     assert code == 0
     values = imbalance(rows)
+    assert values[-1] >= 0.05 and np.all(np.diff(values) > 0)
     if kinematics == "linear":
         assert values[0] < 1e-12  # Fg = I at t = 0: the reference balance holds exactly
-        assert values[-1] >= 0.05 and np.all(np.diff(values) > 0)
     else:
-        assert values[0] >= 0.03
+        assert values[0] > 1e-3  # the current edges differ from t = 0
     if RANK0:
         warned = [line for line in err.splitlines() if "loads' net x1 force" in line]
         assert len(warned) == 1, err

@@ -152,7 +152,7 @@ def test_each_director_turns_toward_its_cue(cue, walls):
     a_Q."""
     rate = 2.0
     plain = MicroModel(parse_scene(_data()), COMM)
-    feedback = {"cue": cue, "rate": rate, "walls": walls}
+    feedback = {"cue": cue, "rate": rate} | ({"walls": walls} if walls == "own" else {})
     fibred = MicroModel(parse_scene(_data(ZERO, feedback=feedback)), COMM)
     form = plain._wall_stress_form if cue == "stress" else plain._wall_strain_form
     around = _walls_around(plain)
@@ -220,7 +220,8 @@ def test_a_turned_cell_under_a_stress_cue():
         ring = neighbours(layout)[cell]
         ring = ring[ring >= 0]
         for walls in ("around", "own"):
-            feedback = {"cue": "stress", "rate": 1.0, "walls": walls}
+            # "around" is the default: the scene leaves the key out
+            feedback = {"cue": "stress", "rate": 1.0} | ({"walls": walls} if walls == "own" else {})
             data = _data(turned, feedback=feedback, micro={"nx": nx}, accuracy={"preset": "draft"})
             model = MicroModel(parse_scene(data), COMM)
             angle = model.director.angle
