@@ -89,6 +89,7 @@ def test_the_reference_tissue_pushed_on_its_ends_stays_elliptic(mpi_tmp_path, ca
     assert all(float(r["nonelliptic_area_fraction"]) == 0.0 for r in rows)
 
 
+@pytest.mark.mpi
 def test_stiff_walls_pushed_past_their_shear_modulus_stop_naming_the_compression(
     mpi_tmp_path, capsys
 ):

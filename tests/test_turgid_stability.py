@@ -38,6 +38,7 @@ PHI_W = HEX["phi_w"]
 # --- the follower term and its tangent -----------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_the_follower_terms_jacobian_matches_finite_differences():
     """The macro residual with the lumens' follower term at a random u and an anisotropic Fg:
     its UFL Jacobian applied to a direction equals the central difference of the residual,
@@ -142,6 +143,7 @@ def test_the_hexagons_Q_changes_sign_at_minus_its_shear_modulus():
     assert smallest(-0.99 * HEX["E1212"]) > 0.0 > smallest(-1.01 * HEX["E1212"])
 
 
+@pytest.mark.mpi
 def test_a_free_turgid_tissue_is_elliptic_with_the_turgors_margin():
     """A free homogeneous turgid tissue (finite kinematics, regular hexagon): the walls carry
     S_w = (1 - phi_w) P1 I and Fe = lambda R, so Q's smallest eigenvalue is exactly
