@@ -65,7 +65,7 @@ def connected_sets(vertices: np.ndarray) -> tuple[int, np.ndarray]:
     unit = np.repeat(np.arange(n), vertices.shape[1])
     # the bipartite graph unit -- vertex; its components restricted to the units
     graph = coo_matrix((np.ones(len(unit)), (unit, n + vertex)), shape=(n + vertex.max() + 1,) * 2)
-    count, labels = connected_components(graph, directed=False)
+    _, labels = connected_components(graph, directed=False)
     labels = labels[:n]
     _, labels = np.unique(labels, return_inverse=True)
     return int(labels.max()) + 1, labels
