@@ -214,6 +214,10 @@ def test_coefficients_name_what_the_solve_left_out():
         biot_tensor(no_pressure)
     with pytest.raises(ValueError, match="pressure=True"):
         lumen_area_change(solver, np.eye(2), np.eye(2), 1.0)
+    solver.solve(np.eye(2), 1.0, 0.3)
+    for e in (np.array([[0.0, 1.0], [0.0, 0.0]]), np.eye(3)):
+        with pytest.raises(ValueError, match="symmetric 2x2 strain"):
+            lumen_area_change(solver, np.eye(2), e, 1.0)
     with pytest.raises(ValueError, match="strain_averages"):
         storage(solver.solve(np.eye(2), 1.0, 0.3, strain_averages=False))
     sheared = CellSolver(HoneycombCell(w=0.1), 1, MPI.COMM_SELF, shape="parallelogram",

@@ -68,6 +68,9 @@ def lumen_area_change(solver: CellSolver, Fg: np.ndarray, e: np.ndarray, P: floa
     grown frame) and the turgor P, computed on the membrane from the correctors of the
     solver's last solve, which must be at this ``Fg`` and have solved the pressure problem
     (collective on ``solver.comm``)."""
+    e = np.asarray(e, dtype=float)
+    if e.shape != (2, 2) or not np.array_equal(e, e.T):
+        raise ValueError(f"e must be a symmetric 2x2 strain, got {e.tolist()}")
     if solver.shape != "hexagon":
         raise ValueError("the lumen is closed inside the hexagonal cell only (shape='hexagon')")
     *w, v = solver.correctors()
@@ -75,7 +78,7 @@ def lumen_area_change(solver: CellSolver, Fg: np.ndarray, e: np.ndarray, P: floa
         raise ValueError("the lumen's area change needs v: solve with pressure=True")
     mesh = solver.unit_cell.mesh
     y = ufl.SpatialCoordinate(mesh)
-    strain = fem.Constant(mesh, np.asarray(e, dtype=PETSc.ScalarType))
+    strain = fem.Constant(mesh, e.astype(PETSc.ScalarType))
     F = fem.Constant(mesh, np.asarray(Fg, dtype=PETSc.ScalarType))
     # sum over all i, j: the off-diagonal corrector w^12 = w^21 counts twice
     pairs = zip(STRAIN_PROBLEMS, w, strict=True)
