@@ -1,0 +1,239 @@
+"""The macro model's coupled (u, P) step with water fluxes, linear kinematics (docs/model.md,
+"Water fluxes", macro model).
+
+P is a P1 field solved with the P1 displacement of :class:`MacroProblem` in one symmetric saddle
+point per step (forms/hydraulics.py); the water held per unit reference area, m, is the state
+carried between steps: with cell-wise constant coefficients and P1 fields, m is linear on every
+fine cell, so it is stored exactly in DG1 and the water balance closes to round-off. The
+P1-P1 pair is stabilised by ``D(P^{n+1} - P^n, q)`` with ``beta = h^2 |b|^2 / (4 E_min)`` per
+cell (``STABILISATION``): without it the pair is not inf-sup stable and P wiggles next to a
+supplied edge at small time steps (docs/model.md, "Water fluxes").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from plantgrowth.forms import hydraulics as water
+from plantgrowth.forms.elasticity import boundary_traction
+from plantgrowth.forms.macro import macro_bilinear_form, macro_growth_rhs
+from plantgrowth.meshes.honeycomb import HoneycombCell
+from plantgrowth.models.linear import SolveReport, lu_solver, relative_residual
+from plantgrowth.models.macro.hydraulics import MacroHydraulics, sample
+from plantgrowth.models.macro.problem import MacroProblem
+from plantgrowth.unitcell.homogenization import NodeTensors
+from plantgrowth.unitcell.hydraulic_coefficients import conductivity
+
+PREFIX = "plantgrowth_macro_water_"
+STABILISATION = 0.25
+"""beta = STABILISATION h^2 |b|^2 / E_min, with h the fine cell's longest edge, |b| b's largest
+eigenvalue and E_min = min(E_hom_1111, E_hom_2222). In 1D, ``h^2 b^2 / (4 E)`` makes the P1-P1
+Biot scheme monotone at every time step (Rodrigo, Gaspar, Hu, Zikatanov, CMAME 298, 2016); on
+the fine meshes' right-angled triangles h is the hypotenuse, so beta is twice that. Measured on the
+consolidation strip (tests/test_macro_hydraulics.py): after a step change of psi_s at dt = 1e-4
+and 1e-6 of the diffusion time, P leaves the range of its old and new values by 3e-4 of the jump
+(0.32 and 0.96 unstabilised)."""
+
+
+def unit_conductivities(cells: Sequence[HoneycombCell], Fg: np.ndarray) -> np.ndarray:
+    """(n, 2, 2) ``kappa / L`` of each fine cell's unit cell at its Fg (docs/model.md, "The unit
+    cell's coefficients"), computed once per distinct (cell, Fg)."""
+    out = np.empty((len(cells), 2, 2))
+    seen: dict[tuple, np.ndarray] = {}
+    for k, (cell, F) in enumerate(zip(cells, Fg, strict=True)):
+        key = (cell, F.tobytes())
+        if key not in seen:
+            seen[key] = conductivity(cell, F)
+        out[k] = seen[key]
+    return out
+
+
+def longest_edges(problem: MacroProblem) -> np.ndarray:
+    """(n_cells,) the longest edge of each fine cell (reference configuration)."""
+    msh = problem.mesh
+    x = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 3)[: problem.n_cells], :2]
+    edges = x - np.roll(x, 1, axis=1)
+    return np.linalg.norm(edges, axis=2).max(axis=1)
+
+
+class MacroWater:
+    """The (u, P) step of the macro model with water, on a :class:`MacroProblem` (its mesh, u,
+    Fg, E_hom, phi_w, boundary conditions and loads).
+
+    Args:
+        problem: the macro problem (linear kinematics).
+        inputs: the water's inputs.
+    """
+
+    def __init__(self, problem: MacroProblem, inputs: MacroHydraulics) -> None:
+        if problem.finite:
+            raise NotImplementedError("water fluxes: the macro model solves linear kinematics only")
+        self.problem, self.inputs = problem, inputs
+        msh = problem.mesh
+        self.Q = fem.FunctionSpace(msh, ("Lagrange", 1))
+        self.P, self.P_old, self.Pi = (fem.Function(self.Q, name=n) for n in ("P", "P_old", "Pi"))
+        self.Pi.interpolate(lambda x: sample(inputs.osmotic, x[0], x[1]))
+        self.m = fem.Function(fem.FunctionSpace(msh, ("DG", 1)), name="m")
+        self.K = problem.K if problem.K is not None else fem.Function(problem.T0, name="K")
+        self.inv_M, self.beta, self.L_r, self.Lr_psi_r = (
+            fem.Function(problem.Q0) for _ in range(4)
+        )
+        self.kappa = fem.Function(problem.T0, name="kappa")
+        self.L_cells = sample(inputs.conductivity, *problem.midpoints[:, :2].T)
+        self._regions()
+        self.dt = fem.Constant(msh, PETSc.ScalarType(1.0))
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=problem.boundary.facets)
+        self.edges = {
+            s.edge: (
+                fem.Constant(msh, PETSc.ScalarType(s.conductance)),
+                fem.Constant(msh, PETSc.ScalarType(s.potential)),
+                ds(problem.boundary.edges[s.edge]),
+            )
+            for s in inputs.edges
+        }
+        self._forms()
+        self.A = fem.petsc.create_matrix_block(self.a)
+        self.b = fem.petsc.create_vector_block(self.L)
+        self.x = self.A.createVecRight()
+        self.ksp = lu_solver(self.A, msh.comm, PREFIX)  # MUMPS on any number of ranks
+        self._m_expr = fem.Expression(
+            water.water_held(problem.u, self.P, problem.Fg, self.K, problem.phi_w, self.inv_M),
+            self.m.function_space.element.interpolation_points(),
+        )
+
+    def _regions(self) -> None:
+        """L_r and L_r psi_r per fine cell (zero outside the supplied regions)."""
+        at = self.problem.midpoints[:, :2].T
+        L_r, Lr_psi_r = np.zeros(self.problem.n_cells), np.zeros(self.problem.n_cells)
+        for region in self.inputs.regions:
+            inside = np.asarray(region.inside(*at), dtype=bool)
+            L_r[inside] += region.conductance
+            Lr_psi_r[inside] += region.conductance * region.potential
+        self.problem.set_cell_values(self.L_r, L_r)
+        self.problem.set_cell_values(self.Lr_psi_r, Lr_psi_r)
+
+    def _forms(self) -> None:
+        """The step's block forms ``[K  -B; -B^T  -(S + D + dt H)]`` and right-hand side."""
+        pr, dx = self.problem, ufl.dx
+        Fg, C, K, phi_w = pr.Fg, pr.C, self.K, pr.phi_w
+        u, v = ufl.TrialFunction(pr.V), ufl.TestFunction(pr.V)
+        P, q = ufl.TrialFunction(self.Q), ufl.TestFunction(self.Q)
+        edges = [(L_s, ds) for L_s, _, ds in self.edges.values()]
+
+        def pressure_block(p):
+            storage = water.storage_form(p, q, Fg, self.inv_M, dx)
+            stabilised = water.grown_gradient_form(p, q, Fg, self.beta, dx)
+            H = water.conductance_form(p, q, Fg, self.kappa, self.L_r, dx, edges)
+            return storage, stabilised, self.dt * H
+
+        S, D, dtH = pressure_block(P)
+        a = [
+            [macro_bilinear_form(u, v, Fg, C, dx), -water.turgor_coupling(P, v, Fg, K, phi_w, dx)],
+            [-water.turgor_coupling(q, u, Fg, K, phi_w, dx), -(S + D + dtH)],
+        ]
+        supplied = self.Lr_psi_r * ufl.det(Fg) * q * dx
+        n = ufl.FacetNormal(pr.mesh)
+        for L_s, psi_s, ds in self.edges.values():
+            supplied += water.edge_supply_form(psi_s, q, Fg, L_s, n, ds)
+        _, D_old, _ = pressure_block(self.P_old)
+        H_Pi = water.conductance_form(self.Pi, q, Fg, self.kappa, self.L_r, dx, edges)
+        rhs_p = water.water_at_rest(q, Fg, K, phi_w, dx) - self.m * q * dx - D_old
+        rhs_p -= self.dt * (H_Pi + supplied)
+        rhs_u = macro_growth_rhs(v, Fg, C, dx)
+        rhs_u += pr.loads.terms(lambda f, nn, ds: boundary_traction(f, v, Fg, nn, ds))
+        self.a, self.L = fem.form(a), fem.form([rhs_u, rhs_p])
+        # the mechanics alone at a given P: the initial equilibrium
+        self._a_u = fem.form(a[0][0])
+        self._L_u = fem.form(rhs_u + water.turgor_coupling(self.P, v, Fg, K, phi_w, dx))
+
+    def set_coefficients(
+        self, Fg: np.ndarray, tensors: NodeTensors, cells: Sequence[HoneycombCell]
+    ) -> None:
+        """Fg, E_hom, phi_w, K_hom, 1/M = -tr dbar[v], kappa and beta per fine cell (n_cells,
+        ...); ``cells``: each fine cell's unit cell, for kappa."""
+        if tensors.K is None or tensors.dbar_v is None:
+            raise ValueError("water fluxes need K_hom and dbar[v] (pressure and strain averages)")
+        pr = self.problem
+        for function, values in ((pr.Fg, Fg), (pr.C, tensors.C), (pr.phi_w, tensors.phi_w),
+                                 (self.K, tensors.K)):  # fmt: skip
+            pr.set_cell_values(function, values)
+        pr.set_cell_values(self.inv_M, -np.trace(tensors.dbar_v, axis1=1, axis2=2))
+        kappa = self.inputs.cell_scale * self.L_cells[:, None, None]
+        pr.set_cell_values(self.kappa, kappa * unit_conductivities(cells, Fg))
+        b = (1.0 - tensors.phi_w)[:, None, None] * np.eye(2) - tensors.K
+        b_max = np.abs(np.linalg.eigvalsh(b)).max(axis=1)
+        E_min = np.minimum(tensors.C[:, 0, 0], tensors.C[:, 1, 1])
+        beta = STABILISATION * longest_edges(pr) ** 2 * b_max**2 / E_min
+        pr.set_cell_values(self.beta, beta)
+
+    def set_edge_potential(self, edge: str, potential: float) -> None:
+        """psi_s of a supplied edge from now on."""
+        self.edges[edge][1].value = potential
+
+    def start(self) -> SolveReport:
+        """Equilibrium at ``P = Pi + psi_0`` (u from the mechanics alone) and the water it holds,
+        ``m = m(u, P)``: the initial state."""
+        pr = self.problem
+        self.P.x.array[:] = self.Pi.x.array + self.inputs.initial_potential
+        A = fem.petsc.assemble_matrix(self._a_u, bcs=pr.bcs)
+        A.assemble()
+        b = fem.petsc.assemble_vector(self._L_u)
+        fem.petsc.apply_lifting(b, [self._a_u], bcs=[pr.bcs])
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem.petsc.set_bc(b, pr.bcs)
+        ksp = lu_solver(A, pr.mesh.comm, PREFIX + "start_")
+        ksp.solve(b, pr.u.vector)
+        pr.u.x.scatter_forward()
+        report = SolveReport(ksp.getConvergedReason(), relative_residual(A, pr.u.vector, b))
+        ksp.destroy()
+        A.destroy()
+        b.destroy()
+        self.m.interpolate(self._m_expr)
+        return report
+
+    def step(self, dt: float) -> SolveReport:
+        """One backward-Euler step of length dt: solve (u, P), then m <- m(u, P)."""
+        pr = self.problem
+        self.dt.value = dt
+        self.P_old.x.array[:] = self.P.x.array
+        self.A.zeroEntries()
+        fem.petsc.assemble_matrix_block(self.A, self.a, bcs=pr.bcs)
+        self.A.assemble()
+        with self.b.localForm() as local:
+            local.set(0.0)
+        fem.petsc.assemble_vector_block(self.b, self.L, self.a, bcs=pr.bcs)
+        self.ksp.solve(self.b, self.x)
+        offset = pr.V.dofmap.index_map.size_local * pr.V.dofmap.index_map_bs
+        pr.u.x.array[:offset] = self.x.array_r[:offset]
+        owned_P = self.Q.dofmap.index_map.size_local
+        self.P.x.array[:owned_P] = self.x.array_r[offset:]
+        pr.u.x.scatter_forward()
+        self.P.x.scatter_forward()
+        self.m.interpolate(self._m_expr)
+        return SolveReport(self.ksp.getConvergedReason(), relative_residual(self.A, self.x, self.b))
+
+    def water_content(self) -> float:
+        """Collective: ``int m dx``, the water the tissue holds."""
+        return self._integral(self.m * ufl.dx)
+
+    def inflow(self) -> float:
+        """Collective: the water entering per unit time at the current state,
+        ``sum_s int L_s |cof(Fg) N| (psi_s - psi) ds + int Jg L_r (psi_r - psi) dx``."""
+        pr, psi = self.problem, self.P - self.Pi
+        n = ufl.FacetNormal(pr.mesh)
+        one = fem.Constant(pr.mesh, PETSc.ScalarType(1.0))
+        total = self.Lr_psi_r * ufl.det(pr.Fg) * ufl.dx
+        total -= water.region_supply_form(psi, one, pr.Fg, self.L_r, ufl.dx)
+        for L_s, psi_s, ds in self.edges.values():
+            total += water.edge_supply_form(psi_s - psi, one, pr.Fg, L_s, n, ds)
+        return self._integral(total)
+
+    def _integral(self, form: ufl.Form) -> float:
+        value = fem.assemble_scalar(fem.form(form))
+        return self.problem.mesh.comm.allreduce(value, op=MPI.SUM)
