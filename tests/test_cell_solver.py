@@ -13,14 +13,12 @@ resolution 6, see ``test_convergence_under_refinement``):
 
 from __future__ import annotations
 
-import json
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 from mpi4py import MPI
+from results_json import write_results
 
 from plantgrowth.base.tensors import isotropic_tensor, orthotropic_moduli
 from plantgrowth.meshes.honeycomb import HoneycombCell
@@ -336,13 +334,7 @@ def test_convergence_under_refinement(solver, mpi_tmp_path):
             "relative_errors": errors,
             "observed_rates": rates,
         }
-        targets = [Path(mpi_tmp_path) / "cell_convergence.json"]
-        if os.environ.get("PLANTGROWTH_WRITE_RESULTS"):
-            out = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
-            out.mkdir(parents=True, exist_ok=True)
-            targets.append(out / "cell_convergence.json")
-        for path in targets:
-            path.write_text(json.dumps(data, indent=2))
+        write_results("cell_convergence.json", data, mpi_tmp_path)
     for k, e in errors.items():
         assert all(np.diff(e) < 0), (k, e)
     # the corner singularity bounds the rate from below by 2 lambda ~ 1.2; allow 1.0

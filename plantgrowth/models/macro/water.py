@@ -20,6 +20,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from plantgrowth.base.errors import RunError
 from plantgrowth.forms import hydraulics as water
 from plantgrowth.forms.elasticity import boundary_traction
 from plantgrowth.forms.macro import macro_bilinear_form, macro_growth_rhs
@@ -69,12 +70,15 @@ class MacroWater:
     Args:
         problem: the macro problem (linear kinematics).
         inputs: the water's inputs.
+        stabilisation: beta's factor (``STABILISATION``; 0: the unstabilised pair, for checks).
     """
 
-    def __init__(self, problem: MacroProblem, inputs: MacroHydraulics) -> None:
+    def __init__(
+        self, problem: MacroProblem, inputs: MacroHydraulics, stabilisation: float = STABILISATION
+    ) -> None:
         if problem.finite:
             raise NotImplementedError("water fluxes: the macro model solves linear kinematics only")
-        self.problem, self.inputs = problem, inputs
+        self.problem, self.inputs, self.stabilisation = problem, inputs, stabilisation
         msh = problem.mesh
         self.Q = fem.FunctionSpace(msh, ("Lagrange", 1))
         self.P, self.P_old, self.Pi = (fem.Function(self.Q, name=n) for n in ("P", "P_old", "Pi"))
@@ -169,7 +173,7 @@ class MacroWater:
         b = (1.0 - tensors.phi_w)[:, None, None] * np.eye(2) - tensors.K
         b_max = np.abs(np.linalg.eigvalsh(b)).max(axis=1)
         E_min = np.minimum(tensors.C[:, 0, 0], tensors.C[:, 1, 1])
-        beta = STABILISATION * longest_edges(pr) ** 2 * b_max**2 / E_min
+        beta = self.stabilisation * longest_edges(pr) ** 2 * b_max**2 / E_min
         pr.set_cell_values(self.beta, beta)
 
     def set_edge_potential(self, edge: str, potential: float) -> None:
@@ -218,20 +222,56 @@ class MacroWater:
         self.m.interpolate(self._m_expr)
         return SolveReport(self.ksp.getConvergedReason(), relative_residual(self.A, self.x, self.b))
 
+    def state(self) -> dict[str, np.ndarray]:
+        """This rank's part of the water's state: for each owned fine cell and each of its
+        three DG1 dofs (``m``) and P1 dofs (``P``, the previous P: the stabilisation's
+        ``P^n``), the cell's midpoint and the dof's point (``*_at``: (k, 4)) and value."""
+        parts = {}
+        for name, f in (("m", self.m), ("P", self.P)):
+            dofmap = f.function_space.dofmap
+            dofs = dofmap.list.array.reshape(-1, 3)[: self.problem.n_owned]
+            points = f.function_space.tabulate_dof_coordinates()[:, :2][dofs]
+            midpoints = np.repeat(self.problem.midpoints[: self.problem.n_owned, None, :2], 3, 1)
+            parts[f"{name}_at"] = np.concatenate([midpoints, points], axis=2).reshape(-1, 4)
+            parts[name] = f.x.array[dofs].reshape(-1)
+        return parts
+
+    def restore(self, state: dict[str, np.ndarray]) -> None:
+        """m and P from a state (every rank's :meth:`state` joined), matched by cell midpoint
+        and dof point; RunError if the state does not cover this mesh."""
+        from scipy.spatial import cKDTree  # here: a run that does not resume never loads it
+
+        tolerance = 1e-9 * max(self.problem.bounding_box)
+        for name, f in (("m", self.m), ("P", self.P)):
+            dofmap = f.function_space.dofmap
+            dofs = dofmap.list.array.reshape(-1, 3)[: self.problem.n_cells]
+            points = f.function_space.tabulate_dof_coordinates()[:, :2][dofs]
+            midpoints = np.repeat(self.problem.midpoints[:, None, :2], 3, 1)
+            keys = np.concatenate([midpoints, points], axis=2).reshape(-1, 4)
+            distance, index = cKDTree(state[f"{name}_at"]).query(keys)
+            if np.max(distance, initial=0.0) > tolerance:
+                raise RunError("the saved water state does not match this mesh")
+            f.x.array[dofs.reshape(-1)] = state[name][index]
+            f.x.scatter_forward()
+
     def water_content(self) -> float:
         """Collective: ``int m dx``, the water the tissue holds."""
         return self._integral(self.m * ufl.dx)
 
-    def inflow(self) -> float:
-        """Collective: the water entering per unit time at the current state,
-        ``sum_s int L_s |cof(Fg) N| (psi_s - psi) ds + int Jg L_r (psi_r - psi) dx``."""
+    def inflow(self, edge: str | None = None) -> float:
+        """Collective: the water entering per unit time at the current state through a supplied
+        ``edge`` (``int L_s |cof(Fg) N| (psi_s - psi) ds``), or through every supply (the edges
+        and ``int Jg L_r (psi_r - psi) dx``)."""
         pr, psi = self.problem, self.P - self.Pi
         n = ufl.FacetNormal(pr.mesh)
         one = fem.Constant(pr.mesh, PETSc.ScalarType(1.0))
-        total = self.Lr_psi_r * ufl.det(pr.Fg) * ufl.dx
-        total -= water.region_supply_form(psi, one, pr.Fg, self.L_r, ufl.dx)
-        for L_s, psi_s, ds in self.edges.values():
-            total += water.edge_supply_form(psi_s - psi, one, pr.Fg, L_s, n, ds)
+        total = 0
+        if edge is None:
+            total = self.Lr_psi_r * ufl.det(pr.Fg) * ufl.dx
+            total -= water.region_supply_form(psi, one, pr.Fg, self.L_r, ufl.dx)
+        for name, (L_s, psi_s, ds) in self.edges.items():
+            if edge in (None, name):
+                total += water.edge_supply_form(psi_s - psi, one, pr.Fg, L_s, n, ds)
         return self._integral(total)
 
     def _integral(self, form: ufl.Form) -> float:
