@@ -12,6 +12,11 @@ tensors P1-interpolated to the fine cells.
 
 Fibred walls (``[walls]``, docs/fibres.md): the director angle is a state variable per fine cell
 (:mod:`plantgrowth.models.macro.director`), passed to the cell problems with the nodes' E_f / E.
+
+Water fluxes (``hydraulics``, docs/model.md "Water fluxes"; linear kinematics): the step solves
+u and P together (:mod:`plantgrowth.models.macro.water`) over the time step that ended with the
+previous step (the first step: the equilibrium at P = Pi + psi_0), and the growth law reads the
+solved P; the water held is a state variable like Fg.
 """
 
 from __future__ import annotations
@@ -31,12 +36,15 @@ from plantgrowth.meshes.honeycomb import lattice_area
 from plantgrowth.models import diagnostics, growth, stability
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
+from plantgrowth.models.linear import SolveReport
 from plantgrowth.models.macro.boundary import Boundary
 from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
 from plantgrowth.models.macro.director import MacroDirector
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
+from plantgrowth.models.macro.hydraulics import MacroHydraulics
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.models.macro.resolution import field_sampling
+from plantgrowth.models.macro.water import MacroWater
 from plantgrowth.models.regions import RegionStatistics
 from plantgrowth.models.step import (
     SideMesh,
@@ -106,12 +114,18 @@ class MacroModel:
             micro tissue).
         comm: communicator of the fine mesh; it also shares the cell problems.
         boundary: the fine mesh's boundary (default: the scene's rectangle).
+        hydraulics: water fluxes (None: turgor is the scene's P1).
     """
 
-    def __init__(self, scene: Scene, mesh, comm: MPI.Comm, boundary: Boundary | None = None):
+    def __init__(
+        self, scene: Scene, mesh, comm: MPI.Comm, boundary: Boundary | None = None,
+        hydraulics: MacroHydraulics | None = None,
+    ):  # fmt: skip
         self.scene = scene
         self.comm = comm
         self.problem = problem = MacroProblem(scene, mesh, boundary)
+        self.water = None if hydraulics is None else MacroWater(problem, hydraulics)
+        self._water_dt: float | None = None  # the step the next solve advances the water by
         self.mesh = problem.mesh
         width, height = problem.bounding_box
         # the coarse nodes the fine cells see (the others weigh no fine cell)
@@ -131,13 +145,18 @@ class MacroModel:
         # (n_cells, 2): docs/model.md section 6, P2 = -grad P1 . y
         self.grad_P1 = scene.P1.gradient(*at_cells)
         strain_cue = scene.feedback is not None and scene.feedback.cue == "strain"
-        self.strain_averages = (
+        self.strain_averages = (  # water: 1/M = -tr dbar[v]
             scene.growth.law == "strain" or "eps_hom" in scene.output.fields or strain_cue
-        )
+            or self.water is not None
+        )  # fmt: skip
         self.homogenizer = Homogenizer(
             scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
-            problem.K is not None, self.strain_averages, comm, scene.accuracy.cell_tolerance,
+            problem.K is not None or self.water is not None, self.strain_averages, comm,
+            scene.accuracy.cell_tolerance,
         )  # fmt: skip
+        self.cells = None  # each fine cell's unit cell: kappa (water only)
+        if self.water is not None:
+            self.cells = [scene.cell.at(*p) for p in problem.midpoints[:, :2]]
         self.out = _Outputs(problem, scene.output.fields)
         self.director = None  # fibred walls: the director per fine cell, E_f / E per node
         if scene.has_director:
@@ -189,6 +208,8 @@ class MacroModel:
                  "G": G[:n].reshape(n, 4)}  # fmt: skip
         if self.director is not None:
             parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
+        if self.water is not None:
+            parts |= self.water.state()
         blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         return blocks | (root_blocks(newton, self.comm) if self.problem.finite else {})
@@ -211,11 +232,16 @@ class MacroModel:
             raise RunError("the saved state does not match this mesh: was the scene changed?")
         if self.director is not None:
             self.director.angle = state["fibre_angle"][index].reshape(-1)
+        if self.water is not None:  # the saved step ended with end_step(dt)
+            self.water.restore(state)
+            self._water_dt = self.scene.time.dt
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def end_step(self, dt: float) -> None:
         """The fibre director's feedback over dt from the step just solved (its cue at the
-        step's start, docs/fibres.md); nothing without feedback."""
+        step's start, docs/fibres.md); with water, dt is also the step the next solve advances
+        the water by."""
+        self._water_dt = dt
         if self._cue is not None:
             self.director.turn(self._cue, dt)
 
@@ -279,16 +305,16 @@ class MacroModel:
             P2vec = np.einsum("nij,nj->ni", nt.P2_matrix, self.grad_P1)
             problem.set_cell_values(problem.P2vec, P2vec)
         t1 = time.perf_counter()
-        report = problem.solve()
+        report, P = self._solve(Fg, nt)
         t2 = time.perf_counter()
         diagnostics.check_solution(report, problem.u, self.comm)
         grad_u = problem.grad_u()
         strain = growth.green_lagrange_strain if problem.finite else growth.elastic_strain
         eps_el = strain(grad_u, Fg)  # finite kinematics: Ee (docs/model.md section 10)
-        sigma = growth.homogenized_stress(C, eps_el, K, self.P1)
+        sigma = growth.homogenized_stress(C, eps_el, K, P)
         eps_hom = None
         if self.strain_averages:
-            eps_hom = growth.homogenized_strain(eps_el, phi_w, nt.dbar_w, nt.dbar_v, self.P1)
+            eps_hom = growth.homogenized_strain(eps_el, phi_w, nt.dbar_w, nt.dbar_v, P)
         if law == "none":
             G = np.zeros_like(Fg)
         else:
@@ -330,6 +356,19 @@ class MacroModel:
             problem.loads.balance() if self.scene.loads and self.scene.pinned else None,
             ellipticity, problem.held.force() if self.scene.supports else None,
         )  # fmt: skip
+
+    def _solve(self, Fg: np.ndarray, nt: NodeTensors) -> tuple[SolveReport, np.ndarray]:
+        """The step's solve and the turgor per fine cell: the scene's P1, or with water P
+        solved with u (the first step: the equilibrium at P = Pi + psi_0)."""
+        if self.water is None:
+            return self.problem.solve(), self.P1
+        self.problem.loads.update_forces()
+        self.water.set_coefficients(Fg, nt, self.cells)
+        if self._water_dt is None:
+            report = self.water.start()
+        else:
+            report = self.water.step(self._water_dt)
+        return report, self.water.cell_pressure()
 
     def _ellipticity(self, grad_u: np.ndarray, Fg: np.ndarray) -> stability.Ellipticity:
         """Collective: the step's stability check with the resolution rule: the owned fine

@@ -222,18 +222,22 @@ class MacroWater:
         self.m.interpolate(self._m_expr)
         return SolveReport(self.ksp.getConvergedReason(), relative_residual(self.A, self.x, self.b))
 
+    def _cell_dofs(self, f: fem.Function, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """(n, 3) the dofs of f (DG1 or P1) on the first n fine cells and (n, 12) their keys:
+        the cell's midpoint and the dof's point, three times."""
+        dofs = f.function_space.dofmap.list.array.reshape(-1, 3)[:n]
+        points = f.function_space.tabulate_dof_coordinates()[:, :2][dofs]
+        midpoints = np.repeat(self.problem.midpoints[:n, None, :2], 3, axis=1)
+        return dofs, np.concatenate([midpoints, points], axis=2).reshape(n, 12)
+
     def state(self) -> dict[str, np.ndarray]:
-        """This rank's part of the water's state: for each owned fine cell and each of its
-        three DG1 dofs (``m``) and P1 dofs (``P``, the previous P: the stabilisation's
-        ``P^n``), the cell's midpoint and the dof's point (``*_at``: (k, 4)) and value."""
+        """This rank's part of the water's state, a row per owned fine cell: ``water_m`` (n, 3)
+        its DG1 dofs of m, ``water_P`` (n, 3) its P1 dofs of P (the stabilisation's P^n), and
+        ``water_m_at``, ``water_P_at`` (n, 12) their keys (:meth:`_cell_dofs`)."""
         parts = {}
         for name, f in (("m", self.m), ("P", self.P)):
-            dofmap = f.function_space.dofmap
-            dofs = dofmap.list.array.reshape(-1, 3)[: self.problem.n_owned]
-            points = f.function_space.tabulate_dof_coordinates()[:, :2][dofs]
-            midpoints = np.repeat(self.problem.midpoints[: self.problem.n_owned, None, :2], 3, 1)
-            parts[f"{name}_at"] = np.concatenate([midpoints, points], axis=2).reshape(-1, 4)
-            parts[name] = f.x.array[dofs].reshape(-1)
+            dofs, keys = self._cell_dofs(f, self.problem.n_owned)
+            parts[f"water_{name}_at"], parts[f"water_{name}"] = keys, f.x.array[dofs]
         return parts
 
     def restore(self, state: dict[str, np.ndarray]) -> None:
@@ -243,16 +247,18 @@ class MacroWater:
 
         tolerance = 1e-9 * max(self.problem.bounding_box)
         for name, f in (("m", self.m), ("P", self.P)):
-            dofmap = f.function_space.dofmap
-            dofs = dofmap.list.array.reshape(-1, 3)[: self.problem.n_cells]
-            points = f.function_space.tabulate_dof_coordinates()[:, :2][dofs]
-            midpoints = np.repeat(self.problem.midpoints[:, None, :2], 3, 1)
-            keys = np.concatenate([midpoints, points], axis=2).reshape(-1, 4)
-            distance, index = cKDTree(state[f"{name}_at"]).query(keys)
+            dofs, keys = self._cell_dofs(f, self.problem.n_cells)
+            saved = cKDTree(np.asarray(state[f"water_{name}_at"]).reshape(-1, 4))
+            distance, index = saved.query(keys.reshape(-1, 4))
             if np.max(distance, initial=0.0) > tolerance:
                 raise RunError("the saved water state does not match this mesh")
-            f.x.array[dofs.reshape(-1)] = state[name][index]
+            f.x.array[dofs.reshape(-1)] = np.asarray(state[f"water_{name}"]).reshape(-1)[index]
             f.x.scatter_forward()
+
+    def cell_pressure(self) -> np.ndarray:
+        """(n_cells,) P at the fine cells' midpoints (the mean of its vertex values)."""
+        dofs = self.Q.dofmap.list.array.reshape(-1, 3)[: self.problem.n_cells]
+        return self.P.x.array[dofs].mean(axis=1)
 
     def water_content(self) -> float:
         """Collective: ``int m dx``, the water the tissue holds."""
