@@ -348,8 +348,9 @@ def test_lockhart_ortega():
     ``g = phi_L L' (Pi + psi_s - Y) / (phi_L + L')`` and turgor ``P = (L' (Pi + psi_s) + phi_L Y)
     / (L' + phi_L)`` (tau = 0: Y = 0), with ``L' = L_s perimeter / (f area)`` of the grown
     supplied edges and area (the mirror x2 = 0 is none) and f = m / Jg. The transient decays as
-    exp(-t / 1.25); at t = 10 the quasi-steady forms lag the drift of L' (it falls as g / 2):
-    measured 3.8e-3 at t = 8, against the 1% the docs state."""
+    exp(-t / 1.25) (3e-4 at t = 10); what remains is the quasi-steady forms' lag behind the
+    drift of L' (it falls as g / 2, over the transient's 1.25): measured 2.7e-3 in g and in P at
+    t = 10, against the 1% the docs state."""
     comm = MPI.COMM_WORLD
     model = growing_model(comm)
     Fg, G = advance(model, model.initial_growth(), 101)
@@ -362,8 +363,12 @@ def test_lockhart_ortega():
     phi_L = 2.0 * (1.0 - phi_w) / phi_w
     g = model.measures(Fg, G)["growth_rate_area"]
     P = comm.allreduce(float(water.cell_pressure().mean()), op=MPI.SUM) / comm.size
-    assert g == pytest.approx(phi_L * L_prime * PI / (phi_L + L_prime), rel=1e-2)
-    assert P == pytest.approx(L_prime * PI / (L_prime + phi_L), rel=1e-2)
+    g_form = phi_L * L_prime * PI / (phi_L + L_prime)
+    P_form = L_prime * PI / (L_prime + phi_L)
+    if comm.rank == 0:
+        print(f"Lockhart-Ortega: g {g / g_form - 1:.1e}, P {P / P_form - 1:.1e} relative")
+    assert g == pytest.approx(g_form, rel=1e-2)
+    assert P == pytest.approx(P_form, rel=1e-2)
 
 
 def test_macro_model_resumes_exactly():
