@@ -405,3 +405,20 @@ def joined_block(block, comm: MPI.Comm) -> np.ndarray:
     for start, values in parts:
         whole[start : start + len(values)] = values
     return whole
+
+
+def test_roller_reaction_reads_the_solved_turgor(reference):
+    """The strip at rest at P = Pi + psi_0 (psi_0 != 0, so P differs from the scene's P1): the
+    walls carry ``s11 = 0`` along the free strip, so ``E_hom_1111 u1' = b_11 P`` and the top
+    roller holds ``s22 = (E_hom_2211 b_11 / E_hom_1111 - b_22) P`` over the width. u is linear,
+    in the P1 space: the held force equals it to the LU's round-off (1e-9 relative, as in
+    test_macro_exact_solutions)."""
+    inputs = MacroHydraulics(osmotic=PI, edges=ends(JUMP), initial_potential=JUMP)
+    water = water_on(strip(0.125), reference, inputs)
+    _, r = reference
+    b = (1.0 - r.phi_w) * np.eye(2) - r.K_hom
+    C = r.E_hom
+    s22 = (C[1, 1, 0, 0] * b[0, 0] / C[0, 0, 0, 0] - b[1, 1]) * (PI + JUMP)
+    F1, F2 = water.problem.held.force()
+    assert abs(F1) <= 1e-9 * abs(s22) * WIDTH
+    assert F2 == pytest.approx(s22 * WIDTH, rel=1e-9)

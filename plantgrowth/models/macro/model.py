@@ -368,7 +368,7 @@ class MacroModel:
             report = self.water.start()
         else:
             report = self.water.step(self._water_dt)
-        return report, self.water.cell_pressure()
+        return report, self.problem.P1_cells  # set by the water solve
 
     def _ellipticity(self, grad_u: np.ndarray, Fg: np.ndarray) -> stability.Ellipticity:
         """Collective: the step's stability check with the resolution rule: the owned fine

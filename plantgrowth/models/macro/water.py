@@ -84,7 +84,11 @@ class MacroWater:
         self.P, self.P_old, self.Pi = (fem.Function(self.Q, name=n) for n in ("P", "P_old", "Pi"))
         self.Pi.interpolate(lambda x: sample(inputs.osmotic, x[0], x[1]))
         self.m = fem.Function(fem.FunctionSpace(msh, ("DG", 1)), name="m")
-        self.K = problem.K if problem.K is not None else fem.Function(problem.T0, name="K")
+        # the turgor is this class's from now on: the problem's walls_state (the stability
+        # check) reads K and P1_cells, which the solves below set
+        if problem.K is None:
+            problem.K = fem.Function(problem.T0, name="K")
+        self.K = problem.K
         self.inv_M, self.beta, self.L_r, self.Lr_psi_r = (
             fem.Function(problem.Q0) for _ in range(4)
         )
@@ -152,9 +156,12 @@ class MacroWater:
         rhs_u = macro_growth_rhs(v, Fg, C, dx)
         rhs_u += pr.loads.terms(lambda f, nn, ds: boundary_traction(f, v, Fg, nn, ds))
         self.a, self.L = fem.form(a), fem.form([rhs_u, rhs_p])
+        # the held edges' reaction: the mechanics' residual at the solved (u, P)
+        turgor = water.turgor_coupling(self.P, v, Fg, K, phi_w, dx)
+        pr.held.set_residual(ufl.action(a[0][0], pr.u) - turgor - rhs_u)
         # the mechanics alone at a given P: the initial equilibrium
         self._a_u = fem.form(a[0][0])
-        self._L_u = fem.form(rhs_u + water.turgor_coupling(self.P, v, Fg, K, phi_w, dx))
+        self._L_u = fem.form(rhs_u + turgor)
 
     def set_coefficients(
         self, Fg: np.ndarray, tensors: NodeTensors, cells: Sequence[HoneycombCell]
@@ -198,7 +205,7 @@ class MacroWater:
         ksp.destroy()
         A.destroy()
         b.destroy()
-        self.m.interpolate(self._m_expr)
+        self._solved()
         return report
 
     def step(self, dt: float) -> SolveReport:
@@ -219,8 +226,13 @@ class MacroWater:
         self.P.x.array[:owned_P] = self.x.array_r[offset:]
         pr.u.x.scatter_forward()
         self.P.x.scatter_forward()
-        self.m.interpolate(self._m_expr)
+        self._solved()
         return SolveReport(self.ksp.getConvergedReason(), relative_residual(self.A, self.x, self.b))
+
+    def _solved(self) -> None:
+        """After a solve: the water held, m = m(u, P), and the problem's turgor per cell."""
+        self.m.interpolate(self._m_expr)
+        self.problem.P1_cells = self.cell_pressure()
 
     def _cell_dofs(self, f: fem.Function, n: int) -> tuple[np.ndarray, np.ndarray]:
         """(n, 3) the dofs of f (DG1 or P1) on the first n fine cells and (n, 12) their keys:
