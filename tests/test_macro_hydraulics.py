@@ -15,6 +15,7 @@ import pytest
 from mpi4py import MPI
 from results_json import write_results
 
+from plantgrowth.base.errors import InputError
 from plantgrowth.base.tensors import det2, voigt_matrix
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models import growth
@@ -422,3 +423,17 @@ def test_roller_reaction_reads_the_solved_turgor(reference):
     F1, F2 = water.problem.held.force()
     assert abs(F1) <= 1e-9 * abs(s22) * WIDTH
     assert F2 == pytest.approx(s22 * WIDTH, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "tables, message",
+    [({"time": {"t_max": 1.0, "integrator": "adaptive"}}, "integrator"),
+     ({"kinematics": "finite"}, "linear kinematics")],
+)  # fmt: skip
+def test_unsupported_combinations_are_refused(tables, message):
+    """The adaptive integrator re-solves inside a step (the water advances once per step), and
+    the finite-kinematics water is not solved yet: both are refused with the reason."""
+    scene = parse_scene(BASE | {"tissue": LO_TISSUE, "pressure": {"P1": PI}} | tables)
+    with pytest.raises(InputError, match=message):
+        MacroModel(scene, rectangle_mesh(scene, MPI.COMM_WORLD), MPI.COMM_WORLD,
+                   hydraulics=MacroHydraulics(osmotic=PI))  # fmt: skip

@@ -29,7 +29,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from plantgrowth.base.blocks import Block, CanonicalBlocks, root_blocks
-from plantgrowth.base.errors import RunError
+from plantgrowth.base.errors import InputError, RunError
 from plantgrowth.base.gather import dof_state, restore_dofs
 from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS, det2
 from plantgrowth.meshes.honeycomb import lattice_area
@@ -123,6 +123,10 @@ class MacroModel:
     ):  # fmt: skip
         self.scene = scene
         self.comm = comm
+        if hydraulics is not None and scene.time.integrator == "adaptive":
+            # its sub-steps re-solve the step at other growth states; the water's state
+            # advances once per step
+            raise InputError("water fluxes: time.integrator must be 'euler' or 'exp'")
         self.problem = problem = MacroProblem(scene, mesh, boundary)
         self.water = None if hydraulics is None else MacroWater(problem, hydraulics)
         self._water_dt: float | None = None  # the step the next solve advances the water by

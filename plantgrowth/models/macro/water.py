@@ -20,7 +20,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from plantgrowth.base.errors import RunError
+from plantgrowth.base.errors import InputError, RunError
 from plantgrowth.forms import hydraulics as water
 from plantgrowth.forms.elasticity import boundary_traction
 from plantgrowth.forms.macro import macro_bilinear_form, macro_growth_rhs
@@ -77,7 +77,7 @@ class MacroWater:
         self, problem: MacroProblem, inputs: MacroHydraulics, stabilisation: float = STABILISATION
     ) -> None:
         if problem.finite:
-            raise NotImplementedError("water fluxes: the macro model solves linear kinematics only")
+            raise InputError("water fluxes: the macro model solves linear kinematics only")
         self.problem, self.inputs, self.stabilisation = problem, inputs, stabilisation
         msh = problem.mesh
         self.Q = fem.FunctionSpace(msh, ("Lagrange", 1))
