@@ -141,6 +141,39 @@ def boomeramg_cg_solver(
     return ksp
 
 
+SADDLE_POINT_OPTIONS = {
+    "pc_fieldsplit_type": "schur",
+    "pc_fieldsplit_schur_fact_type": "diag",
+    "pc_fieldsplit_schur_precondition": "selfp",
+    **{f"fieldsplit_{name}_{key}": value for name in ("u", "p")
+       for key, value in (("ksp_type", "preonly"), ("pc_type", "hypre"),
+                          ("pc_hypre_type", "boomeramg"))},
+}  # fmt: skip
+"""PETSc options of :func:`saddle_point_solver` (under its prefix)."""
+
+
+def saddle_point_solver(
+    A: PETSc.Mat, fields: tuple[PETSc.IS, PETSc.IS], comm: MPI.Comm, prefix: str, rtol: float,
+    max_it: int,
+) -> PETSc.KSP:  # fmt: skip
+    """MINRES for a symmetric saddle point ``[K  -B; -B^T  -C]`` (K and C positive definite;
+    ``fields``: the index sets of u and P), preconditioned by the block diagonal
+    ``diag(AMG(K), AMG(C + B^T diag(K)^{-1} B))``: PETSc's Schur field split with the diagonal
+    factorization, which negates the Schur block so that the preconditioner is positive definite,
+    and the ``selfp`` approximation of the Schur complement; BoomerAMG on both blocks. MINRES
+    tests the preconditioned residual: callers check the true one."""
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(A)
+    ksp.setType("minres")
+    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
+    pc = ksp.getPC()
+    pc.setType("fieldsplit")
+    pc.setFieldSplitIS(("u", fields[0]), ("p", fields[1]))
+    _set_options(ksp, prefix, SADDLE_POINT_OPTIONS)
+    return ksp
+
+
 def relative_residual(A: PETSc.Mat, x: PETSc.Vec, b: PETSc.Vec) -> float:
     """``|b - A x| / |b|`` (``|b - A x|`` when b = 0)."""
     r = b.duplicate()
