@@ -425,6 +425,14 @@ def test_roller_reaction_reads_the_solved_turgor(reference):
     assert F2 == pytest.approx(s22 * WIDTH, rel=1e-9)
 
 
+@pytest.mark.parametrize("edge, message", [("bottom", "mirror"), ("nowhere", "edges are")])
+def test_supplies_only_on_the_tissues_edges(edge, message):
+    """A supply on the symmetry plane x2 = 0 or on an edge the mesh does not have is refused."""
+    inputs = MacroHydraulics(osmotic=PI, edges=(EdgeSupply(edge, 0.0, 1.0),))
+    with pytest.raises(InputError, match=message):
+        MacroWater(strip(0.125), inputs)
+
+
 @pytest.mark.parametrize(
     "tables, message",
     [({"time": {"t_max": 1.0, "integrator": "adaptive"}}, "integrator"),

@@ -38,7 +38,7 @@ from plantgrowth.unitcell.hydraulic_coefficients import conductivity
 
 PREFIX = "plantgrowth_macro_water_"
 MAX_IT = 2000
-"""MINRES's iteration limit on the iterative path: 60-210 iterations on the consolidation strip
+"""MINRES's iteration limit on the iterative path: 60-160 iterations on the consolidation strip
 (3,000 dofs, rtol 1e-10, dt 1e-4 to 0.1 of the diffusion time); a solve that needs more is
 reported by its converged reason."""
 STABILISATION = 0.25
@@ -70,6 +70,17 @@ def longest_edges(problem: MacroProblem) -> np.ndarray:
     x = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 3)[: problem.n_cells], :2]
     edges = x - np.roll(x, 1, axis=1)
     return np.linalg.norm(edges, axis=2).max(axis=1)
+
+
+def supplied_edge_tag(problem: MacroProblem, edge: str) -> int:
+    """The facet tag of a supplied edge; InputError for an unknown edge or the symmetry plane
+    x2 = 0 (a mirror: no water crosses it)."""
+    edges = problem.boundary.edges
+    if edge not in edges:
+        raise InputError(f"supply on {edge!r}: the tissue's edges are {sorted(edges)}")
+    if edges[edge] in problem.boundary.symmetry:
+        raise InputError(f"supply on {edge!r}: the symmetry plane x2 = 0 is a mirror, not an edge")
+    return edges[edge]
 
 
 class MacroWater:
@@ -110,7 +121,7 @@ class MacroWater:
             s.edge: (
                 fem.Constant(msh, PETSc.ScalarType(s.conductance)),
                 fem.Constant(msh, PETSc.ScalarType(s.potential)),
-                ds(problem.boundary.edges[s.edge]),
+                ds(supplied_edge_tag(problem, s.edge)),
             )
             for s in inputs.edges
         }
