@@ -19,7 +19,12 @@ from plantgrowth.base.errors import InputError
 from plantgrowth.base.tensors import det2, voigt_matrix
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models import growth
-from plantgrowth.models.macro.hydraulics import EdgeSupply, MacroHydraulics, RegionSupply
+from plantgrowth.models.macro.hydraulics import (
+    EdgeSupply,
+    MacroHydraulics,
+    Potential,
+    RegionSupply,
+)
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import MacroProblem, rectangle_mesh
 from plantgrowth.models.macro.water import MacroWater
@@ -82,7 +87,7 @@ def water_on(problem, reference, inputs, Fg=None, **kwargs) -> MacroWater:
     return water
 
 
-def ends(potential: float = 0.0, conductance: float = DIRICHLET) -> tuple[EdgeSupply, ...]:
+def ends(potential: Potential = 0.0, conductance: float = DIRICHLET) -> tuple[EdgeSupply, ...]:
     return tuple(EdgeSupply(e, potential, conductance) for e in ("left", "right"))
 
 
@@ -318,17 +323,17 @@ LO_SUPPLY = 3.0  # L_s: L' ~ 13.5 against phi_L ~ 15.9, so turgor settles halfwa
 LO_DT = 0.1
 
 
-def growing_model(comm: MPI.Comm) -> MacroModel:
+def growing_model(comm: MPI.Comm, potential: Potential = 0.0) -> MacroModel:
     """The small homogeneous tissue of the Lockhart-Ortega check: stress law, eta = 1, tau = 0,
-    left, right and top edges supplied at psi_s = 0 through LO_SUPPLY, L = 1e4 (kappa against
-    L_s times the size: P uniform to 1e-4)."""
+    left, right and top edges supplied at psi_s = ``potential`` through LO_SUPPLY, L = 1e4
+    (kappa against L_s times the size: P uniform to 1e-4)."""
     scene = parse_scene(BASE | {
         "tissue": LO_TISSUE, "pressure": {"P1": PI},
         "growth": {"law": "stress", "eta": 1.0, "tau": 0.0},
         "time": {"t_max": 10.0, "dt": LO_DT, "integrator": "euler"},
         "accuracy": {"cell_resolution": 1, "cell_tolerance": 0.0},
     })  # fmt: skip
-    edges = tuple(EdgeSupply(e, 0.0, LO_SUPPLY) for e in ("left", "right", "top"))
+    edges = tuple(EdgeSupply(e, potential, LO_SUPPLY) for e in ("left", "right", "top"))
     inputs = MacroHydraulics(osmotic=PI, conductivity=1e4, edges=edges)
     return MacroModel(scene, rectangle_mesh(scene, comm), comm, hydraulics=inputs)
 
@@ -372,16 +377,22 @@ def test_lockhart_ortega():
     assert P == pytest.approx(P_form, rel=1e-2)
 
 
+def drying(t: float) -> float:
+    """psi_s falling in time (the resumed run must read it at the right times)."""
+    return JUMP * t
+
+
 def test_macro_model_resumes_exactly():
-    """Five steps of the growing tissue straight, and resumed after three from the saved state
-    (MacroModel.state, joined over the ranks) on a model on COMM_SELF: the last step's P and G
-    agree to round-off (1e-12 of Pi, of max |G|; LU on 10^2 dofs)."""
+    """Five steps of the growing tissue, its supplies drying in time, straight, and resumed
+    after three from the saved state (MacroModel.state, joined over the ranks) on a model on
+    COMM_SELF: the last step's P and G agree to round-off (1e-12 of Pi, of max |G|; LU on 10^2
+    dofs)."""
     comm = MPI.COMM_WORLD
-    straight = growing_model(comm)
+    straight = growing_model(comm, drying)
     Fg, G = advance(straight, straight.initial_growth(), 3)
     saved = {key: joined_block(block, comm) for key, block in straight.state(Fg, G).items()}
     Fg, G = advance(straight, growth.advance(Fg, G, LO_DT, "euler"), 2)
-    resumed = growing_model(MPI.COMM_SELF)
+    resumed = growing_model(MPI.COMM_SELF, drying)
     Fg_r, G_r = resumed.restore(saved)
     Fg_r, G_r = advance(resumed, growth.advance(Fg_r, G_r, LO_DT, "euler"), 2)
     P, P_r = (gathered(m.water)[:, 2] for m in (straight, resumed))
@@ -469,3 +480,17 @@ def test_iterative_path_matches_the_direct_one(reference, dt):
     if MPI.COMM_WORLD.rank == 0:
         print(f"iterative vs direct at dt = {dt}: {difference:.1e} of the jump, {report}")
     assert difference <= 1e-6
+
+
+def test_supplies_read_their_potential_at_the_steps_end(reference):
+    """A potential in time is read at the end of each step (backward Euler), for edges and
+    regions: psi_s(t) = JUMP t on the ends, psi_r(t) = 2 JUMP t on the right half."""
+    region = RegionSupply(lambda x1, x2: x1 > 0.5 * WIDTH, lambda t: 2 * JUMP * t, 1.0)
+    inputs = MacroHydraulics(osmotic=PI, edges=ends(drying, 1.0), regions=(region,))
+    water = water_on(strip(0.125), reference, inputs)
+    assert water.edges["left"][1].value == 0.0
+    water.step(0.5, t=2.0)
+    assert water.edges["left"][1].value == pytest.approx(2.0 * JUMP, rel=1e-15)
+    right = water.problem.midpoints[:, 0] > 0.5 * WIDTH
+    Lr_psi_r = water.problem.cell_values(water.Lr_psi_r)[:, 0]
+    assert np.allclose(Lr_psi_r[right], 4.0 * JUMP, rtol=1e-15) and not Lr_psi_r[~right].any()

@@ -16,6 +16,13 @@ import numpy as np
 from plantgrowth.base.errors import InputError
 
 Value = float | Callable[[np.ndarray, np.ndarray], np.ndarray]
+Potential = float | Callable[[float], float]
+"""A supply's water potential: a constant or a function of time (read at each step's end)."""
+
+
+def at_time(potential: Potential, t: float) -> float:
+    """The potential at time t."""
+    return float(potential(t)) if callable(potential) else float(potential)
 
 
 def sample(value: Value, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
@@ -33,7 +40,7 @@ class EdgeSupply:
     outline's ``edge{i}``, a mesh file's groups)."""
 
     edge: str
-    potential: float
+    potential: Potential
     conductance: float
 
     def __post_init__(self) -> None:
@@ -47,7 +54,7 @@ class RegionSupply:
     potential ``potential`` (psi_r) through ``conductance`` (L_r) per unit grown area."""
 
     inside: Callable[[np.ndarray, np.ndarray], np.ndarray]
-    potential: float
+    potential: Potential
     conductance: float
 
     def __post_init__(self) -> None:

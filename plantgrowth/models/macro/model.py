@@ -130,6 +130,7 @@ class MacroModel:
         self.problem = problem = MacroProblem(scene, mesh, boundary)
         self.water = None if hydraulics is None else MacroWater(problem, hydraulics)
         self._water_dt: float | None = None  # the step the next solve advances the water by
+        self._time = 0.0  # the time the next solve reaches (the supplies' potentials)
         self.mesh = problem.mesh
         width, height = problem.bounding_box
         # the coarse nodes the fine cells see (the others weigh no fine cell)
@@ -212,8 +213,8 @@ class MacroModel:
                  "G": G[:n].reshape(n, 4)}  # fmt: skip
         if self.director is not None:
             parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
-        if self.water is not None:
-            parts |= self.water.state()
+        if self.water is not None:  # after end_step: the time the next step reaches
+            parts |= self.water.state() | {"water_time": np.full((n, 1), self._time)}
         blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         return blocks | (root_blocks(newton, self.comm) if self.problem.finite else {})
@@ -239,6 +240,7 @@ class MacroModel:
         if self.water is not None:  # the saved step ended with end_step(dt)
             self.water.restore(state)
             self._water_dt = self.scene.time.dt
+            self._time = float(state["water_time"].reshape(-1)[0])
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def end_step(self, dt: float) -> None:
@@ -246,6 +248,7 @@ class MacroModel:
         step's start, docs/fibres.md); with water, dt is also the step the next solve advances
         the water by."""
         self._water_dt = dt
+        self._time += dt
         if self._cue is not None:
             self.director.turn(self._cue, dt)
 
@@ -371,7 +374,7 @@ class MacroModel:
         if self._water_dt is None:
             report = self.water.start()
         else:
-            report = self.water.step(self._water_dt)
+            report = self.water.step(self._water_dt, self._time)
         return report, self.problem.P1_cells  # set by the water solve
 
     def _ellipticity(self, grad_u: np.ndarray, Fg: np.ndarray) -> stability.Ellipticity:

@@ -31,7 +31,7 @@ from plantgrowth.models.linear import (
     relative_residual,
     saddle_point_solver,
 )
-from plantgrowth.models.macro.hydraulics import MacroHydraulics, sample
+from plantgrowth.models.macro.hydraulics import MacroHydraulics, at_time, sample
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.unitcell.homogenization import NodeTensors
 from plantgrowth.unitcell.hydraulic_coefficients import conductivity
@@ -114,13 +114,13 @@ class MacroWater:
         )
         self.kappa = fem.Function(problem.T0, name="kappa")
         self.L_cells = sample(inputs.conductivity, *problem.midpoints[:, :2].T)
-        self._regions()
+        self._regions(0.0)
         self.dt = fem.Constant(msh, PETSc.ScalarType(1.0))
         ds = ufl.Measure("ds", domain=msh, subdomain_data=problem.boundary.facets)
         self.edges = {
             s.edge: (
                 fem.Constant(msh, PETSc.ScalarType(s.conductance)),
-                fem.Constant(msh, PETSc.ScalarType(s.potential)),
+                fem.Constant(msh, PETSc.ScalarType(at_time(s.potential, 0.0))),
                 ds(supplied_edge_tag(problem, s.edge)),
             )
             for s in inputs.edges
@@ -150,14 +150,14 @@ class MacroWater:
         )
         return saddle_point_solver(self.A, fields, pr.mesh.comm, PREFIX, pr.rtol, MAX_IT)
 
-    def _regions(self) -> None:
-        """L_r and L_r psi_r per fine cell (zero outside the supplied regions)."""
+    def _regions(self, t: float) -> None:
+        """L_r and L_r psi_r(t) per fine cell (zero outside the supplied regions)."""
         at = self.problem.midpoints[:, :2].T
         L_r, Lr_psi_r = np.zeros(self.problem.n_cells), np.zeros(self.problem.n_cells)
         for region in self.inputs.regions:
             inside = np.asarray(region.inside(*at), dtype=bool)
             L_r[inside] += region.conductance
-            Lr_psi_r[inside] += region.conductance * region.potential
+            Lr_psi_r[inside] += region.conductance * at_time(region.potential, t)
         self.problem.set_cell_values(self.L_r, L_r)
         self.problem.set_cell_values(self.Lr_psi_r, Lr_psi_r)
 
@@ -219,8 +219,15 @@ class MacroWater:
         pr.set_cell_values(self.beta, beta)
 
     def set_edge_potential(self, edge: str, potential: float) -> None:
-        """psi_s of a supplied edge from now on."""
+        """psi_s of a supplied edge from now on (until :meth:`set_time`)."""
         self.edges[edge][1].value = potential
+
+    def set_time(self, t: float) -> None:
+        """Every supply's potential at time t."""
+        for supply in self.inputs.edges:
+            self.set_edge_potential(supply.edge, at_time(supply.potential, t))
+        if any(callable(region.potential) for region in self.inputs.regions):
+            self._regions(t)
 
     def start(self) -> SolveReport:
         """Equilibrium at ``P = Pi + psi_0`` (u from the mechanics alone) and the water it holds,
@@ -243,9 +250,12 @@ class MacroWater:
         self._solved()
         return report
 
-    def step(self, dt: float) -> SolveReport:
-        """One backward-Euler step of length dt: solve (u, P), then m <- m(u, P)."""
+    def step(self, dt: float, t: float | None = None) -> SolveReport:
+        """One backward-Euler step of length dt ending at time t (the supplies' potentials are
+        read there; None: as they are): solve (u, P), then m <- m(u, P)."""
         pr = self.problem
+        if t is not None:
+            self.set_time(t)
         self.dt.value = dt
         self.P_old.x.array[:] = self.P.x.array
         self.A.zeroEntries()
