@@ -35,6 +35,7 @@ from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
 from plantgrowth.models.micro.around import WallsAround
 from plantgrowth.models.micro.director import MicroDirector
+from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
 from plantgrowth.models.micro.outlines import CellOutlines
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
@@ -109,7 +110,8 @@ class MicroModel:
         self.stability = WallStability(self.u, self.Fg, E, nu, self.finite, wall_fibres)
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
         rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx, wall_fibres)
-        if np.any(self.pressure != 0.0):
+        hydraulic = scene.hydraulics is not None  # turgor solved per cell (water.py), not given
+        if np.any(self.pressure != 0.0) and not hydraulic:
             rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
         self.a = fem.form(
             wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx, wall_fibres)
@@ -118,6 +120,9 @@ class MicroModel:
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
+        self.turgor = None
+        if hydraulic:
+            self.turgor = turgor_solve(self, scene, psi, n, membrane)
         if self.finite:  # the linear solve above is Newton's predictor
             residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx, wall_fibres)
             load = None
@@ -182,6 +187,7 @@ class MicroModel:
         self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
         self.cell_table = self.outlines  # cells.csv
         self.outlines.fibred = self.director is not None
+        self.outlines.watered = self.turgor is not None
         self._E, self._nu = E, nu
         self._deformation_det = MeshSamples(
             ufl.det(ufl.Identity(2) + ufl.grad(self.u)), msh, det_degree(self.u)
@@ -261,7 +267,7 @@ class MicroModel:
             log_report("micro", newton)
             report = SolveReport(newton.reason, newton.linear_residual)
         else:
-            report = self._linear_solve()
+            report = self._linear_solve() if self.turgor is None else self.turgor.solve(Fg)
         t1 = time.perf_counter()
         diagnostics.check_solution(report, self.u, self.comm)
         driving = self._tensor_rows(self.driving)
@@ -282,6 +288,8 @@ class MicroModel:
         self.last_G = G
         self._set(self.G_out, G)
         self.outlines.update(G, *self._cell_geometry())
+        if self.turgor is not None:
+            self.outlines.water = self.turgor.last
         if self.director is not None:
             self.outlines.fibre_angle = self.director.angle  # the director this step used
             if self.director.feedback is not None:
@@ -421,12 +429,17 @@ class MicroModel:
         step's start, docs/fibres.md); nothing without feedback."""
         if self.director is not None and self.director.feedback is not None:
             self.director.turn(self._cue, dt)
+        if self.turgor is not None:
+            self.turgor.commit(dt)
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, Block]:
         """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with
         finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
         director = {} if self.director is None else {"fibre_angle": self.director.angle}
         cells = {k: Block.whole(v, self.comm) for k, v in ({"Fg": Fg, "G": G} | director).items()}
+        if self.turgor is not None:  # the water held and the time of the next step
+            water = {"water": self.turgor.held, "water_time": np.array([self.turgor.t])}
+            cells |= {k: Block.whole(v, self.comm) for k, v in water.items()}
         newton = dof_state(self.newton.guess_functions) if self.finite else {}
         return cells | (root_blocks(newton, self.comm) if self.finite else {})
 
@@ -438,8 +451,13 @@ class MicroModel:
         if self.director is not None:
             angle = state.get("fibre_angle")
             matches = matches and angle is not None and angle.size == self.layout.n_cells
+        if self.turgor is not None:
+            water = state.get("water")
+            matches = matches and water is not None and water.size == self.layout.n_cells
         if not matches:
             raise RunError("the saved state does not match this tissue: was the scene changed?")
+        if self.turgor is not None:
+            self.turgor.restore(state["water"], float(state["water_time"][0]))
         if self.director is not None:
             self.director.restore(state["fibre_angle"])
         return state["Fg"], state["G"]
@@ -469,4 +487,5 @@ class MicroModel:
             "det_Fg_min": float(np.linalg.det(Fg).min()),
             **self.regions.measures(self.outlines.area, G, self.strain_magnitudes),
             **fibre_row,
+            **({} if self.turgor is None else water_measures(self.turgor, weights)),
         }
