@@ -118,8 +118,11 @@ class Hydraulics:
             conductivity=self.conductivity.over(width, height),
         )  # fmt: skip
 
-    def edges(self) -> list[Supply]:
-        return [s for s in self.supplies if s.kind == "edge"]
+    def supported_by(self, scene: Any) -> AnyField:
+        """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its model solves water
+        fluxes (:func:`check_supported`)."""
+        check_supported(scene.model, scene.kinematics, scene.time.integrator)
+        return self.osmotic
 
     def regions(self) -> list[Supply]:
         return [s for s in self.supplies if s.kind == "region"]

@@ -93,8 +93,7 @@ class Scene:
         choice("model", self.model, MODELS)
         choice("kinematics", self.kinematics, KINEMATICS)
         if self.hydraulics is not None:  # Pi is the turgor input (docs/model.md, water fluxes)
-            water.check_supported(self.model, self.kinematics, self.time.integrator)
-            set_fields(self, P1=self.hydraulics.osmotic)
+            set_fields(self, P1=self.hydraulics.supported_by(self))
         if self.feedback is not None and (self.walls is None or self.walls.fibre_angle is None):
             raise SceneError(
                 "feedback: [feedback] turns the fibre director, but the scene has no fibres: give "
@@ -102,8 +101,7 @@ class Scene:
                 "t = 0, degrees from x1), or remove [feedback]"
             )
         fibre_walls.check_outputs(self.output.fields, self.walls, self.feedback)
-        if self.hydraulics is None:
-            self.P1.check("pressure.P1", *RANGES["pressure.P1"])
+        self.P1.check("pressure.P1", *RANGES["pressure.P1"])  # Pi: its own key checked it
         for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
             if isinstance(f, Field) and f.width != self.tissue.width:
                 raise SceneError(f"{key}: field width {f.width!r} != tissue.width")
@@ -230,23 +228,22 @@ class Scene:
         cell = CellGeometry(*(over(f) for f in self.cell.fields()))
         material = Material(over(self.material.E), over(self.material.nu))
         walls = None if self.walls is None else self.walls.over(width, height)
-        hydraulics = None if self.hydraulics is None else self.hydraulics.over(width, height)
         return replace(
             self, tissue=replace(self.tissue, width=width, height=height), cell=cell,
             material=material, P1=over(self.P1), growth=self.growth.over(width, height),
-            walls=walls, hydraulics=hydraulics,
+            walls=walls, hydraulics=self.hydraulics and self.hydraulics.over(width, height),
         )  # fmt: skip
 
     def parameter_fields(self) -> dict[str, AnyField]:
         """All spatially varying parameters by dotted key (the fibre fields when given)."""
         cell, mat, g = self.cell, self.material, self.growth
         out = {f"cell.{k}": getattr(cell, k) for k in ("l1", "l2", "theta", "w")}
-        out |= {"material.E": mat.E, "material.nu": mat.nu}
-        # with [hydraulics] the turgor input is the osmotic pressure, among its fields
-        out |= {"pressure.P1": self.P1} if self.hydraulics is None else {}
-        out |= {"growth.eta": g.eta, "growth.tau": g.tau}
+        out |= {"material.E": mat.E, "material.nu": mat.nu, "pressure.P1": self.P1,
+                "growth.eta": g.eta, "growth.tau": g.tau}  # fmt: skip
         out |= {} if self.walls is None else self.walls.fields()
-        return out if self.hydraulics is None else out | self.hydraulics.fields()
+        if self.hydraulics is None:
+            return out  # else the turgor input is the osmotic pressure, one of the hydraulics'
+        return {k: f for k, f in out.items() if k != "pressure.P1"} | self.hydraulics.fields()
 
     @classmethod
     def from_dict(cls, data: dict, directory: str | os.PathLike | None = None) -> Scene:
@@ -291,8 +288,7 @@ class Scene:
         if self.feedback is not None:  # the walls are among the parameter fields
             feedback = self.feedback
             out["feedback"] = {"cue": feedback.cue, "rate": feedback.rate, "walls": feedback.walls}
-        if self.hydraulics is not None:  # its fields are among the parameter fields
-            out["hydraulics"] = self.hydraulics.to_toml()
+        out |= {} if self.hydraulics is None else {"hydraulics": self.hydraulics.to_toml()}
         return out
 
     def dotted(self) -> dict[str, Any]:

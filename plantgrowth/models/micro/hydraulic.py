@@ -3,8 +3,6 @@ scene and the model's pieces, and the summary.csv columns it reports."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -12,18 +10,14 @@ from dolfinx import fem
 from plantgrowth.forms import micro as micro_forms
 from plantgrowth.meshes.cell_walls import wall_network
 from plantgrowth.meshes.honeycomb import polygon_area
-from plantgrowth.meshes.tissue import clip_below
-from plantgrowth.models.micro.turgor_solve import TurgorSolve
+from plantgrowth.meshes.tissue import TissueLayout, clip_below
+from plantgrowth.models.micro.turgor_solve import ElasticParts, TurgorSolve
 from plantgrowth.models.micro.water import CellWater
 from plantgrowth.scene import Scene
 
-if TYPE_CHECKING:
-    from plantgrowth.models.micro.model import MicroModel
 
-
-def lumen_areas(model: MicroModel) -> np.ndarray:
+def lumen_areas(layout: TissueLayout) -> np.ndarray:
     """(n,) each cell's reference lumen area (its void; the bottom row's cut at x2 = 0)."""
-    layout = model.layout
     cut = range(layout.cut_cells.start, layout.cut_cells.stop)
     return np.array([
         polygon_area(clip_below(layout.void(i)) if i in cut else layout.void(i))
@@ -32,11 +26,13 @@ def lumen_areas(model: MicroModel) -> np.ndarray:
 
 
 def turgor_solve(
-    model: MicroModel, scene: Scene, test: ufl.Argument, normal, membrane: ufl.Measure
-) -> TurgorSolve:
-    """The water step of ``model`` (built up to its solver; ``scene`` over the tissue's extent),
-    with ``test`` the displacement test function and ``membrane`` the membranes' measure."""
-    layout, hydraulics = model.layout, scene.hydraulics
+    scene: Scene, layout: TissueLayout, parts: ElasticParts, test: ufl.Argument, normal,
+    membrane: ufl.Measure,
+) -> TurgorSolve:  # fmt: skip
+    """The water step of a micro tissue (``scene`` over the tissue's extent) from its walls'
+    problem ``parts``, with ``test`` the displacement test function and ``membrane`` the
+    membranes' measure."""
+    hydraulics = scene.hydraulics
     centres = layout.centres.T
     water = CellWater(
         hydraulics, wall_network(layout), hydraulics.osmotic(*centres),
@@ -44,14 +40,12 @@ def turgor_solve(
         {s.name: scene.regions[s.name].inside(layout.centres) for s in hydraulics.regions()},
         np.array([polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]),
     )  # fmt: skip
-    indicator = fem.Function(fem.FunctionSpace(model.mesh, ("DG", 0)))  # one cell's, per cell
+    mesh = parts.u.function_space.mesh
+    indicator = fem.Function(fem.FunctionSpace(mesh, ("DG", 0)))  # one cell's, per cell
     column = fem.form(
-        micro_forms.membrane_pressure_rhs(test, model.Fg, indicator, normal, membrane)
+        micro_forms.membrane_pressure_rhs(test, parts.Fg, indicator, normal, membrane)
     )
-    return TurgorSolve(
-        model._linear_solve, model.A, model.b, model.ksp, model.u, column, indicator,
-        model._set, model.bcs, water, lumen_areas(model), scene.time.dt, model.comm,
-    )  # fmt: skip
+    return TurgorSolve(parts, column, indicator, water, lumen_areas(layout), scene.time.dt)
 
 
 def water_measures(turgor: TurgorSolve, weights: np.ndarray) -> dict[str, float]:

@@ -37,6 +37,7 @@ from plantgrowth.models.micro.around import WallsAround
 from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
 from plantgrowth.models.micro.outlines import CellOutlines
+from plantgrowth.models.micro.turgor_solve import ElasticParts
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
 from plantgrowth.models.regions import RegionStatistics
@@ -122,7 +123,9 @@ class MicroModel:
         self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
         self.turgor = None
         if hydraulic:
-            self.turgor = turgor_solve(self, scene, psi, n, membrane)
+            parts = ElasticParts(self._linear_solve, self.A, self.b, self.ksp, self.u, self.Fg,
+                                 self.bcs, self._set, comm)  # fmt: skip
+            self.turgor = turgor_solve(scene, layout, parts, psi, n, membrane)
         if self.finite:  # the linear solve above is Newton's predictor
             residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx, wall_fibres)
             load = None

@@ -18,6 +18,7 @@ n back-solves per step); a bordered matrix for PETSc would be the way beyond.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from dolfinx import fem
@@ -29,29 +30,47 @@ from plantgrowth.models.linear import SolveReport, relative_residual
 from plantgrowth.models.micro.water import CellWater, WaterState, lumen_offset
 
 
+@dataclass(frozen=True)
+class ElasticParts:
+    """The walls' linear problem as the micro model holds it.
+
+    Attributes:
+        solve: solves K u = f into u (assembling K and f, factorizing K), leaving the assembled
+            K in ``A`` and f in ``b``.
+        A, b, ksp, u: its matrix, right-hand side, solver and solution.
+        Fg: the growth tensor (DG0); bcs: the Dirichlet conditions.
+        set_cells: sets a DG0 function from values per biological cell.
+        comm: the mesh's communicator.
+    """
+
+    solve: Callable[[], SolveReport]
+    A: PETSc.Mat
+    b: PETSc.Vec
+    ksp: PETSc.KSP
+    u: fem.Function
+    Fg: fem.Function
+    bcs: list
+    set_cells: Callable[[fem.Function, np.ndarray], None]
+    comm: MPI.Comm
+
+
 class TurgorSolve:
     """One step of u and P; the water held is committed by :meth:`commit`.
 
     Args:
-        elasticity: solves K u = f into u (assembling K and f, factorizing K): the model's
-            linear solve, which leaves the assembled K in ``A`` and f in ``b``.
-        A, b, ksp, u: its matrix, right-hand side, solver and solution.
-        column: the form of one cell's membrane pressure load, ``indicator`` its cell's
-            DG0 indicator, set per cell by ``set_cells`` (values per biological cell).
-        bcs: the Dirichlet conditions (the columns are zero on their dofs).
+        parts: the walls' problem.
+        column: the form of one cell's membrane pressure load, ``indicator`` its cell's DG0
+            indicator (the columns are zero on the Dirichlet dofs).
         water: the water network; lumen_area: (n,) the cells' reference lumen areas.
         dt: the step.
     """
 
     def __init__(
-        self, elasticity: Callable[[], SolveReport], A: PETSc.Mat, b: PETSc.Vec,
-        ksp: PETSc.KSP, u: fem.Function, column: fem.Form, indicator: fem.Function,
-        set_cells: Callable[[fem.Function, np.ndarray], None], bcs: list, water: CellWater,
-        lumen_area: np.ndarray, dt: float, comm: MPI.Comm,
+        self, parts: ElasticParts, column: fem.Form, indicator: fem.Function, water: CellWater,
+        lumen_area: np.ndarray, dt: float,
     ) -> None:  # fmt: skip
-        self.elasticity, self.A, self.b, self.ksp, self.u = elasticity, A, b, ksp, u
-        self.column, self.indicator, self.set_cells, self.bcs = column, indicator, set_cells, bcs
-        self.water, self.lumen_area, self.dt, self.comm = water, lumen_area, dt, comm
+        self.parts, self.column, self.indicator = parts, column, indicator
+        self.water, self.lumen_area, self.dt = water, lumen_area, dt
         self.vector = fem.petsc.create_vector(column)
         self.held: np.ndarray | None = None  # the water W^n of the last committed step
         self.t = 0.0  # the time of the next step to solve
@@ -63,13 +82,13 @@ class TurgorSolve:
         n = self.water.n
         rows, cols, values = [], [], []
         for c in range(n):
-            self.set_cells(self.indicator, np.eye(1, n, c)[0])
+            self.parts.set_cells(self.indicator, np.eye(1, n, c)[0])
             with self.vector.localForm() as local:
                 local.set(0.0)
             fem.petsc.assemble_vector(self.vector, self.column)
             # membrane facets next to a ghost cell: their share goes to the owner
             self.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            fem.petsc.set_bc(self.vector, self.bcs)
+            fem.petsc.set_bc(self.vector, self.parts.bcs)
             nonzero = np.flatnonzero(self.vector.array)
             rows.append(nonzero)
             cols.append(np.full(len(nonzero), c))
@@ -85,22 +104,23 @@ class TurgorSolve:
         z = self.vector.duplicate()
         for c in range(B.shape[1]):
             self.vector.array[:] = B[:, c].toarray().ravel()
-            self.ksp.solve(self.vector, z)
+            self.parts.ksp.solve(self.vector, z)
             S[:, c] = B.T @ z.array
         z.destroy()
-        S = self.comm.allreduce(S, op=MPI.SUM)
+        S = self.parts.comm.allreduce(S, op=MPI.SUM)
         return 0.5 * (S + S.T)
 
     def _lumen_terms(self, B: sparse.csc_matrix) -> np.ndarray:
         """B^T u (collective)."""
-        return self.comm.allreduce(B.T @ self.u.vector.array, op=MPI.SUM)
+        return self.parts.comm.allreduce(B.T @ self.parts.u.vector.array, op=MPI.SUM)
 
     def solve(self, Fg: np.ndarray) -> SolveReport:
         """u and P at ``Fg``: the first call is the initial equilibrium, P = Pi + psi_0
         (docs/model.md, water fluxes), each later one the backward Euler step from the water
         committed last."""
         B = self._columns()
-        self.elasticity()  # u = u_f = K^{-1} f, K factorized, b = f
+        parts = self.parts
+        parts.solve()  # u = u_f = K^{-1} f, K factorized, b = f
         V0 = lumen_offset(self.lumen_area, Fg)
         water = self.water
         if self.held is None:
@@ -108,12 +128,12 @@ class TurgorSolve:
         else:
             S = self._schur(B)
             P = water.turgor(S, self._lumen_terms(B), self.held, V0, Fg, self.t, self.dt)
-        rhs = self.b.copy()
+        rhs = parts.b.copy()
         rhs.array[:] += B @ P
-        self.ksp.solve(rhs, self.u.vector)
-        self.u.x.scatter_forward()
-        residual = relative_residual(self.A, self.u.vector, rhs)
-        report = SolveReport(self.ksp.getConvergedReason(), residual)
+        parts.ksp.solve(rhs, parts.u.vector)
+        parts.u.x.scatter_forward()
+        residual = relative_residual(parts.A, parts.u.vector, rhs)
+        report = SolveReport(parts.ksp.getConvergedReason(), residual)
         rhs.destroy()
         held = V0 + self._lumen_terms(B)
         self.last = water.state(P, held, Fg, self.t)
