@@ -441,7 +441,8 @@ class MicroModel:
         director = {} if self.director is None else {"fibre_angle": self.director.angle}
         cells = {k: Block.whole(v, self.comm) for k, v in ({"Fg": Fg, "G": G} | director).items()}
         if self.turgor is not None:  # the water held and the time of the next step
-            water = {"water": self.turgor.held, "water_time": np.array([self.turgor.t])}
+            turgor = self.turgor
+            water = {"water": turgor.held, "water_time": np.array([turgor.t]), "turgor": turgor.P}
             cells |= {k: Block.whole(v, self.comm) for k, v in water.items()}
         newton = dof_state(self.newton.guess_functions) if self.finite else {}
         return cells | (root_blocks(newton, self.comm) if self.finite else {})
@@ -460,7 +461,7 @@ class MicroModel:
         if not matches:
             raise RunError("the saved state does not match this tissue: was the scene changed?")
         if self.turgor is not None:
-            self.turgor.restore(state["water"], float(state["water_time"][0]))
+            self.turgor.restore(state["water"], float(state["water_time"][0]), state["turgor"])
         if self.director is not None:
             self.director.restore(state["fibre_angle"])
         return state["Fg"], state["G"]

@@ -54,13 +54,83 @@ class ElasticParts:
     comm: MPI.Comm
 
 
-class TurgorSolve:
-    """One step of u and P; the water held is committed by :meth:`commit`.
+def cell_columns(
+    form: fem.Form, vector: PETSc.Vec, indicator: fem.Function, parts: ElasticParts, n: int
+) -> sparse.csc_matrix:
+    """(owned dofs, n): this rank's rows of ``form`` assembled for each cell c with
+    ``indicator`` its DG0 indicator, zero on the Dirichlet dofs (collective)."""
+    rows, cols, values = [], [], []
+    for c in range(n):
+        parts.set_cells(indicator, np.eye(1, n, c)[0])
+        with vector.localForm() as local:
+            local.set(0.0)
+        fem.petsc.assemble_vector(vector, form)
+        # membrane facets next to a ghost cell: their share goes to the owner
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem.petsc.set_bc(vector, parts.bcs)
+        nonzero = np.flatnonzero(vector.array)
+        rows.append(nonzero)
+        cols.append(np.full(len(nonzero), c))
+        values.append(vector.array[nonzero])
+    return sparse.csc_matrix(
+        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
+        (len(vector.array), n),
+    )
+
+
+def back_solves(
+    ksp: PETSc.KSP, vector: PETSc.Vec, columns: sparse.csc_matrix, left: sparse.csc_matrix,
+    comm: MPI.Comm,
+) -> np.ndarray:  # fmt: skip
+    """``left^T A^{-1} columns`` (n x n, reduced over the ranks), A the factorized matrix of
+    ``ksp``: one back-solve per column."""
+    out = np.empty((left.shape[1], columns.shape[1]))
+    z = vector.duplicate()
+    for c in range(columns.shape[1]):
+        vector.array[:] = columns[:, c].toarray().ravel()
+        ksp.solve(vector, z)
+        out[:, c] = left.T @ z.array
+    z.destroy()
+    return comm.allreduce(out, op=MPI.SUM)
+
+
+class WaterSteps:
+    """The water held from step to step: :meth:`settle` records a solved step, :meth:`commit`
+    makes its water the next step's W^n, :meth:`restore` continues a saved run."""
+
+    def __init__(self, water: CellWater, dt: float) -> None:
+        self.water, self.dt = water, dt
+        self.held: np.ndarray | None = None  # the water W^n of the last committed step
+        self.t = 0.0  # the time of the next step to solve
+        self.last: WaterState | None = None
+        self.P: np.ndarray | None = None  # the last step's turgor
+        self.balance_error = 0.0
+
+    def settle(self, P: np.ndarray, held: np.ndarray, Fg: np.ndarray) -> None:
+        """Record a solved step: turgor P, water held; what came in over the step minus the
+        change of the water held (0 at the initial state)."""
+        self.P, self.last = P, self.water.state(P, held, Fg, self.t)
+        if self.held is not None:
+            gained = self.dt * sum(self.last.supplied.values())
+            self.balance_error = gained - (held.sum() - self.held.sum())
+
+    def commit(self, dt: float) -> None:
+        """The step's water becomes the next step's W^n."""
+        self.held = self.last.water
+        self.t += dt
+
+    def restore(self, held: np.ndarray, t: float, P: np.ndarray) -> None:
+        """Continue from saved water at the time of the next step (P: the last turgor)."""
+        self.held, self.t, self.P = held, t, P
+
+
+class TurgorSolve(WaterSteps):
+    """One step of u and P with linear kinematics.
 
     Args:
         parts: the walls' problem.
         column: the form of one cell's membrane pressure load, ``indicator`` its cell's DG0
-            indicator (the columns are zero on the Dirichlet dofs).
+            indicator.
         water: the water network; lumen_area: (n,) the cells' reference lumen areas.
         dt: the step.
     """
@@ -69,46 +139,10 @@ class TurgorSolve:
         self, parts: ElasticParts, column: fem.Form, indicator: fem.Function, water: CellWater,
         lumen_area: np.ndarray, dt: float,
     ) -> None:  # fmt: skip
+        super().__init__(water, dt)
         self.parts, self.column, self.indicator = parts, column, indicator
-        self.water, self.lumen_area, self.dt = water, lumen_area, dt
+        self.lumen_area = lumen_area
         self.vector = fem.petsc.create_vector(column)
-        self.held: np.ndarray | None = None  # the water W^n of the last committed step
-        self.t = 0.0  # the time of the next step to solve
-        self.last: WaterState | None = None
-        self.balance_error = 0.0
-
-    def _columns(self) -> sparse.csc_matrix:
-        """B: (owned dofs, cells), this rank's rows of each cell's pressure load for P = 1."""
-        n = self.water.n
-        rows, cols, values = [], [], []
-        for c in range(n):
-            self.parts.set_cells(self.indicator, np.eye(1, n, c)[0])
-            with self.vector.localForm() as local:
-                local.set(0.0)
-            fem.petsc.assemble_vector(self.vector, self.column)
-            # membrane facets next to a ghost cell: their share goes to the owner
-            self.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            fem.petsc.set_bc(self.vector, self.parts.bcs)
-            nonzero = np.flatnonzero(self.vector.array)
-            rows.append(nonzero)
-            cols.append(np.full(len(nonzero), c))
-            values.append(self.vector.array[nonzero])
-        shape = (len(self.vector.array), n)
-        return sparse.csc_matrix(
-            (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))), shape
-        )
-
-    def _schur(self, B: sparse.csc_matrix) -> np.ndarray:
-        """S = B^T K^{-1} B (collective; K factorized), symmetric to round-off."""
-        S = np.empty((B.shape[1], B.shape[1]))
-        z = self.vector.duplicate()
-        for c in range(B.shape[1]):
-            self.vector.array[:] = B[:, c].toarray().ravel()
-            self.parts.ksp.solve(self.vector, z)
-            S[:, c] = B.T @ z.array
-        z.destroy()
-        S = self.parts.comm.allreduce(S, op=MPI.SUM)
-        return 0.5 * (S + S.T)
 
     def _lumen_terms(self, B: sparse.csc_matrix) -> np.ndarray:
         """B^T u (collective)."""
@@ -118,15 +152,15 @@ class TurgorSolve:
         """u and P at ``Fg``: the first call is the initial equilibrium, P = Pi + psi_0
         (docs/model.md, water fluxes), each later one the backward Euler step from the water
         committed last."""
-        B = self._columns()
-        parts = self.parts
+        parts, water = self.parts, self.water
+        B = cell_columns(self.column, self.vector, self.indicator, parts, water.n)
         parts.solve()  # u = u_f = K^{-1} f, K factorized, b = f
         V0 = lumen_offset(self.lumen_area, Fg)
-        water = self.water
         if self.held is None:
             P = water.Pi + water.hydraulics.initial_potential
-        else:
-            S = self._schur(B)
+        else:  # S = B^T K^{-1} B, symmetric to round-off
+            S = back_solves(parts.ksp, self.vector, B, B, parts.comm)
+            S = 0.5 * (S + S.T)
             P = water.turgor(S, self._lumen_terms(B), self.held, V0, Fg, self.t, self.dt)
         rhs = parts.b.copy()
         rhs.array[:] += B @ P
@@ -135,18 +169,5 @@ class TurgorSolve:
         residual = relative_residual(parts.A, parts.u.vector, rhs)
         report = SolveReport(parts.ksp.getConvergedReason(), residual)
         rhs.destroy()
-        held = V0 + self._lumen_terms(B)
-        self.last = water.state(P, held, Fg, self.t)
-        if self.held is not None:  # what came in minus the change of the water held
-            gained = self.dt * sum(self.last.supplied.values())
-            self.balance_error = gained - (held.sum() - self.held.sum())
+        self.settle(P, V0 + self._lumen_terms(B), Fg)
         return report
-
-    def commit(self, dt: float) -> None:
-        """The step's water becomes the next step's W^n."""
-        self.held = self.last.water
-        self.t += dt
-
-    def restore(self, held: np.ndarray, t: float) -> None:
-        """Continue from saved water at the time of the next step."""
-        self.held, self.t = held, t
