@@ -904,11 +904,10 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
     """``[hydraulics]`` (docs/model.md, water fluxes): wrong types, NaN/inf, a negative osmotic
     pressure or conductivity, a missing conductivity, pressure.P1 given as well, a supply on the
     symmetry plane, on an edge or region the scene does not have, twice, without or with a
-    non-positive conductance, a bad potential in time, and a valid table in a scene whose model,
-    kinematics or integrator cannot take it."""
+    non-positive conductance, a bad potential in time, and a valid table in a scene whose model
+    or integrator cannot take it."""
     what = rng.choice(["wrong_type", "nonfinite", "negative", "missing", "P1", "bottom", "edge",
-                       "region", "twice", "conductance", "times", "model", "finite",
-                       "adaptive"])  # fmt: skip
+                       "region", "twice", "conductance", "times", "model", "adaptive"])  # fmt: skip
     scene = base_scene(rng, micro=True)
     scene["model"] = "micro"
     scene.pop("pressure", None)
@@ -956,9 +955,6 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
     elif what == "model":
         scene["model"] = rng.choice(["macro", "both"])
         expect = ("hydraulics: model =", "does not solve water")
-    elif what == "finite":
-        scene["kinematics"] = "finite"
-        expect = ("hydraulics: kinematics = 'finite'",)
     else:
         scene["time"] = {"t_max": 2.0, "dt": 1.0, "integrator": "adaptive"}
         expect = ("hydraulics: time.integrator = 'adaptive'",)

@@ -134,7 +134,6 @@ def test_bad_hydraulics_is_a_named_error(table, fragments):
     "change, fragments",
     [
         ("[pressure]\nP1 = 0.001\n", ("pressure.P1: not with [hydraulics]",)),
-        ('kinematics = "finite"\n', ("hydraulics: kinematics = 'finite'",)),
         ('[time]\nintegrator = "adaptive"\n', ("hydraulics: time.integrator = 'adaptive'",)),
     ],
 )

@@ -121,7 +121,7 @@ class Hydraulics:
     def supported_by(self, scene: Any) -> AnyField:
         """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its model solves water
         fluxes (:func:`check_supported`)."""
-        check_supported(scene.model, scene.kinematics, scene.time.integrator)
+        check_supported(scene.model, scene.time.integrator)
         return self.osmotic
 
     def regions(self) -> list[Supply]:
@@ -269,19 +269,14 @@ def hydraulics_from(
     return Hydraulics(osmotic, conductivity, psi0, tuple(supplies))
 
 
-def check_supported(model: str, kinematics: str, integrator: str) -> None:
-    """SceneError unless the run can solve water fluxes: the micro model with linear
-    kinematics and a fixed step (the water state advances once per step)."""
+def check_supported(model: str, integrator: str) -> None:
+    """SceneError unless the run can solve water fluxes: the micro model (either kinematics)
+    with a fixed step (the water state advances once per step)."""
     if model != "micro":
         raise SceneError(
             f"hydraulics: model = {model!r} does not solve water fluxes yet "
             "(docs/model.md, water fluxes): only model = 'micro' does; remove [hydraulics] "
             "(and give pressure.P1) to run the macro model"
-        )
-    if kinematics != "linear":
-        raise SceneError(
-            "hydraulics: kinematics = 'finite' does not solve water fluxes yet: the micro "
-            "model solves them with kinematics = 'linear'"
         )
     if integrator == "adaptive":
         raise SceneError(

@@ -7,12 +7,15 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from plantgrowth.forms import finite as finite_forms
 from plantgrowth.forms import micro as micro_forms
 from plantgrowth.meshes.cell_walls import wall_network
 from plantgrowth.meshes.honeycomb import polygon_area
 from plantgrowth.meshes.tissue import TissueLayout, clip_below
+from plantgrowth.models.micro.turgor_newton import TurgorNewton
 from plantgrowth.models.micro.turgor_solve import ElasticParts, TurgorSolve
 from plantgrowth.models.micro.water import CellWater
+from plantgrowth.models.newton import NewtonSolver
 from plantgrowth.scene import Scene
 
 
@@ -27,11 +30,12 @@ def lumen_areas(layout: TissueLayout) -> np.ndarray:
 
 def turgor_solve(
     scene: Scene, layout: TissueLayout, parts: ElasticParts, test: ufl.Argument, normal,
-    membrane: ufl.Measure,
-) -> TurgorSolve:  # fmt: skip
+    membrane: ufl.Measure, newton: tuple[NewtonSolver, fem.Function] | None = None,
+) -> TurgorSolve | TurgorNewton:  # fmt: skip
     """The water step of a micro tissue (``scene`` over the tissue's extent) from its walls'
     problem ``parts``, with ``test`` the displacement test function and ``membrane`` the
-    membranes' measure."""
+    membranes' measure; finite kinematics: ``newton``, the walls' Newton solver and the turgor
+    function its residual reads."""
     hydraulics = scene.hydraulics
     centres = layout.centres.T
     water = CellWater(
@@ -42,6 +46,15 @@ def turgor_solve(
     )  # fmt: skip
     mesh = parts.u.function_space.mesh
     indicator = fem.Function(fem.FunctionSpace(mesh, ("DG", 0)))  # one cell's, per cell
+    if newton is not None:
+        u = parts.u
+        area = finite_forms.lumen_area(u, indicator, normal, membrane)
+        forms = [finite_forms.follower_pressure(u, test, indicator, normal, membrane),
+                 ufl.derivative(area, u, test), area]  # fmt: skip
+        return TurgorNewton(
+            newton[0], parts, newton[1], *(fem.form(f) for f in forms), indicator, water,
+            scene.time.dt,
+        )  # fmt: skip
     column = fem.form(
         micro_forms.membrane_pressure_rhs(test, parts.Fg, indicator, normal, membrane)
     )

@@ -112,7 +112,8 @@ class MicroModel:
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
         rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx, wall_fibres)
         hydraulic = scene.hydraulics is not None  # turgor solved per cell (water.py), not given
-        if np.any(self.pressure != 0.0) and not hydraulic:
+        turgid = hydraulic or np.any(self.pressure != 0.0)
+        if turgid and not (hydraulic and not self.finite):  # linear water: its own loads
             rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
         self.a = fem.form(
             wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx, wall_fibres)
@@ -121,21 +122,22 @@ class MicroModel:
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
-        self.turgor = None
-        if hydraulic:
-            parts = ElasticParts(self._linear_solve, self.A, self.b, self.ksp, self.u, self.Fg,
-                                 self.bcs, self._set, comm)  # fmt: skip
-            self.turgor = turgor_solve(scene, layout, parts, psi, n, membrane)
         if self.finite:  # the linear solve above is Newton's predictor
             residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx, wall_fibres)
             load = None
-            if np.any(self.pressure != 0.0):
+            if turgid:
                 load = finite_forms.follower_pressure(self.u, psi, P, n, membrane)
                 residual += load
             self.newton = NewtonSolver(
                 residual, self.u, self.bcs, lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
                 load, self._newton_floor, self.stability.smallest, predictor=self._linear_solve,
             )  # fmt: skip
+        self.turgor = None
+        if hydraulic:
+            parts = ElasticParts(self._linear_solve, self.A, self.b, self.ksp, self.u, self.Fg,
+                                 self.bcs, self._set, comm)  # fmt: skip
+            newton = (self.newton, P) if self.finite else None
+            self.turgor = turgor_solve(scene, layout, parts, psi, n, membrane, newton)
         driving = (
             self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx, wall_fibres)
             if scene.growth.law == "stress"
@@ -266,7 +268,7 @@ class MicroModel:
         self._set(self.Fg, Fg)
         newton = None
         if self.finite:
-            newton = self.newton.solve()
+            newton = self.newton.solve() if self.turgor is None else self.turgor.solve(Fg)
             log_report("micro", newton)
             report = SolveReport(newton.reason, newton.linear_residual)
         else:
