@@ -72,3 +72,11 @@ def gradient_moment_form(phi, Q, dx) -> ufl.Form:
     averages of [maacro_E], [maacro_K] and dbar are their dot products with the solution.
     """
     return ufl.inner(ufl.grad(phi), Q) * dx
+
+
+def lumen_area_change_form(z, Fg, n, ds) -> ufl.Form:
+    """``int_Gamma z . Jg Fg^{-T} n_c dgamma``, ``n_c = -n`` (n: the walls' outward normal, into
+    the lumen): the change of the grown lumen's area, to first order, when the membrane moves by
+    z (docs/model.md, "Water fluxes"; Nanson's formula carries the reference normal to the grown
+    membrane)."""
+    return -ufl.det(Fg) * ufl.inner(z, ufl.dot(ufl.inv(Fg).T, n)) * ds

@@ -27,7 +27,7 @@ from plantgrowth.results.run_results import Results, read_results
 from plantgrowth.runner.rundir import API_OPTIONS, Options
 from plantgrowth.runner.scene_run import run_scene
 from plantgrowth.scene import Scene
-from plantgrowth.unitcell.solver import cell_properties
+from plantgrowth.unitcell.properties import cell_properties
 
 __all__ = ["Results", "cell", "read_results", "run"]
 

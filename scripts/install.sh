@@ -30,6 +30,7 @@ APT_PACKAGES=(
     python3-petsc4py
     python3-mpi4py
     python3-pytest
+    python3-pytest-xdist  # scripts/test.sh runs the serial phase on one worker per core
     python3-matplotlib
     python3-scipy
     python3-yaml      # tests/test_citation.py reads CITATION.cff

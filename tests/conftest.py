@@ -5,8 +5,15 @@ import os
 import zlib
 
 import handler_leaks
+import mpi_singleton_env
 import pytest
-from mpi4py import MPI
+
+# Before MPI starts here: a pytest-xdist worker (scripts/test.sh runs the serial phase on 2 of them)
+# inherits the controller's Open MPI singleton settings, with which neither its own MPI nor an
+# mpirun it launches would start.
+mpi_singleton_env.forget_inherited()
+
+from mpi4py import MPI  # noqa: E402
 
 # No on-disk cell cache unless a test sets its own: results must not depend on what earlier runs
 # (or monkeypatched mutants) left in ~/.cache, and tests write nothing there. Set here, before the

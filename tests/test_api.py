@@ -387,6 +387,7 @@ def test_cell_equals_plantgrowth_cell_json(capsys):
     printed = json.loads(COMM.bcast((out.splitlines() or [""])[-1] if RANK0 else None))
     got = pg.cell(**CELL, Fg=FG, resolution=1, comm=COMM)
     assert list(got) == list(printed)
+    assert {"b", "inv_M", "kappa"} <= set(got)  # docs/model.md "Water fluxes"
     assert got["ndofs"] == printed["ndofs"] and isinstance(got["ndofs"], int)
 
     def numbers(value) -> np.ndarray:  # dbar_w is a table of lists: compare its numbers

@@ -20,9 +20,12 @@ from mpi4py import MPI
 
 from plantgrowth.cli import main
 from plantgrowth.meshes.honeycomb import HoneycombCell
+from plantgrowth.unitcell.hydraulic_coefficients import hydraulic_summary
 from plantgrowth.unitcell.solver import CellSolver
 
 KEYS = "E1111 E2222 E1122 E1212 E1112 E2212 K11 K22 K12 E1 E2 nu12 G12 phi_w ndofs seconds".split()
+HYDRAULIC_KEYS = ("b", "inv_M", "kappa")
+"""docs/model.md "Water fluxes": the Biot tensor and kappa as [11, 22, 12], the storage 1/M."""
 BIN = Path(sys.executable).parent
 PLANTGROWTH = str(BIN / "plantgrowth")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
@@ -48,15 +51,14 @@ def test_json_output(capsys):
     assert set(KEYS) <= set(data)
     assert isinstance(data["ndofs"], int)
     # the CLI reports exactly what the solver computes (same mesh, same constants)
-    expected = (
-        CellSolver(HoneycombCell(l1=1.5), 1, MPI.COMM_SELF)
-        .solve(np.array([[1.2, 0.1], [0.0, 1.0]]), 1.0, 0.3)
-        .summary()
-    )
-    for key in KEYS:
+    Fg = np.array([[1.2, 0.1], [0.0, 1.0]])
+    result = CellSolver(HoneycombCell(l1=1.5), 1, MPI.COMM_SELF).solve(Fg, 1.0, 0.3)
+    expected = result.summary() | hydraulic_summary(result, HoneycombCell(l1=1.5), Fg)
+    for key in KEYS + list(HYDRAULIC_KEYS):
         if key != "seconds":
             # serial CLI: bitwise equal; under mpirun MUMPS vs PETSc LU differ by round-off
             assert data[key] == pytest.approx(expected[key], rel=1e-8, abs=1e-14), key
+    assert len(data["b"]) == len(data["kappa"]) == 3
 
 
 @pytest.mark.mpi
@@ -66,7 +68,8 @@ def test_table_output(capsys):
     if not RANK0:
         return
     table = dict(line.split() for line in out.strip().splitlines())
-    assert set(KEYS) <= set(table)
+    assert set(KEYS) | {"inv_M"} <= set(table)
+    assert "b" not in table and "kappa" not in table  # tensors in --json only
     assert int(table["ndofs"]) > 0
     assert float(table["phi_w"]) == pytest.approx(HoneycombCell().phi_w, rel=1e-5)  # 6 digits
 
@@ -138,7 +141,7 @@ def test_help():
     )
     assert proc.returncode == 0
     for option in ("--l1", "--l2", "--theta", "--w", "--E", "--nu", "--Fg", "--json",
-                   "--fibre-stiffness", "--fibre-angle"):  # fmt: skip
+                   "--fibre-stiffness", "--fibre-angle", "inv_M", "kappa", "Biot"):  # fmt: skip
         assert option in proc.stdout
     top = subprocess.run(
         [PLANTGROWTH, "--help"], capture_output=True, text=True, env=ENV, timeout=120
@@ -153,7 +156,8 @@ def test_help():
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed")
 def test_mpirun_matches_serial():
     """Two ranks (distributed mesh, MUMPS) vs one (PETSc LU): the same discrete problem, so
-    only round-off differs; 1e-8 relative leaves room for the ~10x cancellation in E1."""
+    only round-off differs; 1e-8 relative leaves room for the ~10x cancellation in E1 (b, 1/M
+    and kappa included: b and 1/M from the same solve, kappa a closed form)."""
     proc = subprocess.run(
         ["mpirun", "-n", "2", PLANTGROWTH, "cell", "--json", "--Fg", "1.3,0.1,0,1"],
         capture_output=True,
@@ -163,12 +167,10 @@ def test_mpirun_matches_serial():
     )
     assert proc.returncode == 0, proc.stderr
     parallel = _last_json(proc.stdout)
-    serial = (
-        CellSolver(HoneycombCell(), 3, MPI.COMM_SELF)
-        .solve(np.array([[1.3, 0.1], [0.0, 1.0]]), 1.0, 0.3)
-        .summary()
-    )
+    Fg = np.array([[1.3, 0.1], [0.0, 1.0]])
+    result = CellSolver(HoneycombCell(), 3, MPI.COMM_SELF).solve(Fg, 1.0, 0.3)
+    serial = result.summary() | hydraulic_summary(result, HoneycombCell(), Fg)
     assert parallel["ndofs"] == serial["ndofs"]
-    for key in KEYS:
+    for key in KEYS + list(HYDRAULIC_KEYS):
         if key not in ("seconds", "ndofs"):
             assert parallel[key] == pytest.approx(serial[key], rel=1e-8, abs=1e-14), key

@@ -78,6 +78,11 @@ def voigt_vector(e: np.ndarray) -> np.ndarray:
     return np.stack([e[..., 0, 0], e[..., 1, 1], 2.0 * e[..., 0, 1]], axis=-1)
 
 
+def symmetric_components(T: np.ndarray) -> list[float]:
+    """``[T11, T22, T12]`` of a symmetric 2x2 tensor, as floats (the CLI's JSON lists)."""
+    return [float(T[0, 0]), float(T[1, 1]), float(T[0, 1])]
+
+
 def from_voigt_stress(s: np.ndarray) -> np.ndarray:
     """(..., 2, 2) tensors from stress Voigt vectors ``(s11, s22, s12)``."""
     return np.stack(

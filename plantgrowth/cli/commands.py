@@ -22,7 +22,7 @@ log = logging.getLogger("plantgrowth")
 
 
 def cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from plantgrowth.unitcell.solver import cell_properties
+    from plantgrowth.unitcell.properties import cell_properties
 
     if len(args.Fg) != 4:
         raise InputError(f"--Fg needs 4 numbers F11,F12,F21,F22, got {len(args.Fg)}")
@@ -33,8 +33,8 @@ def cell_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     if comm.rank == 0:
         if args.json:
             print(json.dumps(result))
-        else:  # the scalars; the strain averages in --json only
-            scalars = {k: v for k, v in result.items() if k not in ("dbar_w", "dbar_v")}
+        else:  # the scalars; the strain averages, b and kappa in --json only
+            scalars = {k: v for k, v in result.items() if not isinstance(v, (dict, list))}
             width = max(len(k) for k in scalars)
             for key, value in scalars.items():
                 shown = value if key == "ndofs" else f"{value:.6g}"

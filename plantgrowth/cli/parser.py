@@ -102,7 +102,9 @@ def build_parser() -> argparse.ArgumentParser:
     for flag, text in fibre_flags.items():
         cell.add_argument(flag, type=float, default=0.0, metavar="X", help=text)
     cell.add_argument("--json", action="store_true", help="print one JSON object as the last "
-                      "line (with the strain averages dbar_w, dbar_v)")  # fmt: skip
+                      "line (with the strain averages dbar_w, dbar_v, the Biot tensor b and "
+                      "the conductivity per unit wall conductivity kappa, each [11, 22, 12]; "
+                      "inv_M, the storage 1/M, is in the table too)")  # fmt: skip
     cell.set_defaults(handler=commands.cell_command, solves=True)
 
     run = sub.add_parser(

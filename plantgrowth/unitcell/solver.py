@@ -29,7 +29,6 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from plantgrowth.base.errors import check_growth_tensor, check_number, check_wall_material
 from plantgrowth.base.tensors import (
     VOIGT_NAMES,
     VOIGT_PAIRS,
@@ -37,12 +36,13 @@ from plantgrowth.base.tensors import (
     fibre_tensor,
     isotropic_tensor,
     orthotropic_moduli,
+    symmetric_components,
     unit_strain,
 )
 from plantgrowth.forms import cell_problems
 from plantgrowth.forms.elasticity import Fibres, wall_bilinear_form
 from plantgrowth.meshes.honeycomb import HoneycombCell
-from plantgrowth.meshes.unit_cell import FACET_TAGS, build_unit_cell_mesh, mesh_size
+from plantgrowth.meshes.unit_cell import FACET_TAGS, build_unit_cell_mesh
 from plantgrowth.unitcell.gradient_basis import GradientBasis
 from plantgrowth.unitcell.periodic import periodic_constraint
 
@@ -93,7 +93,7 @@ class CellResult:
         [d11, d22, d12] of dbar[v] (the CLI's JSON; None for what was not computed)."""
 
         def components(d: np.ndarray | None) -> list[float] | None:
-            return None if d is None else [float(d[0, 0]), float(d[1, 1]), float(d[0, 1])]
+            return None if d is None else symmetric_components(d)
 
         dbar_w = None
         if self.dbar_w is not None:
@@ -221,6 +221,7 @@ class CellSolver:
         self._A = self.basis.diagonal.duplicate(copy=True)  # stored as the basis stores
         self.ksp = self.basis.factorization(self._A, "plantgrowth_cell_")
         self._rhs, self._x = self._A.createVecLeft(), self._A.createVecRight()
+        self._solutions: list[np.ndarray] = []  # the last solve's back-substituted solutions
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
 
     def _tangent_field(self) -> fem.Function:
@@ -254,6 +255,19 @@ class CellSolver:
         ``dolfinx_mpc.assemble_matrix(bilinear_form, mpc, bcs)`` assembles for its Fg, E, nu."""
         return self.basis.in_dof_order(self._A)
 
+    def correctors(self) -> list[fem.Function]:
+        """The cell solutions of the last :meth:`solve`, periodic and zero at the pinned point:
+        ``w^11, w^22, w^12`` ([UC_weak]) and, if it solved the pressure problem, ``v``
+        ([UCw_weak]); new functions, which later solves leave unchanged."""
+        if not self._solutions:
+            raise ValueError("no cell problem solved yet: call solve() first")
+        correctors = []
+        for values in self._solutions:
+            z = fem.Function(self.mpc.function_space)
+            z.x.array[:] = values
+            correctors.append(z)
+        return correctors
+
     def _integrate(self, form: fem.FormMetaClass, selector: np.ndarray | None = None) -> float:
         if selector is not None:
             self._S.value[:] = selector
@@ -265,12 +279,14 @@ class CellSolver:
         each wall part (the last one stays in ``self._z``)."""
         rhs = sum(reduced @ w for reduced, w in zip(self.basis.reduced, loads, strict=True))
         integrals = np.zeros_like(loads)
+        self._solutions = []
         for k in range(loads.shape[2]):
             self._rhs.array[:] = rhs[:, k]
             self.ksp.solve(self._rhs, self._x)
             self._z.x.array[self.basis.order] = self._x.array_r
             self._z.x.scatter_forward()
             self.mpc.backsubstitution(self._z.vector)
+            self._solutions.append(self._z.x.array.copy())
             integrals[:, :, k] = self._z.vector.array_r @ self.basis.full
         return self.comm.allreduce(integrals, op=MPI.SUM)
 
@@ -334,35 +350,3 @@ class CellSolver:
         dbar_v = dbar[3] if pressure and strain_averages else None
         seconds = self.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
         return CellResult(E_hom, K_hom, dbar_w, dbar_v, phi_w, self.P2_matrix, self.ndofs, seconds)
-
-
-def check_fibres(fibre_stiffness: object, fibre_angle: object, names: tuple[str, str]) -> tuple:
-    """E_f / E finite and >= 0, the director angle finite (degrees); errors name ``names``."""
-    return (
-        check_number(names[0], fibre_stiffness, 0.0, np.inf, low_open=False),
-        check_number(names[1], fibre_angle, -np.inf, np.inf),
-    )
-
-
-def cell_properties(
-    l1: float, l2: float, theta: float, w: float, E: float, nu: float, Fg: object,
-    resolution: int | None, comm: MPI.Comm, resolution_name: str = "resolution",
-    fibre_stiffness: float = 0.0, fibre_angle: float = 0.0,
-    fibre_names: tuple[str, str] = ("fibre_stiffness", "fibre_angle"),
-) -> dict:  # fmt: skip
-    """E_hom (six components), K_hom, the orthotropic moduli, phi_w, ndofs, seconds and the
-    strain averages dbar_w, dbar_v of one honeycomb cell (docs/model.md sections 2-3) at the
-    growth tensor ``Fg`` (2x2), with fibre-reinforced walls when ``fibre_stiffness`` > 0, checked
-    first (errors name the argument; the resolution as ``resolution_name``, the fibre
-    parameters as ``fibre_names``)."""
-    E, nu = check_wall_material(E, nu)
-    Fg = np.array(check_growth_tensor("Fg", Fg))
-    fibre_stiffness, fibre_angle = check_fibres(fibre_stiffness, fibre_angle, fibre_names)
-    resolution = DEFAULT_RESOLUTION if resolution is None else resolution
-    cell = HoneycombCell(l1, l2, theta, w)
-    mesh_size(cell, resolution, resolution_name)
-    fibres = fibre_stiffness > 0.0
-    result = CellSolver(cell, resolution, comm, fibres=fibres).solve(
-        Fg, E, nu, fibre_stiffness=fibre_stiffness, fibre_angle=fibre_angle
-    )
-    return {**result.summary(), **result.strain_averages()}
