@@ -119,3 +119,12 @@ def elastic_strain_average_form(u, tau, Fg, dx) -> ufl.Form:
 def jacobian(residual: ufl.Form, u) -> ufl.Form:
     """The exact Jacobian ``dR/du`` in the direction of a trial function (UFL-derived)."""
     return ufl.derivative(residual, u, ufl.TrialFunction(u.ufl_function_space()))
+
+
+def lumen_area(u, weight, n, ds) -> ufl.Form:
+    """The area the deformed membrane encloses, ``(1/2) int x . cof(F) N_l dS`` with
+    ``x = X + u`` and ``N_l = -n`` out of the lumen (n: the walls' outward normal), weighted by
+    ``weight`` (a cell's indicator). On the symmetry plane, where a cut cell's lumen is open,
+    x2 = 0 and cof(F) N_l has no x1 component, so the open side adds nothing."""
+    x = ufl.SpatialCoordinate(u.ufl_function_space().mesh) + u
+    return -0.5 * weight * ufl.inner(x, ufl.dot(cofactor(deformation_gradient(u)), n)) * ds

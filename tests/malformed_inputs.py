@@ -3,15 +3,16 @@
 ``generate(seed, n)`` returns ``n`` :class:`Case` objects mixing the classes of :data:`CLASSES` at
 random: malformed scene files (wrong types, missing or unknown keys, NaN/inf, sizes <= 0, nu out of
 (-1, 0.5), walls too thick for the cell, bad angles and time steps, empty/binary/invalid TOML, huge
-numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside
-the tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the
-mesh) and named parameters (undefined, shadowing x1, x2, s, pi or a function), bad fibre walls
-and feedback (and valid micro ones, which the runner refuses), a ``feedback.walls`` neither
+numbers, bad {from, to} fields and loads, bad expressions, expression fields out of range inside the
+tissue, bad micro scenes, bad held edges, bad regions (malformed, empty or undefined on the mesh)
+and named parameters (undefined, shadowing x1, x2, s, pi or a function), bad water fluxes
+([hydraulics]: bad values and supplies, P1 given as well, models that cannot take it), bad fibre
+walls and feedback (and valid micro ones, which the runner refuses), a ``feedback.walls`` neither
 "around" nor "own", output fields named by a word or a typo (the error says which field it may
 mean), zip sweeps whose lists differ in length), bad command lines (``render`` and ``export`` of
-runs that are not there, into files they must not write) and output paths that cannot be
-written. Every case must end with exit code 2 and a one-line ``plantgrowth: error: ...`` naming
-the field (``Case.expect``), before anything is written.
+runs that are not there, into files they must not write) and output paths that cannot be written.
+Every case must end with exit code 2 and a one-line ``plantgrowth: error: ...`` naming the field
+(``Case.expect``), before anything is written.
 
 A case is materialized in its own empty directory: ``files`` are written there and ``{dir}`` in
 ``argv`` and ``expect`` stands for that directory. Cases with ``isolate = True`` could run for
@@ -899,6 +900,69 @@ def _bad_feedback_walls(rng: random.Random, scene: dict):
     return scene, ("feedback.walls", "'around', 'own'")
 
 
+def _bad_hydraulics(rng: random.Random, scene: dict):
+    """``[hydraulics]`` (docs/model.md, water fluxes): wrong types, NaN/inf, a negative osmotic
+    pressure or conductivity, a missing conductivity, pressure.P1 given as well, a supply on the
+    symmetry plane, on an edge or region the scene does not have, twice, without or with a
+    non-positive conductance, a bad potential in time, and a valid table in a scene whose model
+    or integrator cannot take it."""
+    what = rng.choice(["wrong_type", "nonfinite", "negative", "missing", "P1", "bottom", "edge",
+                       "region", "twice", "conductance", "times", "model", "adaptive"])  # fmt: skip
+    scene = base_scene(rng, micro=True)
+    scene["model"] = "micro"
+    scene.pop("pressure", None)
+    table: dict = {"osmotic": rng.uniform(0.0, 0.01), "conductivity": rng.uniform(0.0, 10.0)}
+    supply: dict = {"edge": rng.choice(["left", "right", "top"]),
+                    "conductance": rng.uniform(0.1, 10.0)}  # fmt: skip
+    expect: tuple[str, ...]
+    if what in ("wrong_type", "nonfinite", "negative"):
+        key = rng.choice(["osmotic", "conductivity"])
+        table[key] = Raw(rng.choice(
+            {"wrong_type": WRONG_FOR_NUMBER, "nonfinite": NONFINITE,
+             "negative": ["-1e-9", "-1.0", "{from = 1.0, to = -1.0}"]}[what]
+        ))  # fmt: skip
+        expect = (f"hydraulics.{key}",)
+    elif what == "missing":
+        table.pop("conductivity")
+        expect = ("hydraulics.conductivity is required",)
+    elif what == "P1":
+        scene["pressure"] = {"P1": rng.uniform(0.0, 0.01)}
+        expect = ("pressure.P1: not with [hydraulics]",)
+    elif what == "bottom":
+        supply["edge"] = "bottom"
+        expect = ("hydraulics.supply[0].edge = 'bottom'", "symmetry plane")
+    elif what == "edge":
+        supply["edge"] = rng.choice(
+            ["Left", "front", "edge0", _name(rng, ("left", "right", "top", "bottom"))]
+        )
+        expect = (f"hydraulics.supply[0].edge = {supply['edge']!r}",)
+    elif what == "region":
+        supply = {"region": rng.choice(["strand", "disc"]), "conductance": 1.0}
+        expect = ("hydraulics.supply[0].region",)
+    elif what == "twice":
+        table["supply"] = [supply, dict(supply)]
+        expect = ("hydraulics.supply[1].edge", "supplied twice")
+    elif what == "conductance":
+        supply["conductance"] = Raw(rng.choice(["0", "-1.0", "nan", '"high"']))
+        expect = ("hydraulics.supply[0].conductance",)
+    elif what == "times":
+        supply["potential"] = rng.choice([
+            {"times": [0.0, 10.0]}, {"times": [0.0, 10.0], "values": [0.0]},
+            {"times": [10.0, 0.0], "values": [0.0, -1e-3]},
+            {"times": [0.0, 10.0], "values": [0.0, -1e-3], "interpolation": "cubic"},
+        ])  # fmt: skip
+        expect = ("hydraulics.supply[0].potential",)
+    elif what == "model":
+        scene["model"] = rng.choice(["macro", "both"])
+        expect = ("hydraulics: model =", "does not solve water")
+    else:
+        scene["time"] = {"t_max": 2.0, "dt": 1.0, "integrator": "adaptive"}
+        expect = ("hydraulics: time.integrator = 'adaptive'",)
+    table.setdefault("supply", [supply])
+    scene["hydraulics"] = table
+    return scene, expect
+
+
 SCENE_MAKERS = {
     "wrong_type": _wrong_type,
     "missing_required": _missing_required,
@@ -924,6 +988,7 @@ SCENE_MAKERS = {
     "bad_fibres": _bad_fibres,
     "field_name": _field_name,
     "bad_feedback_walls": _bad_feedback_walls,
+    "bad_hydraulics": _bad_hydraulics,
 }
 
 TOML_ERRORS = [

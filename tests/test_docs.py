@@ -20,7 +20,8 @@ from pathlib import Path
 import pytest
 
 from plantgrowth.base.tensors import VOIGT_NAMES
-from plantgrowth.models.micro.outlines import CELL_COLUMNS, FIBRE_CELL_COLUMNS
+from plantgrowth.models.micro.outlines import CELL_COLUMNS, FIBRE_CELL_COLUMNS, WATER_CELL_COLUMNS
+from plantgrowth.models.micro.water import WATER_COLUMNS
 from plantgrowth.runner import timeloop
 from plantgrowth.scene.limits import OUTPUT_FIELDS
 from plantgrowth.studies import compare
@@ -157,7 +158,8 @@ def summary_columns() -> set[str]:
     )
     assert {"area", "growth_rate_area"} <= measured  # the parse found the models' measures
     columns = timeloop.SUMMARY_COLUMNS + timeloop.NEWTON_COLUMNS + timeloop.HELD_COLUMNS
-    return set(columns + timeloop.LOAD_COLUMNS) | measured
+    water = WATER_COLUMNS + ["inflow.<label>"]
+    return set(columns + timeloop.LOAD_COLUMNS + water) | measured
 
 
 def sweep_columns() -> set[str]:
@@ -173,7 +175,7 @@ def written_fields() -> set[str]:
 
 TABLES = {
     "`summary.csv`": summary_columns,
-    "`cells.csv`": lambda: set(CELL_COLUMNS + FIBRE_CELL_COLUMNS),
+    "`cells.csv`": lambda: set(CELL_COLUMNS + FIBRE_CELL_COLUMNS + WATER_CELL_COLUMNS),
     "`compare.csv`": lambda: set(compare.COLUMNS),
     "`sweep.csv`": sweep_columns,
     "Fields:": written_fields,

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from plantgrowth.base.errors import USER_ERRORS, InputError, RunError
+from plantgrowth.base.errors import USER_ERRORS, InputError, RunError, SceneError
 from plantgrowth.cli.console import solver_signals
 
 if TYPE_CHECKING:
@@ -121,6 +121,11 @@ def compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
     scene = load_scene(args.scene)
     scene.check_micro()
+    if scene.hydraulics is not None:
+        raise SceneError(
+            "hydraulics: plantgrowth compare runs the macro model, which does not solve water "
+            "fluxes yet (docs/model.md, water fluxes); run the scene with plantgrowth run"
+        )
     for nx in args.nx:  # the cheap checks of every Nx first
         layout = TissueLayout(scene_cell(scene), check_nx("--nx", nx))
         if args.resolution is not None:

@@ -19,6 +19,7 @@ from mpi4py import MPI
 
 from plantgrowth.base.errors import Interrupted, RunError
 from plantgrowth.models import growth
+from plantgrowth.models.micro.water import water_columns
 from plantgrowth.models.regions import region_columns
 from plantgrowth.models.step import GrowthModel
 from plantgrowth.runner.output import (
@@ -66,7 +67,8 @@ def summary_columns(scene: Scene) -> list[str]:
     loads = LOAD_COLUMNS if scene.loads and scene.pinned else []
     held = HELD_COLUMNS if scene.supports else []
     fibres = FIBRE_COLUMNS if scene.has_director else []
-    return SUMMARY_COLUMNS + newton + loads + held + fibres + region_columns(scene.regions)
+    regions, water = region_columns(scene.regions), water_columns(scene.hydraulics)
+    return SUMMARY_COLUMNS + newton + loads + held + fibres + regions + water
 
 
 @contextmanager

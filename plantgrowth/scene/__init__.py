@@ -120,6 +120,16 @@ inclined wall length l2 = 1)::
                                # docs/fibres.md); macro runs have no halves and ignore it
                                # Both models read [walls] and [feedback] (macro output
                                # "fibre_direction", micro cells.csv "fibre_angle": the director)
+    [hydraulics]               # water fluxes (none by default: turgor is pressure.P1), micro
+    osmotic = 0.001            # model only, exp or euler integrator (docs/model.md, water fluxes):
+    conductivity = 1.0         # Pi, a field >= 0, replaces pressure.P1 (not with it); L, a field
+    initial_potential = 0.0    # >= 0, required; psi_0: every cell starts at P = Pi + psi_0
+    [[hydraulics.supply]]      # any number: edge = "left" | "right" | "top" (an outline's or
+    edge = "left"              # mesh's edges as [loads]; not x2 = 0) or region = a [regions]
+    potential = 0.0            # name, each once; psi_s (default 0) or {times = [...], values =
+    conductance = 1.0          # [...], interpolation = "step" | "linear"}; L_s > 0 per unit
+                               # grown edge length, L_r > 0 per unit grown area (a region)
+                               # (plantgrowth/scene/hydraulics.py)
 
 The x1 forces of the loads must balance (only the pinned point, the origin of the rectangle,
 holds the tissue along x1): the sum over the loaded edges of ``f[0]`` times the edge's length is

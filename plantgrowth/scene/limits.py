@@ -66,6 +66,8 @@ RANGES = {
     "growth.tau": (0.0, BIG, False, False),
     "walls.fibre_stiffness": (0.0, BIG, False, False),
     "walls.fibre_angle": (-MAX_ANGLE, MAX_ANGLE, False, False),
+    "hydraulics.osmotic": (0.0, BIG, False, False),
+    "hydraulics.conductivity": (0.0, BIG, False, False),
 }
 """Each field's interval (low, high, low end open, high end open), checked wherever it is used."""
 FG0_RANGE = (-MAX_LENGTH, MAX_LENGTH, False, False)

@@ -16,6 +16,7 @@ from plantgrowth.base.errors import InputError, SceneError
 from plantgrowth.meshes.honeycomb import GeometryError
 from plantgrowth.meshes.tissue import TissueLayout, wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
+from plantgrowth.scene import hydraulics as water
 from plantgrowth.scene import loads as edge_loads
 from plantgrowth.scene import walls as fibre_walls
 from plantgrowth.scene.field_syntax import parse_field
@@ -86,10 +87,13 @@ class Scene:
     supports: dict[str, str] = field(default_factory=dict)
     walls: Walls | None = None  # fibre-reinforced walls; None: the paper's isotropic walls
     feedback: Feedback | None = None  # the fibre director's mechanical feedback
+    hydraulics: water.Hydraulics | None = None  # water fluxes; None: turgor given by P1
 
     def __post_init__(self) -> None:
         choice("model", self.model, MODELS)
         choice("kinematics", self.kinematics, KINEMATICS)
+        if self.hydraulics is not None:  # Pi is the turgor input (docs/model.md, water fluxes)
+            set_fields(self, P1=self.hydraulics.supported_by(self))
         if self.feedback is not None and (self.walls is None or self.walls.fibre_angle is None):
             raise SceneError(
                 "feedback: [feedback] turns the fibre director, but the scene has no fibres: give "
@@ -97,7 +101,7 @@ class Scene:
                 "t = 0, degrees from x1), or remove [feedback]"
             )
         fibre_walls.check_outputs(self.output.fields, self.walls, self.feedback)
-        self.P1.check("pressure.P1", *RANGES["pressure.P1"])
+        self.P1.check("pressure.P1", *RANGES["pressure.P1"])  # Pi: its own key checked it
         for key, f in (self.parameter_fields() | self.growth.Fg0_fields()).items():
             if isinstance(f, Field) and f.width != self.tissue.width:
                 raise SceneError(f"{key}: field width {f.width!r} != tissue.width")
@@ -227,21 +231,19 @@ class Scene:
         return replace(
             self, tissue=replace(self.tissue, width=width, height=height), cell=cell,
             material=material, P1=over(self.P1), growth=self.growth.over(width, height),
-            walls=walls,
+            walls=walls, hydraulics=self.hydraulics and self.hydraulics.over(width, height),
         )  # fmt: skip
 
     def parameter_fields(self) -> dict[str, AnyField]:
         """All spatially varying parameters by dotted key (the fibre fields when given)."""
         cell, mat, g = self.cell, self.material, self.growth
         out = {f"cell.{k}": getattr(cell, k) for k in ("l1", "l2", "theta", "w")}
-        out |= {
-            "material.E": mat.E,
-            "material.nu": mat.nu,
-            "pressure.P1": self.P1,
-            "growth.eta": g.eta,
-            "growth.tau": g.tau,
-        }
-        return out if self.walls is None else out | self.walls.fields()
+        out |= {"material.E": mat.E, "material.nu": mat.nu, "pressure.P1": self.P1,
+                "growth.eta": g.eta, "growth.tau": g.tau}  # fmt: skip
+        out |= {} if self.walls is None else self.walls.fields()
+        if self.hydraulics is None:
+            return out  # else the turgor input is the osmotic pressure, one of the hydraulics'
+        return {k: f for k, f in out.items() if k != "pressure.P1"} | self.hydraulics.fields()
 
     @classmethod
     def from_dict(cls, data: dict, directory: str | os.PathLike | None = None) -> Scene:
@@ -286,6 +288,7 @@ class Scene:
         if self.feedback is not None:  # the walls are among the parameter fields
             feedback = self.feedback
             out["feedback"] = {"cue": feedback.cue, "rate": feedback.rate, "walls": feedback.walls}
+        out |= {} if self.hydraulics is None else {"hydraulics": self.hydraulics.to_toml()}
         return out
 
     def dotted(self) -> dict[str, Any]:
@@ -443,6 +446,7 @@ def _parse(data: dict, directory: Path) -> Scene:
     walls = fibre_walls.walls_from(data, t["walls"], tissue, constants)
     feedback = fibre_walls.feedback_from(data, t["feedback"])
     output = {"fields": fibre_walls.default_fields(walls, feedback)} | t["output"]
+    regions = parse_regions(data.get("regions", {}), constants)
     return Scene(
         model=data.get("model", "macro"),
         tissue=tissue,
@@ -460,10 +464,11 @@ def _parse(data: dict, directory: Path) -> Scene:
         numerics=Numerics(**t["numerics"]),
         kinematics=data.get("kinematics", "linear"),
         parameters=constants,
-        regions=parse_regions(data.get("regions", {}), constants),
+        regions=regions,
         supports=dict(t["supports"]),
         walls=walls,
         feedback=feedback,
+        hydraulics=water.hydraulics_from(data, tissue, constants, tuple(regions)),
     )
 
 

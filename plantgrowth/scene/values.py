@@ -25,6 +25,7 @@ TABLES = {
     "numerics": ("on_instability",),
     "walls": ("fibre_stiffness", "fibre_angle"),
     "feedback": ("cue", "rate", "walls"),
+    "hydraulics": ("osmotic", "conductivity", "initial_potential", "supply"),
 }
 
 # --- checks shared by the dataclasses and the loader ----------------------------------------------

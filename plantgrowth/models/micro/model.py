@@ -35,7 +35,9 @@ from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
 from plantgrowth.models.micro.around import WallsAround
 from plantgrowth.models.micro.director import MicroDirector
+from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
 from plantgrowth.models.micro.outlines import CellOutlines
+from plantgrowth.models.micro.turgor_solve import ElasticParts
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
 from plantgrowth.models.regions import RegionStatistics
@@ -109,7 +111,9 @@ class MicroModel:
         self.stability = WallStability(self.u, self.Fg, E, nu, self.finite, wall_fibres)
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
         rhs = micro_forms.micro_growth_rhs(psi, self.Fg, E, nu, dx, wall_fibres)
-        if np.any(self.pressure != 0.0):
+        hydraulic = scene.hydraulics is not None  # turgor solved per cell (water.py), not given
+        turgid = hydraulic or np.any(self.pressure != 0.0)
+        if turgid and not (hydraulic and not self.finite):  # linear water: its own loads
             rhs += micro_forms.membrane_pressure_rhs(psi, self.Fg, P, n, membrane)
         self.a = fem.form(
             wall_bilinear_form(ufl.TrialFunction(self.V), psi, self.Fg, E, nu, dx, wall_fibres)
@@ -121,13 +125,19 @@ class MicroModel:
         if self.finite:  # the linear solve above is Newton's predictor
             residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx, wall_fibres)
             load = None
-            if np.any(self.pressure != 0.0):
+            if turgid:
                 load = finite_forms.follower_pressure(self.u, psi, P, n, membrane)
                 residual += load
             self.newton = NewtonSolver(
                 residual, self.u, self.bcs, lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
                 load, self._newton_floor, self.stability.smallest, predictor=self._linear_solve,
             )  # fmt: skip
+        self.turgor = None
+        if hydraulic:
+            parts = ElasticParts(self._linear_solve, self.A, self.b, self.ksp, self.u, self.Fg,
+                                 self.bcs, self._set, comm)  # fmt: skip
+            newton = (self.newton, P) if self.finite else None
+            self.turgor = turgor_solve(scene, layout, parts, psi, n, membrane, newton)
         driving = (
             self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx, wall_fibres)
             if scene.growth.law == "stress"
@@ -182,6 +192,7 @@ class MicroModel:
         self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
         self.cell_table = self.outlines  # cells.csv
         self.outlines.fibred = self.director is not None
+        self.outlines.watered = self.turgor is not None
         self._E, self._nu = E, nu
         self._deformation_det = MeshSamples(
             ufl.det(ufl.Identity(2) + ufl.grad(self.u)), msh, det_degree(self.u)
@@ -257,11 +268,11 @@ class MicroModel:
         self._set(self.Fg, Fg)
         newton = None
         if self.finite:
-            newton = self.newton.solve()
+            newton = self.newton.solve() if self.turgor is None else self.turgor.solve(Fg)
             log_report("micro", newton)
             report = SolveReport(newton.reason, newton.linear_residual)
         else:
-            report = self._linear_solve()
+            report = self._linear_solve() if self.turgor is None else self.turgor.solve(Fg)
         t1 = time.perf_counter()
         diagnostics.check_solution(report, self.u, self.comm)
         driving = self._tensor_rows(self.driving)
@@ -282,6 +293,8 @@ class MicroModel:
         self.last_G = G
         self._set(self.G_out, G)
         self.outlines.update(G, *self._cell_geometry())
+        if self.turgor is not None:
+            self.outlines.water = self.turgor.last
         if self.director is not None:
             self.outlines.fibre_angle = self.director.angle  # the director this step used
             if self.director.feedback is not None:
@@ -421,12 +434,18 @@ class MicroModel:
         step's start, docs/fibres.md); nothing without feedback."""
         if self.director is not None and self.director.feedback is not None:
             self.director.turn(self._cue, dt)
+        if self.turgor is not None:
+            self.turgor.commit(dt)
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, Block]:
         """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with
         finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
         director = {} if self.director is None else {"fibre_angle": self.director.angle}
         cells = {k: Block.whole(v, self.comm) for k, v in ({"Fg": Fg, "G": G} | director).items()}
+        if self.turgor is not None:  # the water held and the time of the next step
+            turgor = self.turgor
+            water = {"water": turgor.held, "water_time": np.array([turgor.t]), "turgor": turgor.P}
+            cells |= {k: Block.whole(v, self.comm) for k, v in water.items()}
         newton = dof_state(self.newton.guess_functions) if self.finite else {}
         return cells | (root_blocks(newton, self.comm) if self.finite else {})
 
@@ -438,8 +457,13 @@ class MicroModel:
         if self.director is not None:
             angle = state.get("fibre_angle")
             matches = matches and angle is not None and angle.size == self.layout.n_cells
+        if self.turgor is not None:
+            water = state.get("water")
+            matches = matches and water is not None and water.size == self.layout.n_cells
         if not matches:
             raise RunError("the saved state does not match this tissue: was the scene changed?")
+        if self.turgor is not None:
+            self.turgor.restore(state["water"], float(state["water_time"][0]), state["turgor"])
         if self.director is not None:
             self.director.restore(state["fibre_angle"])
         return state["Fg"], state["G"]
@@ -469,4 +493,5 @@ class MicroModel:
             "det_Fg_min": float(np.linalg.det(Fg).min()),
             **self.regions.measures(self.outlines.area, G, self.strain_magnitudes),
             **fibre_row,
+            **({} if self.turgor is None else water_measures(self.turgor, weights)),
         }

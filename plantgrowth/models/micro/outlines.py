@@ -21,6 +21,7 @@ from mpi4py import MPI
 
 from plantgrowth.base import principal
 from plantgrowth.meshes.tissue import TissueLayout
+from plantgrowth.models.micro.water import WaterState
 from plantgrowth.models.step import SideMesh
 
 CELL_COLUMNS = [
@@ -29,6 +30,9 @@ CELL_COLUMNS = [
 ]  # fmt: skip
 FIBRE_CELL_COLUMNS = ["fibre_angle"]
 """cells.csv's columns of fibred scenes: the director angle (degrees) the step used."""
+WATER_CELL_COLUMNS = ["P", "psi", "water", "inflow"]
+"""cells.csv's columns of scenes with ``[hydraulics]``: turgor, water potential, water held and
+net inflow rate (plantgrowth/models/micro/water.py)."""
 
 
 def polygon_centroids(points: np.ndarray, polygons: list[np.ndarray]) -> tuple[np.ndarray, ...]:
@@ -93,10 +97,15 @@ class CellOutlines:
     """Whether cells.csv has the column ``fibre_angle`` (fibred scenes)."""
     fibre_angle: np.ndarray | None = None
     """(n,) the director angles (degrees) the last step used (fibred scenes)."""
+    watered = False
+    """Whether cells.csv has the water columns (scenes with ``[hydraulics]``)."""
+    water: WaterState | None = None
+    """The last step's water (scenes with ``[hydraulics]``)."""
 
     @property
     def columns(self) -> list[str]:
-        return CELL_COLUMNS + (FIBRE_CELL_COLUMNS if self.fibred else [])
+        fibres = FIBRE_CELL_COLUMNS if self.fibred else []
+        return CELL_COLUMNS + fibres + (WATER_CELL_COLUMNS if self.watered else [])
 
     def __init__(self, layout: TissueLayout, u: fem.Function) -> None:
         loops = [layout.hexagon(i) for i in range(layout.n_cells)]
@@ -133,10 +142,13 @@ class CellOutlines:
         trG, anisotropy = principal.trace(self.G), principal.anisotropy(self.G)
         direction = principal.principal_direction(self.G)
         angle = self.fibre_angle if self.fibred else ()
+        w = self.water
+        water = np.column_stack([w.P, w.psi, w.water, w.inflow]) if self.watered else ()
         return [
             dict(zip(self.columns, (
                 step, t, i, *self.centroid_ref[i], *centroid[i], self.area_ref[i], area[i],
-                trG[i], anisotropy[i], *direction[i], *angle[i : i + 1],
+                trG[i], anisotropy[i], *direction[i], *angle[i : i + 1], *(water[i] if
+                self.watered else ()),
             ), strict=True))
             for i in range(len(self.polygons))
         ]  # fmt: skip

@@ -1,0 +1,74 @@
+"""Wiring of the water step into the micro model (docs/model.md, water fluxes): building it from a
+scene and the model's pieces, and the summary.csv columns it reports."""
+
+from __future__ import annotations
+
+import numpy as np
+import ufl
+from dolfinx import fem
+
+from plantgrowth.forms import finite as finite_forms
+from plantgrowth.forms import micro as micro_forms
+from plantgrowth.meshes.cell_walls import wall_network
+from plantgrowth.meshes.honeycomb import polygon_area
+from plantgrowth.meshes.tissue import TissueLayout, clip_below
+from plantgrowth.models.micro.turgor_newton import TurgorNewton
+from plantgrowth.models.micro.turgor_solve import ElasticParts, TurgorSolve
+from plantgrowth.models.micro.water import CellWater
+from plantgrowth.models.newton import NewtonSolver
+from plantgrowth.scene import Scene
+
+
+def lumen_areas(layout: TissueLayout) -> np.ndarray:
+    """(n,) each cell's reference lumen area (its void; the bottom row's cut at x2 = 0)."""
+    cut = range(layout.cut_cells.start, layout.cut_cells.stop)
+    return np.array([
+        polygon_area(clip_below(layout.void(i)) if i in cut else layout.void(i))
+        for i in range(layout.n_cells)
+    ])  # fmt: skip
+
+
+def turgor_solve(
+    scene: Scene, layout: TissueLayout, parts: ElasticParts, test: ufl.Argument, normal,
+    membrane: ufl.Measure, newton: tuple[NewtonSolver, fem.Function] | None = None,
+) -> TurgorSolve | TurgorNewton:  # fmt: skip
+    """The water step of a micro tissue (``scene`` over the tissue's extent) from its walls'
+    problem ``parts``, with ``test`` the displacement test function and ``membrane`` the
+    membranes' measure; finite kinematics: ``newton``, the walls' Newton solver and the turgor
+    function its residual reads."""
+    hydraulics = scene.hydraulics
+    centres = layout.centres.T
+    water = CellWater(
+        hydraulics, wall_network(layout), hydraulics.osmotic(*centres),
+        hydraulics.conductivity(*centres),
+        {s.name: scene.regions[s.name].inside(layout.centres) for s in hydraulics.regions()},
+        np.array([polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]),
+    )  # fmt: skip
+    mesh = parts.u.function_space.mesh
+    indicator = fem.Function(fem.FunctionSpace(mesh, ("DG", 0)))  # one cell's, per cell
+    if newton is not None:
+        u = parts.u
+        area = finite_forms.lumen_area(u, indicator, normal, membrane)
+        forms = [finite_forms.follower_pressure(u, test, indicator, normal, membrane),
+                 ufl.derivative(area, u, test), area]  # fmt: skip
+        return TurgorNewton(
+            newton[0], parts, newton[1], *(fem.form(f) for f in forms), indicator, water,
+            scene.time.dt,
+        )  # fmt: skip
+    column = fem.form(
+        micro_forms.membrane_pressure_rhs(test, parts.Fg, indicator, normal, membrane)
+    )
+    return TurgorSolve(parts, column, indicator, water, lumen_areas(layout), scene.time.dt)
+
+
+def water_measures(turgor: TurgorSolve, weights: np.ndarray) -> dict[str, float]:
+    """The step's summary row: turgor mean (weighted by the cells' reference areas), min, max;
+    the water held; the water balance error (what came in over the step minus the change of the
+    water held: 0 at t = 0); each supply's inflow rate."""
+    state = turgor.last
+    row = {
+        "turgor_mean": float(weights @ state.P), "turgor_min": float(state.P.min()),
+        "turgor_max": float(state.P.max()), "water": float(state.water.sum()),
+        "water_balance_error": turgor.balance_error,
+    }  # fmt: skip
+    return row | {f"inflow.{label}": value for label, value in state.supplied.items()}

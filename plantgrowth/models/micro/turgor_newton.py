@@ -1,0 +1,144 @@
+"""The micro model's step with water and finite kinematics (docs/model.md, water fluxes): the
+wall displacement u and each cell's turgor P by Newton's method on
+
+    R_u(u, P) = R_walls(u) + sum_c P_c int_Gamma_c cof(F) n . psi dS = 0
+    R_c(u, P) = V_c(u) - W_c^n - dt [ sum_s g_sc psi_s - (H (P - Pi))_c ] = 0
+
+with V_c the exact area the deformed membrane of cell c encloses (forms/finite.py
+``lumen_area``). Each iteration solves the Jacobian system by its Schur complement in P,
+``(dt H - D^T J^{-1} F) dP = -R_w + D^T J^{-1} R_u`` (J = dR_u/du, F_c = dR_u/dP_c, D_c =
+dV_c/du; J is not symmetric: follower loads), with n + 2 back-solves of J's factorization.
+Full Newton steps from the previous step's state, which growth moves by a strain of order
+dt G; an inverted element or no convergence in NEWTON_MAX_IT iterations stops the run.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+from plantgrowth.base.errors import RunError
+from plantgrowth.models import diagnostics
+from plantgrowth.models.linear import relative_residual
+from plantgrowth.models.micro.turgor_solve import (
+    ElasticParts,
+    WaterSteps,
+    back_solves,
+    cell_columns,
+)
+from plantgrowth.models.micro.water import CellWater
+from plantgrowth.models.newton import NEWTON_MAX_IT, NEWTON_RTOL, NewtonReport, NewtonSolver
+
+WATER_RTOL = 1e-12
+"""Convergence of the water equations: ``max_c |R_c| <= WATER_RTOL max_c W_c``, the water
+balance of every step closed to 1e-12 of the water a cell holds."""
+
+
+class TurgorNewton(WaterSteps):
+    """One step of u and P with finite kinematics.
+
+    Args:
+        newton: the walls' Newton solver (residual with the turgor ``P`` on the membranes);
+            it solves the initial equilibrium, and lends its matrix, residual and solver.
+        parts: the walls' problem (u, Dirichlet conditions, per-cell setter, communicator).
+        P: the turgor per cell (DG0) the residual reads.
+        load_column, area_column: one cell's ``F_c`` and ``D_c`` (cell given by ``indicator``);
+        area: one cell's enclosed area V_c (a scalar form, same indicator).
+        water: the water network; dt: the step.
+    """
+
+    def __init__(
+        self, newton: NewtonSolver, parts: ElasticParts, P: fem.Function, load_column: fem.Form,
+        area_column: fem.Form, area: fem.Form, indicator: fem.Function, water: CellWater,
+        dt: float,
+    ) -> None:  # fmt: skip
+        super().__init__(water, dt)
+        self.newton, self.parts, self.P_function = newton, parts, P
+        self.load_column, self.area_column, self.area = load_column, area_column, area
+        self.indicator = indicator
+        self.vector = fem.petsc.create_vector(load_column)
+
+    def _areas(self) -> np.ndarray:
+        """(n,) V_c(u), the areas the deformed membranes enclose (collective)."""
+        n, comm = self.water.n, self.parts.comm
+        local = np.empty(n)
+        for c in range(n):
+            self.parts.set_cells(self.indicator, np.eye(1, n, c)[0])
+            local[c] = fem.assemble_scalar(self.area)
+        return comm.allreduce(local, op=MPI.SUM)
+
+    def _set_turgor(self, P: np.ndarray) -> None:
+        self.parts.set_cells(self.P_function, P)
+
+    def solve(self, Fg: np.ndarray) -> NewtonReport:
+        """u and P at ``Fg`` (in place): the first call is the initial equilibrium, P = Pi +
+        psi_0, each later one the backward Euler step from the water committed last."""
+        water, newton = self.water, self.newton
+        if self.held is None:
+            P = water.Pi + water.hydraulics.initial_potential
+            self._set_turgor(P)
+            report = newton.solve()
+            self.settle(P, self._areas(), Fg)
+            return report
+        P = self.P.copy()
+        self._set_turgor(P)
+        tol_u = newton.tolerance()
+        tol_w = WATER_RTOL * np.abs(self.held).max()
+        H, weights = water.conductance(Fg)
+        supplied = water.supply_terms(weights, self.t)
+        history, worst = [], 0.0
+        for k in range(NEWTON_MAX_IT + 1):
+            r_u = newton.residual_norm()  # newton.b holds R_u
+            V = self._areas()
+            R_w = V - self.held - self.dt * (supplied - H @ (P - water.Pi))
+            r_w = float(np.abs(R_w).max())
+            history.append(r_u)
+            if r_u <= tol_u and r_w <= tol_w:
+                self.settle(P, V, Fg)
+                return NewtonReport(1, r_u / tol_u * NEWTON_RTOL, k, tuple(history), worst)
+            if k == NEWTON_MAX_IT or not np.isfinite(r_u + r_w):
+                break
+            worst = max(worst, self._newton_step(P, R_w, H))
+            diagnostics.stop_if(self._inverted(k), self.parts.comm)
+        raise RunError(
+            f"Newton (walls and water) did not converge: residuals {r_u / tol_u:.3g} and "
+            f"{r_w / tol_w:.3g} times their tolerances after {k} iterations; likely cause: "
+            f"growth too fast for the water to follow, {diagnostics.RATE_HINT}"
+        )
+
+    def _newton_step(self, P: np.ndarray, R_w: np.ndarray, H: np.ndarray) -> float:
+        """One Newton update of u and P (in place) from the residuals (``newton.b``: R_u) and
+        the conductance matrix H; returns the worst true relative residual of its linear solves."""
+        newton, parts, comm = self.newton, self.parts, self.parts.comm
+        newton.A.zeroEntries()
+        fem.petsc.assemble_matrix(newton.A, newton.J, bcs=parts.bcs)
+        newton.A.assemble()
+        n = self.water.n
+        F = cell_columns(self.load_column, self.vector, self.indicator, parts, n)
+        D = cell_columns(self.area_column, self.vector, self.indicator, parts, n)
+        x0 = newton.du
+        newton.ksp.solve(newton.b, x0)
+        worst = relative_residual(newton.A, x0, newton.b)
+        DtY = back_solves(newton.ksp, self.vector, F, D, comm)
+        dP = np.linalg.solve(self.dt * H - DtY, -R_w + comm.allreduce(D.T @ x0.array))
+        # du = -(x0 + J^{-1} F dP)
+        y = self.vector.duplicate()
+        rhs = self.vector.duplicate()
+        rhs.array[:] = F @ dP
+        newton.ksp.solve(rhs, y)
+        parts.u.vector.axpy(-1.0, x0)
+        parts.u.vector.axpy(-1.0, y)
+        parts.u.x.scatter_forward()
+        y.destroy()
+        rhs.destroy()
+        P += dP
+        self._set_turgor(P)
+        return worst
+
+    def _inverted(self, k: int) -> list[str]:
+        det_min, where = self.newton.min_det()
+        if det_min > 0.0:
+            return []
+        return [f"Newton (walls and water) iteration {k + 1}: inverted element (det F = "
+                f"{det_min:.3g}) at x = ({where[0]:.4g}, {where[1]:.4g})"]  # fmt: skip

@@ -1,0 +1,173 @@
+"""The micro model's step with water (docs/model.md, water fluxes, linear kinematics): the wall
+displacement u and each cell's turgor P from the symmetric system
+
+    [ K    -B    ] [u]   [ f                                            ]
+    [ -B^T -dt H ] [P] = [ -(W^n - V0 + dt (H Pi + sum_s g_s psi_s))    ]
+
+(K: the walls' stiffness with its Dirichlet rows; f: the growth load; B: one column per cell,
+the membrane pressure load of that cell for P = 1, which is also the derivative of its lumen
+area in u; H: the water network, plantgrowth/models/micro/water.py).
+
+Solved by its Schur complement: the columns K^{-1} B_c are one back-solve each with the
+factorization the step's elasticity solve made anyway, so S = B^T K^{-1} B (n x n, dense,
+reduced over the ranks) costs n back-solves, then ``(S + dt H) P = ...`` is solved by every
+rank alike and u by one more back-solve. Fine for up to a few hundred cells (the cost grows as
+n back-solves per step); a bordered matrix for PETSc would be the way beyond.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+from scipy import sparse
+
+from plantgrowth.models.linear import SolveReport, relative_residual
+from plantgrowth.models.micro.water import CellWater, WaterState, lumen_offset
+
+
+@dataclass(frozen=True)
+class ElasticParts:
+    """The walls' linear problem as the micro model holds it.
+
+    Attributes:
+        solve: solves K u = f into u (assembling K and f, factorizing K), leaving the assembled
+            K in ``A`` and f in ``b``.
+        A, b, ksp, u: its matrix, right-hand side, solver and solution.
+        Fg: the growth tensor (DG0); bcs: the Dirichlet conditions.
+        set_cells: sets a DG0 function from values per biological cell.
+        comm: the mesh's communicator.
+    """
+
+    solve: Callable[[], SolveReport]
+    A: PETSc.Mat
+    b: PETSc.Vec
+    ksp: PETSc.KSP
+    u: fem.Function
+    Fg: fem.Function
+    bcs: list
+    set_cells: Callable[[fem.Function, np.ndarray], None]
+    comm: MPI.Comm
+
+
+def cell_columns(
+    form: fem.Form, vector: PETSc.Vec, indicator: fem.Function, parts: ElasticParts, n: int
+) -> sparse.csc_matrix:
+    """(owned dofs, n): this rank's rows of ``form`` assembled for each cell c with
+    ``indicator`` its DG0 indicator, zero on the Dirichlet dofs (collective)."""
+    rows, cols, values = [], [], []
+    for c in range(n):
+        parts.set_cells(indicator, np.eye(1, n, c)[0])
+        with vector.localForm() as local:
+            local.set(0.0)
+        fem.petsc.assemble_vector(vector, form)
+        # membrane facets next to a ghost cell: their share goes to the owner
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem.petsc.set_bc(vector, parts.bcs)
+        nonzero = np.flatnonzero(vector.array)
+        rows.append(nonzero)
+        cols.append(np.full(len(nonzero), c))
+        values.append(vector.array[nonzero])
+    return sparse.csc_matrix(
+        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
+        (len(vector.array), n),
+    )
+
+
+def back_solves(
+    ksp: PETSc.KSP, vector: PETSc.Vec, columns: sparse.csc_matrix, left: sparse.csc_matrix,
+    comm: MPI.Comm,
+) -> np.ndarray:  # fmt: skip
+    """``left^T A^{-1} columns`` (n x n, reduced over the ranks), A the factorized matrix of
+    ``ksp``: one back-solve per column."""
+    out = np.empty((left.shape[1], columns.shape[1]))
+    z = vector.duplicate()
+    for c in range(columns.shape[1]):
+        vector.array[:] = columns[:, c].toarray().ravel()
+        ksp.solve(vector, z)
+        out[:, c] = left.T @ z.array
+    z.destroy()
+    return comm.allreduce(out, op=MPI.SUM)
+
+
+class WaterSteps:
+    """The water held from step to step: :meth:`settle` records a solved step, :meth:`commit`
+    makes its water the next step's W^n, :meth:`restore` continues a saved run."""
+
+    def __init__(self, water: CellWater, dt: float) -> None:
+        self.water, self.dt = water, dt
+        self.held: np.ndarray | None = None  # the water W^n of the last committed step
+        self.t = 0.0  # the time of the next step to solve
+        self.last: WaterState | None = None
+        self.P: np.ndarray | None = None  # the last step's turgor
+        self.balance_error = 0.0
+
+    def settle(self, P: np.ndarray, held: np.ndarray, Fg: np.ndarray) -> None:
+        """Record a solved step: turgor P, water held; what came in over the step minus the
+        change of the water held (0 at the initial state)."""
+        self.P, self.last = P, self.water.state(P, held, Fg, self.t)
+        if self.held is not None:
+            gained = self.dt * sum(self.last.supplied.values())
+            self.balance_error = gained - (held.sum() - self.held.sum())
+
+    def commit(self, dt: float) -> None:
+        """The step's water becomes the next step's W^n."""
+        self.held = self.last.water
+        self.t += dt
+
+    def restore(self, held: np.ndarray, t: float, P: np.ndarray) -> None:
+        """Continue from saved water at the time of the next step (P: the last turgor)."""
+        self.held, self.t, self.P = held, t, P
+
+
+class TurgorSolve(WaterSteps):
+    """One step of u and P with linear kinematics.
+
+    Args:
+        parts: the walls' problem.
+        column: the form of one cell's membrane pressure load, ``indicator`` its cell's DG0
+            indicator.
+        water: the water network; lumen_area: (n,) the cells' reference lumen areas.
+        dt: the step.
+    """
+
+    def __init__(
+        self, parts: ElasticParts, column: fem.Form, indicator: fem.Function, water: CellWater,
+        lumen_area: np.ndarray, dt: float,
+    ) -> None:  # fmt: skip
+        super().__init__(water, dt)
+        self.parts, self.column, self.indicator = parts, column, indicator
+        self.lumen_area = lumen_area
+        self.vector = fem.petsc.create_vector(column)
+
+    def _lumen_terms(self, B: sparse.csc_matrix) -> np.ndarray:
+        """B^T u (collective)."""
+        return self.parts.comm.allreduce(B.T @ self.parts.u.vector.array, op=MPI.SUM)
+
+    def solve(self, Fg: np.ndarray) -> SolveReport:
+        """u and P at ``Fg``: the first call is the initial equilibrium, P = Pi + psi_0
+        (docs/model.md, water fluxes), each later one the backward Euler step from the water
+        committed last."""
+        parts, water = self.parts, self.water
+        B = cell_columns(self.column, self.vector, self.indicator, parts, water.n)
+        parts.solve()  # u = u_f = K^{-1} f, K factorized, b = f
+        V0 = lumen_offset(self.lumen_area, Fg)
+        if self.held is None:
+            P = water.Pi + water.hydraulics.initial_potential
+        else:  # S = B^T K^{-1} B, symmetric to round-off
+            S = back_solves(parts.ksp, self.vector, B, B, parts.comm)
+            S = 0.5 * (S + S.T)
+            P = water.turgor(S, self._lumen_terms(B), self.held, V0, Fg, self.t, self.dt)
+        rhs = parts.b.copy()
+        rhs.array[:] += B @ P
+        parts.ksp.solve(rhs, parts.u.vector)
+        parts.u.x.scatter_forward()
+        residual = relative_residual(parts.A, parts.u.vector, rhs)
+        report = SolveReport(parts.ksp.getConvergedReason(), residual)
+        rhs.destroy()
+        self.settle(P, V0 + self._lumen_terms(B), Fg)
+        return report
