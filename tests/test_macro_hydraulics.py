@@ -24,6 +24,9 @@ from plantgrowth.models.macro.hydraulics import (
     MacroHydraulics,
     Potential,
     RegionSupply,
+    at_time,
+    from_scene,
+    sample,
 )
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import MacroProblem, rectangle_mesh
@@ -494,3 +497,39 @@ def test_supplies_read_their_potential_at_the_steps_end(reference):
     right = water.problem.midpoints[:, 0] > 0.5 * WIDTH
     Lr_psi_r = water.problem.cell_values(water.Lr_psi_r)[:, 0]
     assert np.allclose(Lr_psi_r[right], 4.0 * JUMP, rtol=1e-15) and not Lr_psi_r[~right].any()
+
+
+def test_scene_hydraulics_become_the_macro_inputs(reference):
+    """A scene's ``[hydraulics]`` with an edge supply drying in time and a region supply
+    (parsed as a micro scene: the scene refuses the macro model until it is wired) gives the
+    macro inputs: Pi and L as fields, the edge's psi_s(t), the region's cells, psi_0; a step
+    on them closes the water balance (to round-off, as test_water_balance_closes)."""
+    scene = parse_scene({
+        "model": "micro", "time": {"t_max": 1.0}, "growth": {"law": "none"},
+        "regions": {"strand": {"expr": "x1 > 2"}},
+        "hydraulics": {
+            "osmotic": {"from": 0.001, "to": 0.002}, "conductivity": 2.0,
+            "initial_potential": -0.0001,
+            "supply": [
+                {"edge": "left", "conductance": 3.0,
+                 "potential": {"times": [0, 0.5], "values": [0, -0.0005]}},
+                {"region": "strand", "conductance": 0.5},
+            ],
+        },
+    })  # fmt: skip
+    inputs = from_scene(scene.hydraulics, scene.regions, 0.25)
+    (edge,), (region,) = inputs.edges, inputs.regions
+    assert (edge.edge, edge.conductance, inputs.cell_scale) == ("left", 3.0, 0.25)
+    assert at_time(edge.potential, 0.4) == 0.0 and at_time(edge.potential, 0.6) == -0.0005
+    assert (at_time(region.potential, 0.0), region.conductance) == (0.0, 0.5)
+    x1 = np.array([1.0, 3.0])
+    assert region.inside(x1, np.zeros(2)).tolist() == [False, True]
+    assert inputs.initial_potential == -0.0001
+    assert sample(inputs.osmotic, x1, np.zeros(2)) == pytest.approx(scene.hydraulics.osmotic(x1, 0))
+    assert sample(inputs.conductivity, x1, np.zeros(2)).tolist() == [2.0, 2.0]
+    tissue = {"width": scene.tissue.width, "height": scene.tissue.height, "h": 0.5, "H": 1.0}
+    water = water_on(problem_on(tissue, MPI.COMM_WORLD), reference, inputs)
+    held = water.water_content()
+    water.step(1.0, t=1.0)
+    gained, inflow = water.water_content() - held, water.inflow()
+    assert abs(gained - inflow) <= 1e-11 * abs(inflow)

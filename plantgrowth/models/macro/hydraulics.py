@@ -1,5 +1,5 @@
-"""The macro model's water inputs (docs/model.md, "Water fluxes"): what the scene's
-``[hydraulics]`` keys fill, built directly by tests until they do.
+"""The macro model's water inputs (docs/model.md, "Water fluxes"), built directly or from the
+scene's ``[hydraulics]`` (:func:`from_scene`).
 
 A value is a constant or a field ``f(x1, x2) -> array`` (a scene Field is one). The osmotic
 pressure Pi is sampled at the pressure's nodes (P1), the wall conductivity L at the fine cells'
@@ -8,12 +8,17 @@ midpoints (per growth unit, like the cell tensors).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from plantgrowth.base.errors import InputError
+
+if TYPE_CHECKING:
+    from plantgrowth.scene.hydraulics import Hydraulics
+    from plantgrowth.scene.regions import Region
 
 Value = float | Callable[[np.ndarray, np.ndarray], np.ndarray]
 Potential = float | Callable[[float], float]
@@ -92,3 +97,25 @@ class MacroHydraulics:
         names = [s.edge for s in self.edges]
         if len(set(names)) != len(names):
             raise InputError(f"an edge is supplied twice: {names}")
+
+
+def from_scene(
+    water: Hydraulics, regions: Mapping[str, Region], cell_scale: float
+) -> MacroHydraulics:
+    """The scene's ``[hydraulics]`` (its supplies' regions named in ``regions``, the scene's
+    ``[regions]``) as the macro model's inputs, with the real cells ``cell_scale`` times the
+    scene's cell (docs/model.md, "The cells' size")."""
+    edges, supplied = [], []
+    for supply in water.supplies:
+        if supply.kind == "edge":
+            edges.append(EdgeSupply(supply.name, supply.potential, supply.conductance))
+        else:
+            region = regions[supply.name]
+            supplied.append(RegionSupply(
+                lambda x1, x2, r=region: r.inside(np.column_stack([x1, x2])),
+                supply.potential, supply.conductance,
+            ))  # fmt: skip
+    return MacroHydraulics(
+        water.osmotic, water.conductivity, cell_scale, tuple(edges), tuple(supplied),
+        water.initial_potential,
+    )  # fmt: skip
