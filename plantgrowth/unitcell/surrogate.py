@@ -111,6 +111,8 @@ over a square, must be more than twice as rough before it refines again."""
 _OFFSETS = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])  # a square's corners, in its spacing
 _CHILDREN = np.array([[1, 0], [0, 1], [2, 1], [1, 2], [1, 1]])  # in half its spacing
 _LOW = (1 << 21) - 1
+SQUARE_TABLE = 7
+"""Most entries of a table (a fibred table's angle node: geometry, nu, fibre_stiffness, node)."""
 
 
 def _cell(s: np.ndarray, level: int | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -398,6 +400,30 @@ class LatticeSurrogate:
         values, interpolated = self.interpolate_ids(ids, s)
         estimates = self._estimates(ids, s, self._deepest(ids, s)[0]) if len(ids) else np.zeros(0)
         return Answer(values, estimates, interpolated, solves)
+
+    def squares(self) -> np.ndarray:
+        """The refined squares, what a resumed run needs to rebuild the interpolant: one row a
+        square (int64), ``[len(table), table padded with 0 to SQUARE_TABLE entries, level, i,
+        j]`` (its lower-left corner in finest integers), sorted."""
+        names = {v: k for k, v in self._table_ids.items()}
+        keys = np.array(sorted(self._refined), dtype=np.int64)
+        rows = np.zeros((len(keys), SQUARE_TABLE + 4), dtype=np.int64)
+        for r, key in enumerate(keys.tolist()):
+            table = names[key >> 46]
+            rows[r, 0], rows[r, 1 : 1 + len(table)] = len(table), table
+        rows[:, -3] = (keys >> 42) & 15
+        rows[:, -2], rows[:, -1] = ((keys >> 21) & _LOW) - _OFFSET, (keys & _LOW) - _OFFSET
+        return rows
+
+    def restore(self, rows: np.ndarray) -> int:
+        """Collective: refine the squares of :meth:`squares`'s rows (the same on every rank;
+        their points from :attr:`values` or solved). Returns the points solved."""
+        if not len(rows):
+            return 0
+        tables = [tuple(row[1 : 1 + row[0]]) for row in rows.tolist()]
+        ids = self._numbers(tables)
+        keys = self._square_key(ids, rows[:, -3], rows[:, -2:])
+        return self._refine_squares(np.unique(keys))
 
     def take_new_points(self) -> dict[Point, np.ndarray]:
         """The lattice values solved since the last call (for the on-disk cache)."""

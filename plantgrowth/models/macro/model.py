@@ -191,7 +191,8 @@ class MacroModel:
             parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
         blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
-        return blocks | (root_blocks(newton, self.comm) if self.problem.finite else {})
+        whole = newton | self.homogenizer.state()  # the surrogate: the same on every rank
+        return blocks | root_blocks(whole if self.comm.rank == 0 else {}, self.comm)
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint (and the
@@ -211,6 +212,7 @@ class MacroModel:
             raise RunError("the saved state does not match this mesh: was the scene changed?")
         if self.director is not None:
             self.director.angle = state["fibre_angle"][index].reshape(-1)
+        self.homogenizer.restore(state)
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def end_step(self, dt: float) -> None:
