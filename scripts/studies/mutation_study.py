@@ -399,6 +399,27 @@ MUTANTS = (
         (("factor = np.exp(-rate * np.asarray(cue_anisotropy, dtype=float) * dt)",
           "factor = np.exp(rate * np.asarray(cue_anisotropy, dtype=float) * dt)"),),
     ),
+    Mutant(
+        "surrogate_level_per_query", "plantgrowth/unitcell/surrogate.py", "wrong average",
+        "a lattice level chosen per query again (issue 33): the bilinear interpolant of exact "
+        "values on the deepest level whose square around the query is built, instead of the "
+        "hierarchical surpluses summed over every level",
+        (("self._surplus.setdefault(k, value - parent)", "self._surplus.setdefault(k, value)"),
+         ("built &= ((points // (STEP >> k)) % 2).any(axis=-1)",
+          "built &= built.all(axis=1, keepdims=True)"),
+         ("values[alive] += _combine(np.where(built, weights, 0.0), rows, surplus)",
+          "values[alive] = np.where(built.all(axis=1)[:, None], "
+          "_combine(weights, rows, surplus), values[alive])")),
+    ),
+    Mutant(
+        "director_not_periodic", "plantgrowth/unitcell/director_lattice.py",
+        "wrong law or integrator",
+        "the director's angle interpolated with the odd-count Dirichlet kernel "
+        "sin(N d) / (N sin d) through an even count of nodes: interpolating, but of period 360 "
+        "degrees and changing sign over 180 (issue 33, item 2)",
+        (("weights = np.sin(count * d) * np.cos(d) / (count * safe)",
+          "weights = np.sin(count * d) / (count * safe)"),),
+    ),
 )  # fmt: skip
 
 
