@@ -130,13 +130,24 @@ def test_lattice_points_are_answered_exactly_and_refining_is_a_phase_of_its_own(
 
 @pytest.mark.mpi
 def test_ranks_build_the_same_tables():
-    """Under mpirun each rank asks its own half of the queries: every rank ends with the
-    one-rank lattice's refined squares and gives its answers bit for bit."""
+    """Under mpirun each rank asks its own half of the queries, of two tables named in an order
+    of its own (a rank numbers the tables it meets; the squares' keys must not depend on that):
+    every rank ends with the one-rank lattice's refined squares and gives its answers bit for
+    bit."""
     comm = MPI.COMM_WORLD
-    queries = np.random.default_rng(4).uniform(-0.3, 0.3, (60, 2))
+    rng = np.random.default_rng(4)
+    queries, which = rng.uniform(-0.3, 0.3, (60, 2)), rng.integers(0, 2, 60)
+    tables = [(1,), (2,)]
+
+    def scaled(table: tuple, U: np.ndarray) -> np.ndarray:
+        return table[0] * smooth(table, U)
+
     mine = slice(len(queries) * comm.rank // comm.size, len(queries) * (comm.rank + 1) // comm.size)
-    shared, alone = lattice(comm), lattice()
-    values = ask(shared, queries[mine]).values
-    expected = ask(alone, queries).values[mine]
-    assert shared._refined == alone._refined
+    shared = surrogate.LatticeSurrogate(scaled, TOLERANCE, SEGMENTS, comm)
+    alone = surrogate.LatticeSurrogate(scaled, TOLERANCE, SEGMENTS, MPI.COMM_SELF)
+    order = tables if comm.rank % 2 == 0 else tables[::-1]
+    asked = [order.index(tables[k]) for k in which[mine]]
+    values = shared.evaluate(order, np.array(asked, dtype=np.int64), queries[mine]).values
+    expected = alone.evaluate(tables, which, queries).values[mine]
+    assert shared.squares().tolist() == alone.squares().tolist()
     np.testing.assert_array_equal(values, expected)

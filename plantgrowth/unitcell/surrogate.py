@@ -247,10 +247,16 @@ class LatticeSurrogate:
             ((corner[..., 0] + _OFFSET) << 21) | (corner[..., 1] + _OFFSET)
         )  # fmt: skip
 
+    def _register(self, tables: Sequence[tuple]) -> None:
+        """Collective: number the tables any rank names that have no number yet, in sorted
+        order, so that a table has one number (and a square one key) on every rank."""
+        new = set().union(*self.comm.allgather(set(tables))) - self._table_ids.keys()
+        for table in sorted(new):
+            self._table_ids[table] = len(self._table_ids)
+
     def _numbers(self, tables: Sequence[tuple]) -> np.ndarray:
-        """The tables' numbers in the keys (new tables get the next ones)."""
-        ids = [self._table_ids.setdefault(t, len(self._table_ids)) for t in tables]
-        return np.array(ids, dtype=np.int64)
+        """The tables' numbers in the keys (KeyError for a table never refined)."""
+        return np.array([self._table_ids[t] for t in tables], dtype=np.int64)
 
     def _points_table(self) -> tuple[np.ndarray, np.ndarray]:
         """Sorted keys of the interpolant's points and their surpluses (rebuilt after a
@@ -303,6 +309,7 @@ class LatticeSurrogate:
         Returns the number of lattice points solved (the same on every rank)."""
         n = len(which)
         tol = np.full(n, self.tolerance) if tolerance is None else np.asarray(tolerance)
+        self._register(tables)
         ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
         s = np.asarray(s, dtype=float).reshape(n, 2)
         fresh = np.zeros(0, dtype=np.int64)  # squares refined in this call
@@ -418,9 +425,10 @@ class LatticeSurrogate:
     def restore(self, rows: np.ndarray) -> int:
         """Collective: refine the squares of :meth:`squares`'s rows (the same on every rank;
         their points from :attr:`values` or solved). Returns the points solved."""
-        if not len(rows):
+        if not len(rows):  # the same on every rank
             return 0
         tables = [tuple(row[1 : 1 + row[0]]) for row in rows.tolist()]
+        self._register(tables)
         ids = self._numbers(tables)
         keys = self._square_key(ids, rows[:, -3], rows[:, -2:])
         return self._refine_squares(np.unique(keys))
