@@ -401,15 +401,13 @@ MUTANTS = (
     ),
     Mutant(
         "surrogate_level_per_query", "plantgrowth/unitcell/surrogate.py", "wrong average",
-        "a lattice level chosen per query again (issue 33): the bilinear interpolant of exact "
-        "values on the deepest level whose square around the query is built, instead of the "
-        "hierarchical surpluses summed over every level",
-        (("self._surplus.setdefault(k, value - parent)", "self._surplus.setdefault(k, value)"),
-         ("built &= ((points // (STEP >> k)) % 2).any(axis=-1)",
-          "built &= built.all(axis=1, keepdims=True)"),
-         ("values[alive] += _combine(np.where(built, weights, 0.0), rows, surplus)",
-          "values[alive] = np.where(built.all(axis=1)[:, None], "
-          "_combine(weights, rows, surplus), values[alive])")),
+        "a lattice level chosen per query again (issue 33): only the hats of the query's own "
+        "chain of refined squares are summed (a square's hats count where at least 3 of its "
+        "corners are points of that level), the neighbours' finer points on its edges dropped",
+        (("values[alive] += _combine(np.where(built, weights, 0.0), rows, surplus)",
+          "values[alive] += _combine(np.where(built & (built.sum(axis=1, keepdims=True) >= 3), "
+          "weights, 0.0), rows, surplus)"),
+         ("alive = alive[built.any(axis=1)]", "alive = alive[built.sum(axis=1) >= 3]")),
     ),
     Mutant(
         "director_not_periodic", "plantgrowth/unitcell/director_lattice.py",
