@@ -8,7 +8,8 @@ each under a temporary name renamed when complete, and reads every complete file
 it uses: concurrent runs never write the same file, and a killed run leaves only complete files
 (a stray temporary file is ignored). Rank 0 reads and writes; the values are broadcast.
 A fibre-reinforced table's own key holds fibre_stiffness and the node of the director's angle
-lattice as well (:mod:`plantgrowth.unitcell.director_lattice`).
+interpolant as well (:mod:`plantgrowth.unitcell.director_lattice`). The cache holds exact
+values only: which of them a run's interpolant uses is the run's own refinement.
 
 ``CACHE`` is ``$PLANTGROWTH_CACHE_DIR``, else ``$XDG_CACHE_HOME/plantgrowth``, else
 ``~/.cache/plantgrowth``; ``PLANTGROWTH_CACHE_DIR=off`` disables the cache.

@@ -1,15 +1,30 @@
-"""The director's angle as a lattice dimension of the surrogate (issue 22, item 3).
+"""The director's angle as a dimension of the surrogate (issue 22, item 3; issue 33, item 2).
 
 A fibred cell problem depends on the director's angle relative to the growth's rotation,
 ``b = (a - rotation) mod 180`` (periodic: a director is an axis). With feedback the angles are
 continuous, so tables keyed by each exact angle would be solved anew for every fine cell and
-step. Instead, b is interpolated linearly between the nodes of nested periodic lattices of
-spacing ``H0_ANGLE / 2^L``, as the stretch is (:mod:`plantgrowth.unitcell.surrogate`): each node
-is a table of the stretch surrogate (its angle an integer index of the finest lattice,
-``ANGLE_STEP`` degrees each). A query is answered at the level L at which the interpolants of
-levels L and L + 1 differ by at most the tolerance (relative, per homogenized quantity); the
-finer one is returned and that difference is its estimate of the angle interpolation's error (on
-top of the stretch interpolation's own). Linear weights are non-negative, so E_hom stays SPD.
+step. Instead, each fibred table (geometry, nu, fibre_stiffness) is interpolated in b by the
+trigonometric interpolant of period 180 degrees through N equispaced nodes ``b_j = j 180 / N``,
+
+    I(b) = sum_j l_j(b) f(b_j),   l_j(b) = sin(N d / 2) cos(d / 2) / (N sin(d / 2)),
+    d = 2 pi (b - b_j) / 180,
+
+(N even; l_j(b_j) = 1, l_j(b_k) = 0): smooth, periodic by construction (d -> d + 2 pi leaves
+l_j unchanged), and for the smooth periodic angle dependence of the cell tensors it converges
+spectrally, so it needs far fewer nodes than the piecewise-linear interpolant it replaces
+(measured in benchmarks/results/angle_nodes.json). Each node is a table of the stretch surrogate
+(:mod:`plantgrowth.unitcell.surrogate`), its angle an integer index of ``ANGLE_STEP`` degrees.
+
+N is one per table, ``12 2^L`` (L = 0: 15-degree spacing), so every query of a table gets one
+continuous function of b. It is chosen in the refine phase of a call, before the answers: the
+estimate of a query is the relative difference between the interpolants through N and through
+every other node (N / 2); the table's L goes up while the largest estimate over its queries (all
+ranks) exceeds the tolerance, and, once raised in a call, while it exceeds ``KEEP`` times it
+(the gap of :mod:`plantgrowth.unitcell.surrogate`).
+
+The cardinal functions change sign, so E_hom is no longer a non-negative combination of SPD
+tensors; it stays SPD because it is within the tolerance (1e-3 relative) of the exact tensors,
+whose smallest eigenvalue is about 1e-2 of their norm (the honeycomb's G12 / E1).
 """
 
 from __future__ import annotations
@@ -19,136 +34,168 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.unitcell.surrogate import Answer
+from plantgrowth.unitcell.surrogate import KEEP, Answer
 
 H0_ANGLE = 15.0
-"""Coarsest spacing of the angle lattice (degrees): 12 nodes over 180, where the hexagon's
+"""Coarsest spacing of the angle nodes (degrees): 12 nodes over 180, where the hexagon's
 60-degree symmetry repeats every 4."""
 MAX_ANGLE_LEVEL = 10
-"""Finest level (spacing 15 / 1024 = 0.0146 degrees); a query not resolved there takes its value."""
+"""Finest level of the nodes' index unit (12 288 per 180 degrees, 0.0146 degrees apart)."""
 ANGLE_STEP = H0_ANGLE / 2**MAX_ANGLE_LEVEL
 """Degrees per integer index of a node's angle."""
+LEVEL_CAP = 4
+"""Largest L a table is refined to: 192 nodes (0.94 degrees apart), 8 times the 24 that
+E_f / E = 5 needs at 1e-3 (benchmarks/results/angle_nodes.json); every query asks every node,
+so an estimate that does not converge (a map that is not smooth in the angle) must not take
+the count on to 12 288."""
 PERIOD = round(180.0 / ANGLE_STEP)
 """Node indices per 180 degrees (index PERIOD is index 0)."""
 
 
-def angle_nodes(b: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For angles b (n,) in [0, 180) and levels (n,): the indices of the two nodes of the
-    level's interval that holds b (lower, upper; PERIOD wraps to 0) and the upper's weight t."""
-    steps = 2 ** (MAX_ANGLE_LEVEL - level)
-    x = np.round(b / (H0_ANGLE / 2.0**level), 9)  # round-off of b on a node: that node
-    k = np.floor(x)
-    t = np.clip(x - k, 0.0, 1.0)
-    lower = k.astype(np.int64) * steps
-    return lower % PERIOD, (lower + steps) % PERIOD, t
+def trigonometric_weights(b: np.ndarray, count: int) -> np.ndarray:
+    """The cardinal functions l_j(b) (n, count) of the trigonometric interpolant of period 180
+    degrees through ``count`` (even) nodes ``j 180 / count``, at angles b (n,) in degrees
+    (module docstring). An angle within 1e-9 node spacings of a node takes that node alone."""
+    x = np.asarray(b, dtype=float) / (180.0 / count)
+    node = np.round(x)
+    hit = np.abs(x - node) <= 1e-9  # a round-off away from a node: that node
+    d = np.pi * (x[:, None] - np.arange(count)[None, :]) / count  # d / 2 of the docstring
+    safe = np.where(hit[:, None], 1.0, np.sin(d))
+    weights = np.sin(count * d) * np.cos(d) / (count * safe)
+    weights[hit] = np.arange(count)[None, :] == (node[hit, None] % count)
+    return weights
 
 
 def node_tolerance(tolerance: float, weight: np.ndarray) -> np.ndarray:
     """The relative tolerance a node's stretch interpolation is asked for, given its weight w in
-    the angle interpolant: ``tolerance / min(1, 2 w)``, at most 1. A node's error enters the
-    answer times w, so the two nodes' errors add up to at most 1.5 tolerance (two halves), and
-    a node of small weight (a director near the other node) is not refined for nothing."""
-    return np.minimum(tolerance / np.clip(2.0 * weight, 1e-300, 1.0), 1.0)
+    the angle interpolant: ``tolerance / min(1, 2 |w|)``, at most 1. The nodes next to a query
+    (|w| >= 1/2) are asked for the tolerance itself; a node of small weight, whose error enters
+    the answer times w, is not refined for nothing."""
+    return np.minimum(tolerance / np.clip(2.0 * np.abs(weight), 1e-300, 1.0), 1.0)
 
 
-NEAR = 1.0 / 256.0
-"""Largest distance to a node, as a fraction of the coarsest interval (0.06 degrees), at which
-a query may be answered without a finer angle level (:func:`interpolate_angles`)."""
-
-
-def _requests(
-    which: np.ndarray, b: np.ndarray, level: np.ndarray, tolerance: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The node requests of m queries (tables ``which``, angles ``b``) at their levels.
-
-    Returns the upper nodes' weights t (m,); per node (lower, upper: (2, m)) the index of its
-    request, -1 for a node of zero weight (it adds nothing and is not asked); and per request
-    its query, its table and node index as one integer (``table * PERIOD + node``) and its
-    tolerance (:func:`node_tolerance`).
-    """
-    lower, upper, t = angle_nodes(b, level)
-    node, weight = np.stack([lower, upper]), np.stack([1.0 - t, t])
-    asked = weight > 0.0
-    index = np.full(node.shape, -1, dtype=np.int64)
-    index[asked] = np.arange(np.count_nonzero(asked))
-    query = np.broadcast_to(np.arange(len(b)), node.shape)[asked]
-    table_node = which[query] * PERIOD + node[asked]
-    return t, index, query, table_node, node_tolerance(tolerance, weight[asked])
-
-
-def interpolate_angles(
-    evaluate: Callable[[list[tuple], np.ndarray, np.ndarray, np.ndarray], Answer],
-    difference: Callable[[np.ndarray, np.ndarray], np.ndarray],
-    tolerance: float,
-    comm: MPI.Comm,
-    tables: Sequence[tuple],
-    which: np.ndarray,
-    s: np.ndarray,
-    b: np.ndarray,
-) -> Answer:
-    """Collective: the answers to this rank's queries, query k asking ``tables[which[k]]`` at
-    stretch ``s[k]`` and, for a fibred table (more than 5 entries), angle ``b[k]`` (degrees in
-    [0, 180)); an isotropic table is asked once, as it is.
-
-    The first round asks each fibred query's two level-0 nodes. A query within :data:`NEAR`
-    of one of them (a fixed director turned by a growth rotation of hundredths of a degree) is
-    answered by their linear interpolant if that differs from the near node's value by at
-    most the tolerance: the difference is the first-order term of the angle's Taylor
-    expansion, which bounds the linear interpolant's second-order error (with the NEAR bound
-    that keeps it below the tolerance even if the two nodes happened to agree: h^2 |f''| / 2
-    at most about 4 per rad^2 at E_f / E = 5, measured in docs/fibres.md, gives 5e-4). Every
-    other query goes on as the lattice does: levels L and L + 1 compared, L + 1 returned.
+class DirectorInterpolant:
+    """The angle interpolants of the fibred tables, their node counts kept across calls.
 
     Args:
         evaluate: the stretch surrogate, ``evaluate(tables, which, s, tolerance)``
             (collective), a fibred table's node being the table plus its angle index.
         difference: the relative difference per row of two (n, m) value arrays.
+        tolerance: the surrogate's relative tolerance.
+        comm: the ranks that share the tables.
     """
-    n = len(which)
-    which = np.asarray(which, dtype=np.int64).reshape(n)
-    fibred = np.array([len(table) > 5 for table in tables], dtype=bool)[which]
-    level = np.zeros(n, dtype=np.int64)
-    values, estimates = None, np.zeros(n)
-    interpolated = np.zeros(n, dtype=bool)
-    pending, coarse, solves = np.flatnonzero(fibred), None, 0
-    plain = np.flatnonzero(~fibred)
-    while True:
-        # the first round asks level L = 0, every later one level L + 1 of the pending
-        lv = level[pending] + (coarse is not None)
-        t, index, query, table_node, tol = _requests(which[pending], b[pending], lv, tolerance)
-        names, ask_which = np.unique(table_node, return_inverse=True)
-        ask_tables = [tables[k // PERIOD] + (k % PERIOD,) for k in names.tolist()]
-        ask_s = s[pending][query]
-        if values is None:  # the first round also answers the isotropic queries
-            ask_which = np.concatenate([ask_which, len(ask_tables) + which[plain]])
-            ask_tables += list(tables)
-            ask_s = np.concatenate([ask_s, s[plain]])
-            tol = np.concatenate([tol, np.full(len(plain), tolerance)])
-        answer = evaluate(ask_tables, ask_which, ask_s.reshape(-1, 2), tol)
-        solves += answer.solves
-        if answer.values is None:  # no rank has a query
-            return Answer(np.zeros((n, 0)), estimates, interpolated, solves)
-        asked = len(query)
-        if values is None:
-            values = np.zeros((n, answer.values.shape[1]))
-            values[plain] = answer.values[asked:]
-            estimates[plain] = answer.estimates[asked:]
-            interpolated[plain] = answer.interpolated[asked:]
-        # a zero-weight node (index -1) reads any row and adds 0 times it
-        node_values = answer.values[np.maximum(index, 0)]
-        fine = (1 - t)[:, None] * node_values[0] + t[:, None] * node_values[1]
-        if coarse is None:  # near a level-0 node: the linear interpolant against that node
-            nearest = np.where((t <= 0.5)[:, None], node_values[0], node_values[1])
-            estimates[pending] = difference(nearest, fine) if len(pending) else np.zeros(0)
-            done = (np.minimum(t, 1.0 - t) <= NEAR) & (estimates[pending] <= tolerance)
-        else:
-            estimates[pending] = difference(coarse, fine) if len(pending) else np.zeros(0)
-            done = (estimates[pending] <= tolerance) | (lv == MAX_ANGLE_LEVEL)
-            level[pending[~done]] += 1
-        values[pending[done]] = fine[done]
-        node_interp = (index >= 0) & answer.interpolated[np.maximum(index, 0)]
-        between = (t > 0.0) & (t < 1.0)
-        interpolated[pending[done]] = (between | node_interp.any(axis=0))[done]
-        pending, coarse = pending[~done], fine[~done]
-        if not comm.allreduce(len(pending), op=MPI.MAX):
-            return Answer(values, estimates, interpolated, solves)
+
+    def __init__(
+        self,
+        evaluate: Callable[[list[tuple], np.ndarray, np.ndarray, np.ndarray], Answer],
+        difference: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        tolerance: float,
+        comm: MPI.Comm,
+    ) -> None:
+        self._evaluate = evaluate
+        self._difference = difference
+        self.tolerance = tolerance
+        self.comm = comm
+        self.levels: dict[tuple, int] = {}  # fibred table -> L (N = 12 2^L nodes)
+
+    def state(self) -> np.ndarray:
+        """The tables' levels as int64 rows ``[table..., L]`` (a resumed run's :meth:`restore`)."""
+        rows = [(*table, level) for table, level in sorted(self.levels.items())]
+        return np.array(rows, dtype=np.int64).reshape(len(rows), 7)  # 6 table entries, L
+
+    def restore(self, rows: np.ndarray) -> None:
+        """The levels of :meth:`state`'s rows."""
+        self.levels = {tuple(row[:-1]): row[-1] for row in rows.tolist()}
+
+    def count(self, table: tuple) -> int:
+        """The table's node count N."""
+        return round(180.0 / H0_ANGLE) * 2 ** self.levels.get(table, 0)
+
+    def __call__(
+        self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray, b: np.ndarray
+    ) -> Answer:
+        """Collective: the answers to this rank's queries, query k asking ``tables[which[k]]``
+        at stretch ``s[k]`` and, for a fibred table (more than 5 entries), angle ``b[k]``
+        (degrees); an isotropic table is asked once, as it is. The fibred tables' node counts
+        are refined first (module docstring); the answers come from the last round's nodes."""
+        n = len(which)
+        which = np.asarray(which, dtype=np.int64).reshape(n)
+        s, b = np.asarray(s, dtype=float).reshape(n, 2), np.asarray(b, dtype=float).reshape(n)
+        fibred_table = np.array([len(table) > 5 for table in tables], dtype=bool)
+        plain = np.flatnonzero(~fibred_table[which])
+        groups = {tables[t]: np.flatnonzero(which == t) for t in np.flatnonzero(fibred_table)}
+        groups = {table: queries for table, queries in groups.items() if len(queries)}
+        every = sorted(set().union(*self.comm.allgather(set(groups))))
+        raised: set[tuple] = set()
+        solves = 0
+        while True:
+            answer, layout = self._ask(tables, which, s, b, groups, plain)
+            solves += answer.solves
+            values, estimates, interpolated = self._combine(answer, layout, b, plain, n)
+            local = np.array([estimates[groups[t]].max() if t in groups else 0.0 for t in every])
+            largest = np.max(self.comm.allgather(local), axis=0)
+            grow = [
+                table for table, e in zip(every, largest.tolist(), strict=True)
+                if self.levels.get(table, 0) < LEVEL_CAP
+                and (e > self.tolerance or (table in raised and e > KEEP * self.tolerance))
+            ]  # fmt: skip
+            if not grow:
+                return Answer(values, estimates, interpolated, solves)
+            for table in grow:
+                self.levels[table] = self.levels.get(table, 0) + 1
+                raised.add(table)
+
+    def _ask(
+        self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray, b: np.ndarray,
+        groups: dict[tuple, np.ndarray], plain: np.ndarray,
+    ) -> tuple[Answer, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:  # fmt: skip
+        """One collective evaluation of every node of the fibred tables at their queries'
+        stretches (each node to its :func:`node_tolerance`) and of the isotropic queries.
+        Returns the answer and, per fibred table, its queries (q,), their weights (q, N) and
+        their rows in the answer (q, N)."""
+        ask_tables: list[tuple] = []
+        ask_which, ask_s, tol, layout = [], [], [], []
+        offset = 0
+        for table, queries in groups.items():
+            count = self.count(table)
+            weights = trigonometric_weights(b[queries], count)
+            ask_which.append(np.tile(len(ask_tables) + np.arange(count), len(queries)))
+            ask_tables += [table + (j * PERIOD // count,) for j in range(count)]
+            ask_s.append(np.repeat(s[queries], count, axis=0))
+            tol.append(node_tolerance(self.tolerance, weights).ravel())
+            rows = offset + np.arange(len(queries) * count).reshape(len(queries), count)
+            layout.append((queries, weights, rows))
+            offset += rows.size
+        ask_which.append(len(ask_tables) + which[plain])
+        ask_tables += list(tables)
+        ask_s.append(s[plain])
+        tol.append(np.full(len(plain), self.tolerance))
+        answer = self._evaluate(
+            ask_tables, np.concatenate(ask_which), np.concatenate(ask_s), np.concatenate(tol)
+        )
+        return answer, layout
+
+    def _combine(
+        self, answer: Answer, layout: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+        b: np.ndarray, plain: np.ndarray, n: int,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """The queries' values (the fibred ones ``sum_j l_j(b) f(b_j)``), their estimates (the
+        difference to the interpolant through every other node) and which were interpolated."""
+        values = np.zeros((n, answer.values.shape[1]))
+        estimates = np.zeros(n)
+        interpolated = np.zeros(n, dtype=bool)
+        start = sum(rows.size for _, _, rows in layout)
+        values[plain] = answer.values[start:]
+        estimates[plain] = answer.estimates[start:]
+        interpolated[plain] = answer.interpolated[start:]
+        for queries, weights, rows in layout:
+            nodes = answer.values[rows]  # (q, N, m)
+            values[queries] = np.einsum("qj,qjm->qm", weights, nodes)
+            half = trigonometric_weights(b[queries], rows.shape[1] // 2)
+            coarse = np.einsum("qj,qjm->qm", half, nodes[:, ::2])
+            estimates[queries] = self._difference(coarse, values[queries])
+            used = weights != 0.0
+            interpolated[queries] = (used.sum(axis=1) > 1) | (
+                used & answer.interpolated[rows]
+            ).any(axis=1)  # fmt: skip
+        return values, estimates, interpolated

@@ -17,8 +17,9 @@ exchanged with one ``allgather``.
 
 With ``cell_tolerance > 0`` the growth state goes through :mod:`plantgrowth.unitcell.surrogate`
 instead (rotation split off exactly, the stretch interpolated on lattices refined to the
-tolerance; a fibred table is one (geometry, nu, fibre_stiffness) and node of the angle lattice
-of a - rotation angle, interpolated between nodes (:mod:`plantgrowth.unitcell.director_lattice`):
+tolerance; a fibred table is one (geometry, nu, fibre_stiffness) and node of the angle
+a - rotation angle, interpolated trigonometrically over its nodes
+(:mod:`plantgrowth.unitcell.director_lattice`):
 the cell problem for (R U, m) is the one for (U, R^T m) rotated by R),
 backed by the on-disk cache of :mod:`plantgrowth.unitcell.cache`; every ``CHECK_EVERY``-th call
 also solves one of its queries exactly and logs the surrogate's error there. A lookup costs
@@ -136,6 +137,9 @@ class Homogenizer:
             self.surrogate = surrogate.LatticeSurrogate(
                 self._solve_stretch, cell_tolerance, segments, comm, self.scheduler, _mesh_group
             )
+            self.angles = director_lattice.DirectorInterpolant(
+                self._evaluate, self.surrogate.relative_difference, cell_tolerance, comm
+            )
             fingerprint = (resolution, pressure, strain_averages)
             self.cache = CellCache(cache_root(), fingerprint, comm)
             self._loaded: set[tuple] = set()  # tables whose cached lattice is loaded
@@ -240,13 +244,37 @@ class Homogenizer:
         relative ``tolerance[k]``), the
         tables' lattices first loaded from the cache (every rank loads the tables any rank asks
         for) and the newly solved points saved to it."""
+        self._load(tables)
+        answer = self.surrogate.evaluate(tables, which, s, tolerance)
+        self.cache.save(self.surrogate.take_new_points())
+        return answer
+
+    def _load(self, tables: list[tuple]) -> None:
+        """Collective: the cached lattice values of the tables any rank names, once a run."""
         wanted = set().union(*self.comm.allgather(set(tables)))
         for table in sorted(wanted - self._loaded):
             self.surrogate.add(self.cache.load(table))
             self._loaded.add(table)
-        answer = self.surrogate.evaluate(tables, which, s, tolerance)
+
+    def state(self) -> dict[str, np.ndarray]:
+        """What a resumed run needs to answer as the uninterrupted one (the surrogate's
+        refined squares and angle node counts; the same on every rank), {} without one. Empty
+        arrays are left out (parallel HDF5 cannot write an empty dataset)."""
+        if self.surrogate is None:
+            return {}
+        state = {"surrogate_squares": self.surrogate.squares(), "angle_levels": self.angles.state()}
+        return {name: rows for name, rows in state.items() if len(rows)}
+
+    def restore(self, state: dict[str, np.ndarray]) -> None:
+        """Collective: rebuild the surrogate of :meth:`state` (its points from the cache or
+        solved anew)."""
+        if self.surrogate is None or "surrogate_squares" not in state:
+            return
+        rows = state["surrogate_squares"]
+        self._load([tuple(row[1 : 1 + row[0]]) for row in rows.tolist()])
+        self.surrogate.restore(rows)
         self.cache.save(self.surrogate.take_new_points())
-        return answer
+        self.angles.restore(state.get("angle_levels", np.zeros((0, 7), dtype=np.int64)))
 
     def _interpolate(
         self, geometry: np.ndarray, E: np.ndarray, nu: np.ndarray, Fg: np.ndarray, weights,
@@ -254,19 +282,16 @@ class Homogenizer:
     ) -> NodeTensors:  # fmt: skip
         """The surrogate's answer at this rank's points: for each point and each table its
         nodes weigh (merged: a table met at several nodes is asked once), the stretch
-        interpolated (and, for a fibred table, the director's angle turned back by the rotation:
-        :mod:`plantgrowth.unitcell.director_lattice`), then combined with the weights, scaled by
-        E and rotated exactly."""
+        interpolated (and, for a fibred table, the director's angle turned back by the rotation,
+        interpolated over the angle nodes: :mod:`plantgrowth.unitcell.director_lattice`), then
+        combined with the weights, scaled by E and rotated exactly."""
         R, s = surrogate.split_growth(Fg)
         turn = np.degrees(np.arctan2(R[:, 1, 0], R[:, 0, 0]))
         b = (fibres[1] - turn) % 180.0  # the director in the stretch's frame, per point
         layout = self._layout(geometry, nu, fibres[0], weights)
         tables, which, point = layout.tables, layout.which, layout.point
         s_q, b_q = s[point], b[point]
-        answer = director_lattice.interpolate_angles(
-            self._evaluate, self.surrogate.relative_difference, self.surrogate.tolerance,
-            self.comm, tables, which, s_q, b_q,
-        )  # fmt: skip
+        answer = self.angles(tables, which, s_q, b_q)
         self.solves_last_call = answer.solves + self._check(
             lambda k: self._solve_stretch(tables[which[k]], surrogate.stretch(s_q[k]), b_q[k]),
             s_q, answer,

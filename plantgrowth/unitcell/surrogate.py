@@ -1,4 +1,4 @@
-"""Error-controlled surrogate of the homogenized quantities over the growth state (issue 9).
+"""Error-controlled surrogate of the homogenized quantities over the growth state (issues 9, 33).
 
 Reduction (exact invariances of the cell problems, docs/model.md section 3): scaling Fg changes
 nothing, so only ``F = Fg / sqrt(det Fg)`` matters; and with the polar split ``F = R U`` (R a
@@ -7,21 +7,38 @@ by R (isotropic walls, rotated periodic solutions are periodic), so E_hom, dbar[
 4th-order and K_hom, dbar[v] as 2nd-order tensors. What is left is the stretch
 ``U = expm(S)``, ``S = [[s1, s2], [s2, -s1]]``: two numbers per cell geometry and nu.
 
-Method: bilinear interpolation on nested square lattices in (s1, s2), spacing ``H0 / 2^L``,
-built lazily where the run's queries fall. A query is answered by the lattice level L at
-which the interpolants of levels L and L + 1 differ by at most the tolerance (relative, in
-the norm of each homogenized quantity); the finer interpolant is returned and that
-difference is its error estimate (for a smooth function the error of level L + 1 is about a
-third of it: the estimate is conservative). Bilinear weights in a lattice square are
-non-negative, so the interpolant of symmetric positive definite tensors is one: E_hom stays
-SPD by construction. Lattice points are exact cell solves, shared by every query and time
-step, solved in rounds collectively (each rank its cost-balanced share, on COMM_SELF, then one
-allgather: :mod:`plantgrowth.unitcell.scheduler`), so every rank holds the same tables. Each rank
-asks about its own queries (its fine cells, or its block of the coarse nodes); a query's answer
-depends only on the lattice and its own point, so serial and parallel runs agree exactly.
-Lookups are vectorised: each lattice point has an integer key (table number and finest-lattice
-coordinates), found among the sorted keys of the known points by binary search, so a query
-costs microseconds and the cells of a fine mesh can each ask their own.
+Method (issue 33): one interpolant per table, the sum of hierarchical hat functions over every
+lattice point built so far,
+
+    I(s) = sum_p alpha_p phi_p(s),   alpha_p = f(p) - I_<l(p)(p),
+
+where a point p of level l (new on the lattice of spacing ``H0 / 2^l``) carries the bilinear
+hat phi_p of that spacing and its *surplus* alpha_p: its exact value less the interpolant of
+the coarser levels there (the mean of its parent square's two edge ends or four corners). The
+points form a quadtree: a square of level l that is *refined* has its five children (edge
+midpoints and centre, level l + 1) built. I is one continuous function of s (a finite sum of
+continuous hats; C0, piecewise bilinear), equal to f at every built point, and independent of
+which query asks: answers no longer jump where a query's level changes. Where a refined square
+meets a coarser one, the finer hats reach half a finer square into it; I stays a non-negative
+combination of exact values there (worked out for one level of difference, measured in
+tests/test_surrogate_continuity.py), so E_hom stays SPD by construction as before.
+
+The error estimate of a query is the largest relative surplus e(D) of the children of the
+deepest refined square D that holds it (the change the last refinement made; for a smooth f the
+error left is about a quarter of it). New points are added only in :meth:`LatticeSurrogate.refine`,
+the phase a call runs before it interpolates (so a step's tensors come from one frozen
+interpolant): D's child holding the query is refined when e(D) exceeds the query's tolerance
+(the refine threshold), and refining then goes on while e exceeds ``KEEP`` times it (the lower
+keep threshold): the gap keeps queries that drift about a square whose estimate is near the
+tolerance from refining it again step after step.
+
+Lattice points are exact cell solves, shared by every query and time step, solved in rounds
+collectively (each rank its cost-balanced share, on COMM_SELF, then one allgather:
+:mod:`plantgrowth.unitcell.scheduler`). The squares to refine are the union over the ranks of
+each round's requests, so every rank holds the same tables and a query's answer depends only on
+them and its own point: serial and parallel runs agree exactly. Lookups are vectorised: points
+and squares have integer keys (table number, level, finest-lattice coordinates), found among
+the sorted keys by binary search.
 """
 
 from __future__ import annotations
@@ -84,21 +101,34 @@ class Answer:
 
 Point = tuple[tuple, tuple[int, int]]  # (table, finest-lattice integer coordinates)
 
+KEEP = 0.5
+"""Keep threshold over refine threshold. A refinement that a query's estimate above its
+tolerance started goes on to squares whose estimate is at most half the tolerance: half a
+level of the bilinear interpolant's h^2 convergence (one level divides the surpluses by about
+4), so a refinement overshoots by one level in about half the squares it reaches, and a
+neighbouring square of the same level, whose estimate differs by the curvature's variation
+over a square, must be more than twice as rough before it refines again."""
+_OFFSETS = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])  # a square's corners, in its spacing
+_CHILDREN = np.array([[1, 0], [0, 1], [2, 1], [1, 2], [1, 1]])  # in half its spacing
+_LOW = (1 << 21) - 1
+SQUARE_TABLE = 7
+"""Most entries of a table (a fibred table's angle node: geometry, nu, fibre_stiffness, node)."""
 
-def _corners(s: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For each query (s: (n, 2), level: (n,)): the four lattice points (finest integers,
-    (n, 4, 2)) of the square of its level that holds it, and their bilinear weights (n, 4)."""
-    h = (H0 / 2.0**level)[:, None]
-    step = (STEP // 2**level)[:, None]
-    x = s / h
+
+def _cell(s: np.ndarray, level: int | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The lower-left corner (finest integers, (n, 2)) of the square of ``level`` (one, or
+    one per query) that holds each query s (n, 2), and its coordinates t (n, 2) in [0, 1]."""
+    level = np.reshape(np.asarray(level, dtype=np.int64), (-1, 1))
+    x = s / (H0 / 2.0**level)
     base = np.floor(np.round(x, 9))  # round-off of Fg (x = 1e-17, or 0.9999999999) is on the
-    t = np.clip(np.round(x - base, 9), 0.0, 1.0)  # lattice line: one exact point, no neighbours
-    corner = base.astype(np.int64) * step
-    offsets = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
-    points = corner[:, None, :] + offsets[None, :, :] * step[:, None, :]
+    t = np.clip(np.round(x - base, 9), 0.0, 1.0)  # lattice line: one exact point
+    return base.astype(np.int64) * (STEP >> level), t
+
+
+def _hats(t: np.ndarray) -> np.ndarray:
+    """Bilinear hat values (n, 4) of a square's corners (order of ``_OFFSETS``) at t (n, 2)."""
     tx, ty = t[:, 0:1], t[:, 1:2]
-    weights = np.hstack([(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty])
-    return points, weights
+    return np.hstack([(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty])
 
 
 CHUNK = 8192
@@ -109,9 +139,8 @@ gather of a fine mesh's 500,000 queries took 11 times as long (3.3 s against 0.3
 
 
 def _combine(weights: np.ndarray, rows: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """``sum_c weights[n, c] table[rows[n, c], :]`` (n, m): the interpolated values, as
-    batched products over chunks of :data:`CHUNK` queries (each row's arithmetic is the same
-    whatever the chunk)."""
+    """``sum_c weights[n, c] table[rows[n, c], :]`` (n, m), as batched products over chunks of
+    :data:`CHUNK` queries (each row's arithmetic is the same whatever the chunk)."""
     out = np.empty((len(weights), table.shape[1]))
     for start in range(0, len(weights), CHUNK):
         part = slice(start, start + CHUNK)
@@ -119,12 +148,21 @@ def _combine(weights: np.ndarray, rows: np.ndarray, table: np.ndarray) -> np.nda
     return out
 
 
+def _find(keys: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions of ``wanted`` among the sorted ``keys`` (any valid row where absent) and
+    whether each is there."""
+    if not len(keys):
+        return np.zeros(wanted.shape, dtype=np.int64), np.zeros(wanted.shape, dtype=bool)
+    pos = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+    return pos, keys[pos] == wanted
+
+
 class LatticeSurrogate:
-    """Lazily refined lattice tables of packed homogenized quantities.
+    """Hierarchical lattice interpolants of packed homogenized quantities, one per table.
 
     Args:
         solve: exact packed values at a point, ``solve(table, U)`` (on this rank only).
-        tolerance: largest relative difference accepted between two levels, > 0.
+        tolerance: default refine threshold (relative error estimate), > 0.
         segments: slices of the packed vector measured separately (E_hom, K_hom, ...).
         comm: ranks that share the queries and the lattice solves.
         scheduler: deals the lattice solves to the ranks (default: a new one on ``comm``).
@@ -147,14 +185,17 @@ class LatticeSurrogate:
         self.tolerance = tolerance
         self.segments = tuple(segments)
         self.comm = comm
-        self.values: dict[Point, np.ndarray] = {}
+        self.values: dict[Point, np.ndarray] = {}  # exact values (solved or from the cache)
         self.new_points: list[Point] = []  # solved since the last take_new_points()
         self._table_ids: dict[tuple, int] = {}  # table -> its number in the keys
-        self._keys: np.ndarray | None = None  # sorted keys of self.values (:meth:`_index`)
-        self._rows = np.zeros((0, 0))
+        self._surplus: dict[int, np.ndarray] = {}  # point key -> alpha_p, the interpolant's
+        self._refined: set[int] = set()  # keys of the refined squares
+        self._points_index: tuple[np.ndarray, np.ndarray] | None = None
+        self._squares_index: np.ndarray | None = None
 
     def add(self, values: dict[Point, np.ndarray]) -> None:
-        """Lattice values known from elsewhere (the on-disk cache); the same on every rank."""
+        """Lattice values known from elsewhere (the on-disk cache; the same on every rank):
+        solves saved, not points of the interpolant until a refinement asks for them."""
         self.values.update(values)
 
     def relative_difference(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -192,97 +233,205 @@ class LatticeSurrogate:
         self.new_points += missing
         return len(missing)
 
-    def _index(self) -> tuple[np.ndarray, np.ndarray]:
-        """Sorted keys of the known lattice points and their values (rebuilt when points were
-        added)."""
-        if self._keys is None or len(self._keys) != len(self.values):
-            points = list(self.values)
-            for table, _ in points:
-                self._table_ids.setdefault(table, len(self._table_ids))
-            ids = np.array([self._table_ids[t] for t, _ in points], dtype=np.int64)
-            ij = np.array([p for _, p in points], dtype=np.int64).reshape(-1, 2)
-            keys = self._encode(ids, ij[:, 0], ij[:, 1])
-            order = np.argsort(keys)
-            self._keys = keys[order]
-            self._rows = np.array([self.values[points[k]] for k in order])
-        return self._keys, self._rows
-
-    def _encode(self, ids: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    @staticmethod
+    def _point_key(ids: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """One int64 key per lattice point: table number, then the two finest integers."""
         if np.size(i) and max(np.abs(i).max(), np.abs(j).max()) >= _OFFSET:
             raise ValueError(f"a growth stretch |s| >= {_OFFSET * H0 / STEP:g}: off the lattice")
         return (ids << 42) | ((i + _OFFSET) << 21) | (j + _OFFSET)
 
+    @staticmethod
+    def _square_key(ids: np.ndarray, level: int | np.ndarray, corner: np.ndarray) -> np.ndarray:
+        """One int64 key per square: table number, level, lower-left corner's finest integers."""
+        return (ids << 46) | (np.asarray(level, dtype=np.int64) << 42) | (
+            ((corner[..., 0] + _OFFSET) << 21) | (corner[..., 1] + _OFFSET)
+        )  # fmt: skip
+
+    def _register(self, tables: Sequence[tuple]) -> None:
+        """Collective: number the tables any rank names that have no number yet, in sorted
+        order, so that a table has one number (and a square one key) on every rank."""
+        new = set().union(*self.comm.allgather(set(tables))) - self._table_ids.keys()
+        for table in sorted(new):
+            self._table_ids[table] = len(self._table_ids)
+
     def _numbers(self, tables: Sequence[tuple]) -> np.ndarray:
-        """The tables' numbers in the keys (new tables get the next ones)."""
-        ids = [self._table_ids.setdefault(t, len(self._table_ids)) for t in tables]
-        return np.array(ids, dtype=np.int64)
+        """The tables' numbers in the keys (KeyError for a table never refined)."""
+        return np.array([self._table_ids[t] for t in tables], dtype=np.int64)
 
-    def _lookup(
-        self, ids: np.ndarray, points: np.ndarray, weights: np.ndarray
-    ) -> tuple[np.ndarray, list[Point]]:
-        """For corners (n, 4, 2) in the tables ``ids`` (n,) with weights (n, 4): their rows
-        (n, 4) among the known lattice points (a corner of zero weight, a query on a lattice
-        line, may be unknown: its row is any, and it adds 0) and the corners of non-zero weight
-        that are not known yet."""
-        known, _ = self._index()
-        keys = self._encode(ids[:, None], points[..., 0], points[..., 1])
-        if not len(known):
-            return np.zeros(keys.shape, dtype=np.int64), self._points(keys[weights > 0.0])
-        rows = np.minimum(np.searchsorted(known, keys), len(known) - 1)
-        return rows, self._points(keys[(known[rows] != keys) & (weights > 0.0)])
+    def _points_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """Sorted keys of the interpolant's points and their surpluses (rebuilt after a
+        refinement)."""
+        if self._points_index is None:
+            keys = np.array(sorted(self._surplus), dtype=np.int64)
+            rows = np.array([self._surplus[k] for k in keys.tolist()]) if len(keys) else None
+            self._points_index = keys, np.zeros((0, 0)) if rows is None else rows
+        return self._points_index
 
-    def _points(self, keys: np.ndarray) -> list[Point]:
-        """The distinct lattice points of the keys."""
-        new = np.unique(keys)
+    def _deepest(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per query: the level of the deepest refined square D that holds it (-1: its level-0
+        square is not refined yet) and D's key."""
+        if self._squares_index is None:
+            self._squares_index = np.array(sorted(self._refined), dtype=np.int64)
+        n = len(ids)
+        level, key = np.full(n, -1), np.zeros(n, dtype=np.int64)
+        alive = np.arange(n)
+        for k in range(MAX_LEVEL):
+            wanted = self._square_key(ids[alive], k, _cell(s[alive], k)[0])
+            hit = _find(self._squares_index, wanted)[1]
+            alive = alive[hit]
+            level[alive], key[alive] = k, wanted[hit]
+            if not len(alive):
+                break
+        return level, key
+
+    def _estimates(self, ids: np.ndarray, s: np.ndarray, level: np.ndarray) -> np.ndarray:
+        """Per query (all in refined squares, D of ``level``): the relative change that D's
+        children made there, ``|sum_c alpha_c phi_c(s)| / |I(s)|`` (per segment, the largest):
+        the surpluses weighted by their hats, the difference of the interpolants with and
+        without D's children (for a smooth f the error left is about a third of it)."""
+        values = self.interpolate_ids(ids, s)[0]
+        corner, t = _cell(s, level)
+        half = (STEP >> level)[:, None, None] // 2
+        children = corner[:, None, :] + _CHILDREN[None] * half  # (n, 5, 2)
+        hats = np.prod(np.maximum(1.0 - np.abs(2.0 * t[:, None, :] - _CHILDREN[None]), 0.0), -1)
+        keys, surplus = self._points_table()
+        rows = _find(keys, self._point_key(ids[:, None], children[..., 0], children[..., 1]))[0]
+        change = _combine(hats, rows, surplus)
+        return self.relative_difference(values - change, values)
+
+    def refine(
+        self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray,
+        tolerance: np.ndarray | None = None,
+    ) -> int:  # fmt: skip
+        """Collective: refine the tables until each query k (table ``tables[which[k]]``,
+        stretch ``s[k]``) has an estimate within ``tolerance[k]`` (default: the surrogate's
+        own), refining on past the trigger down to ``KEEP`` times it (module docstring).
+        Returns the number of lattice points solved (the same on every rank)."""
+        n = len(which)
+        tol = np.full(n, self.tolerance) if tolerance is None else np.asarray(tolerance)
+        self._register(tables)
+        ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
+        s = np.asarray(s, dtype=float).reshape(n, 2)
+        fresh = np.zeros(0, dtype=np.int64)  # squares refined in this call
+        solves = 0
+        while True:
+            level, key = self._deepest(ids, s)
+            error = np.full(n, np.inf)
+            inside = level >= 0
+            if inside.any():
+                error[inside] = self._estimates(ids[inside], s[inside], level[inside])
+            going = np.isin(key, fresh) & (error > KEEP * tol)
+            grow = (level < 0) | ((level + 2 <= MAX_LEVEL) & ((error > tol) | going))
+            child = level[grow] + 1
+            wanted = self._square_key(ids[grow], child, _cell(s[grow], child)[0])
+            squares = np.unique(np.concatenate(self.comm.allgather(np.unique(wanted))))
+            if not len(squares):
+                return solves
+            solves += self._refine_squares(squares)
+            fresh = np.union1d(fresh, squares)
+
+    def _refine_squares(self, squares: np.ndarray) -> int:
+        """Build the children (and, on level 0, the corners) of the squares (sorted keys, the
+        same on every rank), their surpluses and the squares' estimates. Collective."""
         names = {v: k for k, v in self._table_ids.items()}
-        low = (1 << 21) - 1
-        i, j = ((new >> 21) & low) - _OFFSET, (new & low) - _OFFSET
-        columns = ((new >> 42).tolist(), i.tolist(), j.tolist())
-        return [(names[k], (a, b)) for k, a, b in zip(*columns, strict=True)]
+        ids, level = squares >> 46, (squares >> 42) & 15
+        corner = np.column_stack([((squares >> 21) & _LOW) - _OFFSET, (squares & _LOW) - _OFFSET])
+        step = (STEP >> level)[:, None, None]
+        corners = corner[:, None, :] + _OFFSETS[None] * step  # (q, 4, 2)
+        children = corner[:, None, :] + _CHILDREN[None] * (step // 2)  # (q, 5, 2)
+        every = np.concatenate([corners, children], axis=1)
+        points = [(names[t], (a, b)) for t, row in zip(ids.tolist(), every.tolist(), strict=True)
+                  for a, b in row]  # fmt: skip
+        solves = self._solve_points(points)
+        for q, t in enumerate(ids.tolist()):
+            table = names[t]
+            f = np.array([self.values[table, tuple(p)] for p in every[q].tolist()])
+            keys = self._point_key(np.int64(t), every[q, :, 0], every[q, :, 1]).tolist()
+            if level[q] == 0:  # level-0 points: their hats sum to the bilinear interpolant
+                for k, value in zip(keys[:4], f[:4], strict=True):
+                    self._surplus.setdefault(k, value)
+            c = f[:4]  # the corners (0, 0), (1, 0), (0, 1), (1, 1): parents of each child
+            coarse = np.array([(c[0] + c[1]) / 2, (c[0] + c[2]) / 2, (c[1] + c[3]) / 2,
+                               (c[2] + c[3]) / 2, c.mean(axis=0)])  # fmt: skip
+            for k, value, parent in zip(keys[4:], f[4:], coarse, strict=True):
+                self._surplus.setdefault(k, value - parent)
+            self._refined.add(int(squares[q]))
+        self._points_index = self._squares_index = None
+        return solves
+
+    def interpolate(
+        self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The frozen interpolant ``I(s) = sum_p alpha_p phi_p(s)`` at this rank's n queries
+        (no solve, not collective), and which queries are not on a built point. Level by level,
+        the hats of a query's square's corners that are points of that level; a query whose
+        square has none has no finer hat reaching it (the quadtree's finer points lie on and
+        inside refined squares), so it stops there. Raises KeyError off the built lattice."""
+        n = len(which)
+        ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
+        return self.interpolate_ids(ids, np.asarray(s, dtype=float).reshape(n, 2))
+
+    def interpolate_ids(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`interpolate` for queries given by their tables' numbers ids (n,)."""
+        n = len(ids)
+        keys, surplus = self._points_table()
+        values = np.zeros((n, surplus.shape[1] if len(keys) else 0))
+        on_point = np.zeros(n, dtype=bool)
+        alive = np.arange(n)
+        for k in range(MAX_LEVEL + 1):
+            corner, t = _cell(s[alive], k)
+            points = corner[:, None, :] + _OFFSETS[None] * (STEP >> k)
+            weights = _hats(t)
+            wanted = self._point_key(ids[alive, None], points[..., 0], points[..., 1])
+            rows, built = _find(keys, wanted)
+            if k == 0 and not np.all(built | (weights == 0.0)):
+                raise KeyError("a query outside the refined lattice: refine() first")
+            if k > 0:  # only the points new on this level carry its hats
+                built &= ((points // (STEP >> k)) % 2).any(axis=-1)
+            values[alive] += _combine(np.where(built, weights, 0.0), rows, surplus)
+            on_point[alive] |= (built & (weights == 1.0)).any(axis=1)
+            alive = alive[built.any(axis=1)]
+            if not len(alive):
+                break
+        return values, ~on_point
 
     def evaluate(
         self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray,
         tolerance: np.ndarray | None = None,
     ) -> Answer:  # fmt: skip
-        """The surrogate's answer to this rank's n queries (0 too): query k asks table
-        ``tables[which[k]]`` at ``s[k]`` (n, 2), to the relative ``tolerance[k]`` (default: the
-        surrogate's own). Collective."""
-        n = len(which)
-        tol = np.full(n, self.tolerance) if tolerance is None else np.asarray(tolerance)
+        """Collective: :meth:`refine` for this rank's n queries (0 too), then the frozen
+        interpolant's answers and their estimates (:meth:`_estimates`)."""
+        solves = self.refine(tables, which, s, tolerance)
         ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
-        s = np.asarray(s, dtype=float).reshape(n, 2)
-        level = np.zeros(n, dtype=np.int64)
-        values: np.ndarray | None = None
-        estimates = np.zeros(n)
-        interpolated = np.zeros(n, dtype=bool)
-        pending = np.arange(n)
-        solves = 0
-        coarse = None  # the level's interpolant of the pending queries: the last round's fine
-        while self.comm.allreduce(len(pending), op=MPI.MAX):
-            sub = ids[pending]
-            corners = [_corners(s[pending], level[pending] + 1)]  # the fine level, then
-            if coarse is None:  # in the first round only, the coarse one
-                corners.append(_corners(s[pending], level[pending]))
-            found = [self._lookup(sub, points, weights) for points, weights in corners]
-            added = self._solve_points([p for _, missing in found for p in missing])
-            if added:  # the same count on every rank: the known points changed
-                found = [self._lookup(sub, points, weights) for points, weights in corners]
-            solves += added
-            table = self._index()[1]
-            fine_w = corners[0][1]
-            fine = _combine(fine_w, found[0][0], table)  # bilinear values
-            if coarse is None:
-                coarse = _combine(corners[1][1], found[1][0], table)
-            if values is None:
-                values = np.zeros((n, fine.shape[1]))
-            estimates[pending] = self.relative_difference(coarse, fine)
-            done = (estimates[pending] <= tol[pending]) | (level[pending] + 1 == MAX_LEVEL)
-            values[pending[done]] = fine[done]
-            interpolated[pending[done]] = fine_w[done].max(axis=1) < 1.0
-            level[pending[~done]] += 1
-            pending, coarse = pending[~done], fine[~done]
+        s = np.asarray(s, dtype=float).reshape(len(which), 2)
+        values, interpolated = self.interpolate_ids(ids, s)
+        estimates = self._estimates(ids, s, self._deepest(ids, s)[0]) if len(ids) else np.zeros(0)
         return Answer(values, estimates, interpolated, solves)
+
+    def squares(self) -> np.ndarray:
+        """The refined squares, what a resumed run needs to rebuild the interpolant: one row a
+        square (int64), ``[len(table), table padded with 0 to SQUARE_TABLE entries, level, i,
+        j]`` (its lower-left corner in finest integers), sorted."""
+        names = {v: k for k, v in self._table_ids.items()}
+        keys = np.array(sorted(self._refined), dtype=np.int64)
+        rows = np.zeros((len(keys), SQUARE_TABLE + 4), dtype=np.int64)
+        for r, key in enumerate(keys.tolist()):
+            table = names[key >> 46]
+            rows[r, 0], rows[r, 1 : 1 + len(table)] = len(table), table
+        rows[:, -3] = (keys >> 42) & 15
+        rows[:, -2], rows[:, -1] = ((keys >> 21) & _LOW) - _OFFSET, (keys & _LOW) - _OFFSET
+        return rows
+
+    def restore(self, rows: np.ndarray) -> int:
+        """Collective: refine the squares of :meth:`squares`'s rows (the same on every rank;
+        their points from :attr:`values` or solved). Returns the points solved."""
+        if not len(rows):  # the same on every rank
+            return 0
+        tables = [tuple(row[1 : 1 + row[0]]) for row in rows.tolist()]
+        self._register(tables)
+        ids = self._numbers(tables)
+        keys = self._square_key(ids, rows[:, -3], rows[:, -2:])
+        return self._refine_squares(np.unique(keys))
 
     def take_new_points(self) -> dict[Point, np.ndarray]:
         """The lattice values solved since the last call (for the on-disk cache)."""

@@ -399,6 +399,25 @@ MUTANTS = (
         (("factor = np.exp(-rate * np.asarray(cue_anisotropy, dtype=float) * dt)",
           "factor = np.exp(rate * np.asarray(cue_anisotropy, dtype=float) * dt)"),),
     ),
+    Mutant(
+        "surrogate_level_per_query", "plantgrowth/unitcell/surrogate.py", "wrong average",
+        "a lattice level chosen per query again (issue 33): only the hats of the query's own "
+        "chain of refined squares are summed (a square's hats count where at least 3 of its "
+        "corners are points of that level), the neighbours' finer points on its edges dropped",
+        (("values[alive] += _combine(np.where(built, weights, 0.0), rows, surplus)",
+          "values[alive] += _combine(np.where(built & (built.sum(axis=1, keepdims=True) >= 3), "
+          "weights, 0.0), rows, surplus)"),
+         ("alive = alive[built.any(axis=1)]", "alive = alive[built.sum(axis=1) >= 3]")),
+    ),
+    Mutant(
+        "director_not_periodic", "plantgrowth/unitcell/director_lattice.py",
+        "wrong law or integrator",
+        "the director's angle interpolated with the odd-count Dirichlet kernel "
+        "sin(N d) / (N sin d) through an even count of nodes: interpolating, but of period 360 "
+        "degrees and changing sign over 180 (issue 33, item 2)",
+        (("weights = np.sin(count * d) * np.cos(d) / (count * safe)",
+          "weights = np.sin(count * d) / (count * safe)"),),
+    ),
 )  # fmt: skip
 
 

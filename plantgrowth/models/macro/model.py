@@ -217,7 +217,8 @@ class MacroModel:
             parts |= self.water.state() | {"water_time": np.full((n, 1), self._time)}
         blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
-        return blocks | (root_blocks(newton, self.comm) if self.problem.finite else {})
+        whole = newton | self.homogenizer.state()  # the surrogate: the same on every rank
+        return blocks | root_blocks(whole if self.comm.rank == 0 else {}, self.comm)
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint (and the
@@ -241,6 +242,7 @@ class MacroModel:
             self.water.restore(state)
             self._water_dt = self.scene.time.dt
             self._time = float(state["water_time"].reshape(-1)[0])
+        self.homogenizer.restore(state)
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def end_step(self, dt: float) -> None:

@@ -67,8 +67,9 @@ HISTORY = 5
 """CG starts from the energy-norm projection onto the last 5 solutions (plantgrowth.models.
 solution_history): on the organ scene (2 ranks, 1e-8) 2-5 iterations a step at steps 4-15,
 against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is; 12-18 from
-step 16 on (two 60-step runs), where the surrogate's per-cell answers stop changing smoothly (docs/
-large_tissues.md, "Macro solve sized by accuracy")."""
+step 16 on (two 60-step runs), where the surrogate's per-cell answers stopped changing smoothly
+before issue 33's continuous surrogate (docs/large_tissues.md, "Macro solve sized by accuracy";
+not measured again)."""
 SERIAL_LU = "petsc"
 """The linear macro problem's LU on one rank: PETSc's own (nested-dissection ordering; the matrix
 is symmetric positive definite, so no pivoting is needed), MUMPS on several. On the reference

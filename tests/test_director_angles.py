@@ -1,0 +1,106 @@
+"""The trigonometric interpolant of the director's angle (issue 33, item 2).
+
+The angle nodes are driven by a smooth analytic map of the node angle (a stand-in for a fibred
+cell's tensors: period 180 degrees, E_hom-like values of size 1-3), so no cell is solved here;
+tests/test_cell_fibres.py checks the interpolant against CellSolver. Round-off: the weights are
+sums of O(1) products of sines of angles up to 6 pi, so 1e-12.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from plantgrowth.unitcell import director_lattice
+from plantgrowth.unitcell.surrogate import Answer
+
+ROUND_OFF = 1e-12
+FIBRED = (1, 2, 3, 4, 5, 6)  # a fibred table: more than 5 entries
+PLAIN = (1, 2, 3, 4, 5)
+
+
+def director_map(b: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Three smooth, 180-degree periodic positive quantities of the angle b (degrees) and the
+    stretch s (the role of a fibred cell's packed tensors), (n, 3)."""
+    theta = np.radians(2.0 * b)
+    return np.column_stack([
+        2.0 + np.cos(theta) + 0.2 * s[:, 0],
+        1.5 + 0.5 * np.sin(theta) * np.cos(theta),
+        1.0 / (1.2 + 0.6 * np.cos(theta - 0.3)) + s[:, 1],
+    ])  # fmt: skip
+
+
+def fake_evaluate(tables, which, s, tolerance) -> Answer:
+    """The stretch surrogate of a fibred node table (its 7th entry the angle index) or of an
+    isotropic table, answering the director map exactly."""
+    angles = np.array([
+        t[6] * director_lattice.ANGLE_STEP if len(t) > 6 else 0.0 for t in tables
+    ])[np.asarray(which, dtype=np.int64)]  # fmt: skip
+    n = len(angles)
+    return Answer(director_map(angles, np.reshape(s, (n, 2))), np.zeros(n), np.zeros(n, bool), 0)
+
+
+def difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(a - b, axis=-1) / np.linalg.norm(b, axis=-1)
+
+
+def interpolant(tolerance: float = 1e-3) -> director_lattice.DirectorInterpolant:
+    return director_lattice.DirectorInterpolant(fake_evaluate, difference, tolerance, MPI.COMM_SELF)
+
+
+@pytest.mark.parametrize("count", [12, 24, 96])
+def test_weights_are_periodic_interpolating_and_exact_for_trigonometric_polynomials(count):
+    """Cardinal functions: the same at b, b + 180 and b - 360 (round-off); l_j(b_k) = delta_jk;
+    they sum to 1; and they reproduce cos(k theta), sin(k theta) for k < N / 2 (theta = 2 pi b /
+    180) to round-off, which a piecewise-linear interpolant does not."""
+    b = np.random.default_rng(0).uniform(0.0, 180.0, 50)
+    w = director_lattice.trigonometric_weights(b, count)
+    for shifted in (b + 180.0, b - 360.0):
+        w2 = director_lattice.trigonometric_weights(shifted, count)
+        np.testing.assert_allclose(w2, w, rtol=0, atol=ROUND_OFF)
+    nodes = np.arange(count) * 180.0 / count
+    np.testing.assert_allclose(
+        director_lattice.trigonometric_weights(nodes, count), np.eye(count), atol=ROUND_OFF
+    )
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=0, atol=ROUND_OFF)
+    theta, theta_nodes = np.radians(2.0 * b), np.radians(2.0 * nodes)
+    for k in range(1, count // 2):
+        for f in (np.cos, np.sin):
+            np.testing.assert_allclose(w @ f(k * theta_nodes), f(k * theta), atol=1e-11)
+
+
+def test_answers_at_angle_and_angle_plus_180_are_the_same():
+    """A director is an axis: queries at b, b + 180 and b - 180 get the same answers (to
+    round-off), whatever the node count the table reached, and an isotropic query among them
+    is answered as it is."""
+    rng = np.random.default_rng(1)
+    b = rng.uniform(0.0, 180.0, 40)
+    s = rng.uniform(-0.2, 0.2, (40, 2))
+    angles = interpolant()
+    tables = [FIBRED, PLAIN]
+    which = np.r_[np.zeros(120, dtype=np.int64), 1]
+    answer = angles(tables, which, np.vstack([s, s, s, [[0.1, 0.0]]]),
+                    np.r_[b, b + 180.0, b - 180.0, 33.0])  # fmt: skip
+    values = answer.values
+    np.testing.assert_allclose(values[40:80], values[:40], rtol=0, atol=ROUND_OFF)
+    np.testing.assert_allclose(values[80:120], values[:40], rtol=0, atol=ROUND_OFF)
+    np.testing.assert_array_equal(values[120], director_map(np.zeros(1), np.array([[0.1, 0.0]]))[0])
+
+
+@pytest.mark.parametrize("tolerance", [1e-3, 1e-6])
+def test_node_count_is_refined_to_the_tolerance_and_is_one_per_table(tolerance):
+    """The table's node count doubles until the estimate (against every other node) is within
+    the tolerance for every query; the true error is then below it by far (spectral
+    convergence: measured 1.3e-7 with 24 nodes at 1e-3, 3e-14 with 48 at 1e-6). One count
+    serves all of the table's queries, so the answer is one smooth function of the angle."""
+    b = np.linspace(0.0, 180.0, 721)[:-1]
+    s = np.zeros((len(b), 2))
+    angles = interpolant(tolerance)
+    answer = angles([FIBRED], np.zeros(len(b), dtype=np.int64), s, b)
+    error = difference(answer.values, director_map(b, s)).max()
+    count = angles.count(FIBRED)
+    print(f"tolerance {tolerance:g}: {count} nodes, largest error {error:.2g}")
+    assert error <= tolerance
+    assert answer.estimates.max() <= tolerance
+    assert count <= (24 if tolerance > 1e-4 else 48)
