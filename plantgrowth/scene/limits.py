@@ -39,7 +39,7 @@ STRAIN_FIELDS = ("elastic_strain", "elastic_strain_tensor")
 """Elastic strain: largest principal magnitude, tensor (plantgrowth/models/elastic_strain.py)."""
 OUTPUT_FIELDS = (
     "u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", "stability", *GROWTH_FIELDS, *STRAIN_FIELDS,
-    "fibre_direction", "cue_anisotropy",
+    "fibre_direction", "cue_anisotropy", "P", "psi", "water_flux",
 )  # fmt: skip
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 DIRECTOR_OUTPUT = ("fibre_direction",)
