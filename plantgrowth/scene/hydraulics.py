@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 from plantgrowth.base.errors import SceneError
 from plantgrowth.scene.field_syntax import parse_field
 from plantgrowth.scene.fields import AnyField
-from plantgrowth.scene.limits import BIG, RANGES
+from plantgrowth.scene.limits import BIG, RANGES, WATER_FIELDS
 from plantgrowth.scene.values import check_keys, choice, in_range, show
 
 if TYPE_CHECKING:
@@ -288,4 +288,21 @@ def check_supported(model: str, integrator: str, kinematics: str) -> None:
         raise SceneError(
             "hydraulics: time.integrator = 'adaptive' re-solves steps at sub-step times, which "
             "the water's backward Euler step does not follow yet: use 'exp' or 'euler'"
+        )
+
+
+def check_water_fields(fields: tuple[str, ...], hydraulics: Hydraulics | None, model: str) -> None:
+    """SceneError for an ``[output] fields`` water field (P, psi, water_flux) that the run does
+    not write: they are the macro model's, with ``[hydraulics]``."""
+    asked = [name for name in fields if name in WATER_FIELDS]
+    if asked and (hydraulics is None or model != "macro"):
+        where = (
+            "the micro model writes each cell's P and psi in cells.csv"
+            if hydraulics is not None
+            else "give [hydraulics] (docs/usage.md, water fluxes) or remove them"
+        )
+        raise SceneError(
+            f"output.fields: {asked} are the macro model's water fields, written with "
+            f"[hydraulics] and model = 'macro' (this scene: model = {model!r}"
+            f"{'' if hydraulics is not None else ', no [hydraulics]'}); {where}"
         )

@@ -23,9 +23,6 @@ from plantgrowth.models.water_row import water_row
 from plantgrowth.scene.hydraulics import Hydraulics
 from plantgrowth.scene.regions import Region
 
-WATER_FIELDS = ("P", "psi", "water_flux")
-"""The fields of fields.xdmf a scene with ``[hydraulics]`` may ask for (macro model)."""
-
 
 class MacroWaterOutputs:
     """The water's fields and summary row of a macro run.
