@@ -11,7 +11,6 @@ COMM_WORLD (``runs``).
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import shutil
@@ -24,6 +23,7 @@ import h5py
 import numpy as np
 import pytest
 from mpi4py import MPI
+from test_macro_run import read_summary
 
 from plantgrowth.cli import main
 from plantgrowth.models.macro.hydraulics import cell_scale
@@ -81,18 +81,6 @@ fraction change by its 6% of area) and the 2D mechanics of growth that falls alo
 0.99 (docs/model.md, "Water fluxes")."""
 
 
-def scene_toml(tables: dict) -> str:
-    merged = {k: (dict(v) if isinstance(v, dict) else v) for k, v in BASE.items()}
-    for name, entries in tables.items():
-        merged.setdefault(name, {}).update(entries)
-    return dict_to_toml(merged)
-
-
-def read_summary(path: Path) -> list[dict[str, float]]:
-    with open(path, newline="") as f:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
-
-
 def read_fields(outdir: Path, step: int) -> dict[str, np.ndarray]:
     """Every field of one written step and the mesh's points, by name ("points", ...)."""
     with h5py.File(outdir / "fields.h5", "r") as f:
@@ -112,7 +100,7 @@ def runs(tmp_path_factory):
         if name not in done:
             path, outdir = root / f"{name}.toml", root / name
             if comm.rank == 0:
-                path.write_text(scene_toml(SCENES[name]))
+                path.write_text(dict_to_toml(BASE | SCENES[name]))  # tables replaced whole
             comm.Barrier()
             assert main(["run", str(path), "-o", str(outdir)]) == 0
             comm.Barrier()  # rank 0 writes the last summary row after the last collective
