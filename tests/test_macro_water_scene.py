@@ -28,6 +28,7 @@ from test_macro_run import read_summary
 from plantgrowth.cli import main
 from plantgrowth.models.macro.hydraulics import cell_scale
 from plantgrowth.models.micro.water import water_columns
+from plantgrowth.results.run_results import read_results
 from plantgrowth.runner.timeloop import summary_columns
 from plantgrowth.scene import load_scene, parse_scene
 from plantgrowth.scene.toml_text import dict_to_toml
@@ -222,3 +223,17 @@ def test_mpirun_reproduces_the_serial_summary(runs, name, tmp_path):
             if scale[column] > 0.0:
                 worst = max(worst, abs(b[column] - a[column]) / scale[column])
     print(f"{name}: largest relative serial-vs-mpirun difference {worst:.2e}")
+
+
+def test_render_and_the_field_table_read_P_and_psi_at_the_nodes(runs):
+    """P and psi are node fields (P1): the table has a row per node with the written values, and
+    render draws them (and the flux, a vector per triangle, as arrows)."""
+    _, outdir, rows = runs("two_supplies")
+    table = read_results(outdir).field_table("P")
+    f = read_fields(outdir, len(rows) - 1)
+    assert np.array_equal(table["node"], np.arange(len(f["points"])))
+    assert np.array_equal(table["P"], f["P"][:, 0])
+    for name in ("P", "psi", "water_flux"):  # collective: rank 0 draws
+        picture = outdir / f"{name}.png"
+        assert main(["render", str(outdir), "--field", name, "-o", str(picture), "--force"]) == 0
+        assert picture.stat().st_size > 0
