@@ -1,8 +1,8 @@
 """The macro model's water from a scene (docs/model.md, "Water fluxes"; docs/outputs.md):
 ``plantgrowth run`` of a TOML scene with ``[hydraulics]`` and ``model = "macro"``, its summary
 columns (the micro model's names), its fields P, psi and water_flux, serial against
-``mpirun -n 2``, and the hydraulic length of a tissue supplied on one edge (MODEL.md section 12,
-consequence 4).
+``mpirun -n 2``, and the hydraulic length of a tissue supplied on one edge (docs/model.md,
+"Water fluxes", consequence 4).
 
 Small scenes: the reference tissue with h = 0.35, H = 1, P2 cell meshes with one element across a
 wall, the exact cell path (cell_tolerance = 0); each scene runs once per module, in process on
@@ -162,7 +162,7 @@ def test_one_supplied_edge_decays_over_the_hydraulic_length(runs):
     """P(x1) = P(0) cosh((W - x1) / l) / cosh(W / l) for kappa P'' = phi_L (1 - phi_w) P (tau = 0,
     the right edge sealed): l = W / arccosh(P(0) / P(W)) from the mean P on the two edges at
     t = 15, against l_h = sqrt(kappa / (phi_L (1 - phi_w))), phi_L = 2 eta (1 - phi_w) / phi_w,
-    kappa = cell_scale L kappa_unit(I) (MODEL.md section 12, consequence 4)."""
+    kappa = cell_scale L kappa_unit(I) (docs/model.md, "Water fluxes")."""
     path, outdir, rows = runs("one_edge")
     scene = load_scene(path)
     cell = scene.cell.at(0.0, 0.0)

@@ -291,6 +291,14 @@ def check_supported(model: str, integrator: str, kinematics: str) -> None:
         )
 
 
+def turgor_input(scene: Any) -> AnyField | None:
+    """The turgor input of ``scene`` (a Scene) with ``[hydraulics]``, Pi (SceneError unless its
+    model solves water fluxes); None without; SceneError for a water field it does not write."""
+    osmotic = None if scene.hydraulics is None else scene.hydraulics.supported_by(scene)
+    check_water_fields(scene.output.fields, scene.hydraulics, scene.model)
+    return osmotic
+
+
 def check_water_fields(fields: tuple[str, ...], hydraulics: Hydraulics | None, model: str) -> None:
     """SceneError for an ``[output] fields`` water field (P, psi, water_flux) that the run does
     not write: they are the macro model's, with ``[hydraulics]``."""
