@@ -49,7 +49,8 @@ BASE = {
     "accuracy": {"cell_resolution": 1, "cell_tolerance": 0.0},
     "output": {"precision": "float64", "fields": ["u", "G", "P", "psi", "water_flux"]},
     "growth": {"law": "stress"},
-    "regions": {"near": {"expr": "x1 < 1"}, "far": {"expr": "x1 > 5.93"}},
+    "regions": {"near": {"expr": "x1 < 1"}, "far": {"expr": "x1 > 5.93"},
+                "everything": {"expr": "x2 > -1"}},
 }
 SCENES = {
     # an edge and a region supplied, the region's potential lowered at t = 2 (a drought)
@@ -127,6 +128,8 @@ def test_the_macro_summary_has_the_micro_models_water_columns(runs):
     for name in ("turgor_mean", "turgor_min", "turgor_max"):
         assert first[name] == pytest.approx(PI, rel=1e-12), name
     assert first["water_balance_error"] == 0.0 and first["inflow.edge.left"] == 0.0
+    for row in rows:  # a region's turgor: P's mean over its triangles (exact for P1)
+        assert row["everything.turgor_mean"] == pytest.approx(row["turgor_mean"], rel=1e-12)
 
 
 def test_the_water_balance_closes_to_round_off(runs):
@@ -188,6 +191,7 @@ def test_one_supplied_edge_decays_over_the_hydraulic_length(runs):
     assert drop / 1.2 < PI - left < drop
     # turgor and growth fall with the distance from the supply
     assert last["far.trG"] < 0.1 * last["near.trG"]
+    assert last["far.turgor_mean"] < 0.1 * last["near.turgor_mean"]
     columns, at = np.unique(np.round(x1, 9), return_inverse=True)  # the mesh's node columns
     column_means = np.bincount(at, P) / np.bincount(at)
     assert len(columns) > 10 and np.all(np.diff(column_means) < 0.0)
