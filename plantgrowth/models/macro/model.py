@@ -413,7 +413,7 @@ class MacroModel:
         means = comm.allreduce(means, op=MPI.SUM) / problem.total_area
         u1_max, u2_max = max_abs_components(problem.u, comm)
         det_min = float(det2(Fg[:n]).min()) if n else np.inf
-        turgor = None if self.water is None else problem.P1_cells[:n]  # the solved P
+        turgor = None if self.water_out is None else problem.P1_cells[:n]  # the solved P
         return {
             "area": comm.allreduce(area, op=MPI.SUM),
             "growth_rate_11": means[0],
