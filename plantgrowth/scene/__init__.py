@@ -86,6 +86,7 @@ inclined wall length l2 = 1)::
                                # [0, 0.1] (0: solve every distinct input exactly; surrogate.py)
     [micro]
     nx = 16                    # cells per row of the micro model, even integer in [2, 256]
+                               # (with [hydraulics], the macro model's cells: 4 / nx x [cell])
     resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
     [solver]                   # linear solvers: speed only, results agree to the solver tolerance
     macro = "auto"             # "direct" (LU), "iterative" (CG + AMG, true relative residual
