@@ -74,3 +74,10 @@ def conductance_form(p, q, Fg, kappa, L_r, dx, edges) -> ufl.Form:
     for L_s, ds in edges:
         H += edge_supply_form(p, q, Fg, L_s, n, ds)
     return H
+
+
+def darcy_flux(psi, Fg, kappa):
+    """``Q = -Jg Fg^{-1} kappa Fg^{-T} grad psi``: the water flux per unit reference length (the
+    grown frame's Darcy law carried back by the growth map's Piola transform)."""
+    Finv = ufl.inv(Fg)
+    return -ufl.det(Fg) * ufl.dot(Finv, ufl.dot(kappa, ufl.dot(Finv.T, ufl.grad(psi))))

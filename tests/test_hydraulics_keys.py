@@ -147,8 +147,30 @@ def test_hydraulics_with_what_cannot_take_it_is_refused(change, fragments):
         assert fragment in str(e.value)
 
 
-@pytest.mark.parametrize("model", ["macro", "both"])
-def test_models_without_water_refuse_a_hydraulic_scene(model):
-    text = f'model = "{model}"\n[growth]\nlaw = "stress"\n[hydraulics]\nconductivity = 1\n'
-    with pytest.raises(SceneError, match=f"hydraulics: model = '{model}' does not solve water"):
+@pytest.mark.parametrize(
+    "model, kinematics, message",
+    [("both", "linear", "hydraulics: model = 'both' does not solve water"),
+     ("macro", "finite", "hydraulics: model = 'macro' with kinematics = 'finite' does not solve")],
+)  # fmt: skip
+def test_models_without_water_refuse_a_hydraulic_scene(model, kinematics, message):
+    text = (f'model = "{model}"\nkinematics = "{kinematics}"\n[growth]\nlaw = "stress"\n'
+            "[hydraulics]\nconductivity = 1\n")  # fmt: skip
+    with pytest.raises(SceneError, match=message):
         parse(text)
+
+
+def test_the_macro_model_with_linear_kinematics_takes_a_hydraulic_scene():
+    scene = parse('model = "macro"\n[growth]\nlaw = "stress"\n[hydraulics]\nconductivity = 1\n')
+    assert scene.hydraulics is not None and scene.model == "macro"
+
+
+@pytest.mark.parametrize(
+    "model, water, fragment",
+    [("macro", False, "no [hydraulics]"), ("micro", True, "cells.csv")],
+)
+def test_water_fields_need_the_macro_model_with_hydraulics(model, water, fragment):
+    text = f'model = "{model}"\n[growth]\nlaw = "stress"\n[output]\nfields = ["u", "psi"]\n'
+    text += "[hydraulics]\nconductivity = 1\n" if water else ""
+    with pytest.raises(SceneError, match=r"output.fields: \['psi'\]") as e:
+        parse(text)
+    assert fragment in str(e.value)

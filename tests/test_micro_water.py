@@ -160,6 +160,9 @@ def test_the_water_balance_closes_to_round_off(kinematics, mpi_tmp_path):
     supplied = rows[4]["inflow.edge.left"] + rows[4]["inflow.region.strand"]
     assert last["inflow"].sum() == pytest.approx(supplied, rel=1e-10, abs=1e-16)
     np.testing.assert_allclose(last["psi"], last["P"] - 0.001, rtol=0, atol=1e-18)
+    strand = last["x1_ref"] > 5  # the region's cells (by centre), weighted by reference area
+    expected = np.average(last["P"][strand], weights=last["area_ref"][strand])
+    assert rows[4]["strand.turgor_mean"] == pytest.approx(expected, rel=1e-12)
 
 
 @pytest.mark.mpi

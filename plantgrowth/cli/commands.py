@@ -123,8 +123,8 @@ def compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     scene.check_micro()
     if scene.hydraulics is not None:
         raise SceneError(
-            "hydraulics: plantgrowth compare runs the macro model, which does not solve water "
-            "fluxes yet (docs/model.md, water fluxes); run the scene with plantgrowth run"
+            "hydraulics: plantgrowth compare does not solve water fluxes yet (docs/model.md, "
+            "water fluxes); run the scene with plantgrowth run (model = 'micro' or 'macro')"
         )
     for nx in args.nx:  # the cheap checks of every Nx first
         layout = TissueLayout(scene_cell(scene), check_nx("--nx", nx))

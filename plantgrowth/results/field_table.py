@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from plantgrowth.base.errors import InputError
+from plantgrowth.results.reader import NODE_FIELDS
 
 ALL_TIMES = "all"
 """``time`` of every written time (a long table)."""
@@ -40,7 +41,7 @@ def rows_at(
     """The table of one written time: ``values`` of the field ``name`` per node (``u``) or per
     triangle, on the mesh ``points`` (N, 2), ``triangles`` (M, 3), moved by ``u`` (N, 2) if
     given."""
-    on_nodes = name == "u"
+    on_nodes = name in NODE_FIELDS
     place = points if on_nodes else points[triangles].mean(axis=1)
     n = len(place)
     table = {"step": np.full(n, step, dtype=np.int64), "t": np.full(n, float(t)),

@@ -40,6 +40,8 @@ import numpy as np
 COMPONENTS = ("11", "12", "21", "22", "tr", "det")
 """Reductions of a 2D tensor field accepted by :meth:`ResultSeries.cell_field`."""
 _INDEX = {"11": 0, "12": 1, "21": 3, "22": 4}  # row-major positions in the padded 3 x 3
+NODE_FIELDS = ("u", "P", "psi")
+"""The fields written at the fine mesh's nodes (docs/outputs.md); the others are per triangle."""
 
 
 @dataclass
@@ -77,6 +79,17 @@ class ResultSeries:
     def displacement(self, t: float) -> np.ndarray:
         """The displacement u at the nodes at time t, (N, 2)."""
         return self._read("u", t)[:, :2]
+
+    def field(self, name: str, t: float) -> np.ndarray:
+        """The field at time t as :meth:`displacement`, :meth:`node_field` or
+        :meth:`cell_field` (raw tensors) read it, by where it was written."""
+        if name == "u":
+            return self.displacement(t)
+        return self.node_field(name, t) if name in NODE_FIELDS else self.cell_field(name, t)
+
+    def node_field(self, name: str, t: float) -> np.ndarray:
+        """A scalar field of the fine mesh's nodes (:data:`NODE_FIELDS`) at time t, (N,)."""
+        return self._read(name, t).reshape(len(self.points))
 
     def cell_field(self, name: str, t: float, component: str | None = None) -> np.ndarray:
         """A DG0 field at time t, one value (or row) per triangle.

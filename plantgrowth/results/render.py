@@ -30,7 +30,13 @@ from plantgrowth.base.errors import InputError
 from plantgrowth.results.fibre_glyphs import draw_fibres
 from plantgrowth.results.field_hints import bad_component, missing_field
 from plantgrowth.results import output_file
-from plantgrowth.results.reader import COMPONENTS, ResultSeries, boundary_outline, read_series
+from plantgrowth.results.reader import (
+    COMPONENTS,
+    NODE_FIELDS,
+    ResultSeries,
+    boundary_outline,
+    read_series,
+)
 from plantgrowth.results.region_outlines import region_outlines
 
 VECTOR_COMPONENTS = ("1", "2", "norm")
@@ -134,8 +140,8 @@ def field_values(
 ) -> tuple[np.ndarray, bool]:
     """(values, on nodes): (n,) for a scalar or a component, (n, 2) for a vector."""
     check_field(series, name)
-    on_nodes = name == "u"
-    data = series.displacement(t) if on_nodes else series.cell_field(name, t)
+    on_nodes = name in NODE_FIELDS
+    data = series.field(name, t)
     if data.ndim == 2 and data.shape[1] == 9:
         if component not in COMPONENTS:
             raise RenderError(bad_component(name, "tensor", component, COMPONENTS))

@@ -79,7 +79,7 @@ class Results:
 
     def field_table(self, name: str, time: float | str | None = None) -> dict[str, np.ndarray]:
         """The field ``name`` as a table (what ``plantgrowth export`` writes; docs/api.md): one
-        row per triangle (cell fields) or node (``u``) and written time, as one array per
+        row per triangle (cell fields) or node (``u``, ``P``, ``psi``) and written time, as one array per
         column: ``step``, ``t``, ``triangle`` or ``node``, the reference ``x1``, ``x2`` of the
         row's centroid or node, its deformed ``x1_deformed``, ``x2_deformed`` (+ u; without a
         written u, left out), then the field's components (``G_11``, ``G_12``, ``G_21``,
@@ -133,7 +133,7 @@ def read_field(series: ResultSeries, name: str, t: float) -> np.ndarray:
         raise InputError(f"field {name!r} was not written in {series.directory} "
                          f"(written: {', '.join(series.names)})")  # fmt: skip
     try:
-        data = series.displacement(t) if name == "u" else series.cell_field(name, t)
+        data = series.field(name, t)
     except KeyError:  # this field's index lags the others' (a run still going)
         raise InputError(f"field {name!r} has no output at t = {t:g} in {series.directory} "
                          "yet (its index lags a step behind)") from None  # fmt: skip

@@ -67,7 +67,8 @@ def summary_columns(scene: Scene) -> list[str]:
     loads = LOAD_COLUMNS if scene.loads and scene.pinned else []
     held = HELD_COLUMNS if scene.supports else []
     fibres = FIBRE_COLUMNS if scene.has_director else []
-    regions, water = region_columns(scene.regions), water_columns(scene.hydraulics)
+    water = water_columns(scene.hydraulics)
+    regions = region_columns(scene.regions, scene.hydraulics is not None)
     return SUMMARY_COLUMNS + newton + loads + held + fibres + regions + water
 
 

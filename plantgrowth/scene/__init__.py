@@ -86,6 +86,7 @@ inclined wall length l2 = 1)::
                                # [0, 0.1] (0: solve every distinct input exactly; surrogate.py)
     [micro]
     nx = 16                    # cells per row of the micro model, even integer in [2, 256]
+                               # (with [hydraulics], the macro model's cells: 4 / nx x [cell])
     resolution = 2             # P2 elements across one cell's own wall, integer in [1, 64]
     [solver]                   # linear solvers: speed only, results agree to the solver tolerance
     macro = "auto"             # "direct" (LU), "iterative" (CG + AMG, true relative residual
@@ -121,7 +122,8 @@ inclined wall length l2 = 1)::
                                # Both models read [walls] and [feedback] (macro output
                                # "fibre_direction", micro cells.csv "fibre_angle": the director)
     [hydraulics]               # water fluxes (none by default: turgor is pressure.P1), micro
-    osmotic = 0.001            # model only, exp or euler integrator (docs/model.md, water fluxes):
+    osmotic = 0.001            # or macro (linear kinematics; its cells are those of micro.nx),
+                               # exp or euler integrator (docs/model.md, water fluxes):
     conductivity = 1.0         # Pi, a field >= 0, replaces pressure.P1 (not with it); L, a field
     initial_potential = 0.0    # >= 0, required; psi_0: every cell starts at P = Pi + psi_0
     [[hydraulics.supply]]      # any number: edge = "left" | "right" | "top" (an outline's or

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 from plantgrowth.base.errors import SceneError
 from plantgrowth.scene.field_syntax import parse_field
 from plantgrowth.scene.fields import AnyField
-from plantgrowth.scene.limits import BIG, RANGES
+from plantgrowth.scene.limits import BIG, RANGES, WATER_FIELDS
 from plantgrowth.scene.values import check_keys, choice, in_range, show
 
 if TYPE_CHECKING:
@@ -121,7 +121,7 @@ class Hydraulics:
     def supported_by(self, scene: Any) -> AnyField:
         """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its model solves water
         fluxes (:func:`check_supported`)."""
-        check_supported(scene.model, scene.time.integrator)
+        check_supported(scene.model, scene.time.integrator, scene.kinematics)
         return self.osmotic
 
     def regions(self) -> list[Supply]:
@@ -269,17 +269,48 @@ def hydraulics_from(
     return Hydraulics(osmotic, conductivity, psi0, tuple(supplies))
 
 
-def check_supported(model: str, integrator: str) -> None:
-    """SceneError unless the run can solve water fluxes: the micro model (either kinematics)
-    with a fixed step (the water state advances once per step)."""
-    if model != "micro":
+def check_supported(model: str, integrator: str, kinematics: str) -> None:
+    """SceneError unless the run can solve water fluxes: the micro model (either kinematics) or
+    the macro model (linear kinematics), with a fixed step (the water advances once per step)."""
+    if model not in ("micro", "macro"):
         raise SceneError(
             f"hydraulics: model = {model!r} does not solve water fluxes yet "
-            "(docs/model.md, water fluxes): only model = 'micro' does; remove [hydraulics] "
-            "(and give pressure.P1) to run the macro model"
+            "(docs/model.md, water fluxes): model = 'micro' or 'macro' does; run the two "
+            "models as separate scenes"
+        )
+    if model == "macro" and kinematics != "linear":
+        raise SceneError(
+            f"hydraulics: model = 'macro' with kinematics = {kinematics!r} does not solve water "
+            "fluxes yet (docs/model.md, water fluxes): use kinematics = 'linear', or model = "
+            "'micro'"
         )
     if integrator == "adaptive":
         raise SceneError(
             "hydraulics: time.integrator = 'adaptive' re-solves steps at sub-step times, which "
             "the water's backward Euler step does not follow yet: use 'exp' or 'euler'"
+        )
+
+
+def turgor_input(scene: Any) -> AnyField | None:
+    """The turgor input of ``scene`` (a Scene) with ``[hydraulics]``, Pi (SceneError unless its
+    model solves water fluxes); None without; SceneError for a water field it does not write."""
+    osmotic = None if scene.hydraulics is None else scene.hydraulics.supported_by(scene)
+    check_water_fields(scene.output.fields, scene.hydraulics, scene.model)
+    return osmotic
+
+
+def check_water_fields(fields: tuple[str, ...], hydraulics: Hydraulics | None, model: str) -> None:
+    """SceneError for an ``[output] fields`` water field (P, psi, water_flux) that the run does
+    not write: they are the macro model's, with ``[hydraulics]``."""
+    asked = [name for name in fields if name in WATER_FIELDS]
+    if asked and (hydraulics is None or model != "macro"):
+        where = (
+            "the micro model writes each cell's P and psi in cells.csv"
+            if hydraulics is not None
+            else "give [hydraulics] (docs/usage.md, water fluxes) or remove them"
+        )
+        raise SceneError(
+            f"output.fields: {asked} are the macro model's water fields, written with "
+            f"[hydraulics] and model = 'macro' (this scene: model = {model!r}"
+            f"{'' if hydraulics is not None else ', no [hydraulics]'}); {where}"
         )

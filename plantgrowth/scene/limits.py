@@ -37,9 +37,12 @@ GROWTH_FIELDS = ("trG", "growth_anisotropy", "growth_direction", "stress_directi
 """Outputs derived from G and sigma_hom (plantgrowth/models/growth_fields.py, docs/outputs.md)."""
 STRAIN_FIELDS = ("elastic_strain", "elastic_strain_tensor")
 """Elastic strain: largest principal magnitude, tensor (plantgrowth/models/elastic_strain.py)."""
+WATER_FIELDS = ("P", "psi", "water_flux")
+"""The macro model's water fields (scenes with ``[hydraulics]``): turgor, water potential, the
+Darcy flux (plantgrowth/models/macro/water_outputs.py, docs/outputs.md)."""
 OUTPUT_FIELDS = (
     "u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", "stability", *GROWTH_FIELDS, *STRAIN_FIELDS,
-    "fibre_direction", "cue_anisotropy",
+    "fibre_direction", "cue_anisotropy", *WATER_FIELDS,
 )  # fmt: skip
 DEFAULT_OUTPUT = ("u", "Fg", "G", "sigma_hom", "E_hom")
 DIRECTOR_OUTPUT = ("fibre_direction",)

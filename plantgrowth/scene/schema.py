@@ -92,8 +92,8 @@ class Scene:
     def __post_init__(self) -> None:
         choice("model", self.model, MODELS)
         choice("kinematics", self.kinematics, KINEMATICS)
-        if self.hydraulics is not None:  # Pi is the turgor input (docs/model.md, water fluxes)
-            set_fields(self, P1=self.hydraulics.supported_by(self))
+        if (osmotic := water.turgor_input(self)) is not None:  # Pi (docs/model.md, water fluxes)
+            set_fields(self, P1=osmotic)
         if self.feedback is not None and (self.walls is None or self.walls.fibre_angle is None):
             raise SceneError(
                 "feedback: [feedback] turns the fibre director, but the scene has no fibres: give "

@@ -99,6 +99,13 @@ class MacroHydraulics:
             raise InputError(f"an edge is supplied twice: {names}")
 
 
+def cell_scale(nx: int) -> float:
+    """The real cells' size over the scene's cell for a scene whose cells are those of its micro
+    tissue, ``micro.nx = nx`` cells across: ``delta_s = 4 / nx`` (docs/model.md section 7 and
+    "The cells' size")."""
+    return 4.0 / nx
+
+
 def from_scene(
     water: Hydraulics, regions: Mapping[str, Region], cell_scale: float
 ) -> MacroHydraulics:

@@ -41,10 +41,11 @@ from plantgrowth.models.macro.boundary import Boundary
 from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
 from plantgrowth.models.macro.director import MacroDirector
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
-from plantgrowth.models.macro.hydraulics import MacroHydraulics
+from plantgrowth.models.macro.hydraulics import MacroHydraulics, cell_scale, from_scene
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.models.macro.resolution import field_sampling
 from plantgrowth.models.macro.water import MacroWater
+from plantgrowth.models.macro.water_outputs import MacroWaterOutputs
 from plantgrowth.models.regions import RegionStatistics
 from plantgrowth.models.step import (
     SideMesh,
@@ -129,6 +130,11 @@ class MacroModel:
             raise InputError("water fluxes: time.integrator must be 'euler' or 'exp'")
         self.problem = problem = MacroProblem(scene, mesh, boundary)
         self.water = None if hydraulics is None else MacroWater(problem, hydraulics)
+        self.water_out = None  # the water's fields and summary row: a scene's [hydraulics]
+        if self.water is not None and scene.hydraulics is not None:
+            self.water_out = MacroWaterOutputs(
+                self.water, scene.hydraulics, scene.regions, scene.output.fields
+            )
         self._water_dt: float | None = None  # the step the next solve advances the water by
         self._time = 0.0  # the time the next solve reaches (the supplies' potentials)
         self.mesh = problem.mesh
@@ -173,7 +179,7 @@ class MacroModel:
         self._fibre_row: dict[str, float] = {}  # the last step's fibre_order, fibre_angle_mean
         self.outputs = self.out.functions + (
             [] if self.director is None else self.director.functions
-        )  # fmt: skip
+        ) + ([] if self.water_out is None else self.water_out.functions)  # fmt: skip
         self.side_output = coarse_output(self.grid, scene.output.fields)
         self.cell_table = None  # per-cell rows (cells.csv): micro only
         self.output_space = problem.V
@@ -240,6 +246,8 @@ class MacroModel:
             self.director.angle = state["fibre_angle"][index].reshape(-1)
         if self.water is not None:  # the saved step ended with end_step(dt)
             self.water.restore(state)
+            if self.water_out is not None:
+                self.water_out.restored()
             self._water_dt = self.scene.time.dt
             self._time = float(state["water_time"].reshape(-1)[0])
         self.homogenizer.restore(state)
@@ -377,6 +385,8 @@ class MacroModel:
             report = self.water.start()
         else:
             report = self.water.step(self._water_dt, self._time)
+        if self.water_out is not None:
+            self.water_out.update(self._water_dt, self._time)
         return report, self.problem.P1_cells  # set by the water solve
 
     def _ellipticity(self, grad_u: np.ndarray, Fg: np.ndarray) -> stability.Ellipticity:
@@ -405,6 +415,7 @@ class MacroModel:
         means = comm.allreduce(means, op=MPI.SUM) / problem.total_area
         u1_max, u2_max = max_abs_components(problem.u, comm)
         det_min = float(det2(Fg[:n]).min()) if n else np.inf
+        turgor = None if self.water_out is None else problem.P1_cells[:n]  # the solved P
         return {
             "area": comm.allreduce(area, op=MPI.SUM),
             "growth_rate_11": means[0],
@@ -413,8 +424,9 @@ class MacroModel:
             "u1_max": u1_max,
             "u2_max": u2_max,
             "det_Fg_min": comm.allreduce(det_min, op=MPI.MIN),
-            **self.regions.measures(current, G[:n], self.strain_magnitudes),
+            **self.regions.measures(current, G[:n], self.strain_magnitudes, turgor),
             **self._fibre_row,
+            **({} if self.water_out is None else self.water_out.row),
         }
 
 
@@ -424,5 +436,10 @@ def macro_model(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroMod
 
 
 def model_on(domain: MacroDomain, comm: MPI.Comm) -> MacroModel:
-    """The MacroModel of a domain (its scene, mesh and boundary)."""
-    return MacroModel(domain.scene, domain.mesh, comm, domain.boundary)
+    """The MacroModel of a domain (its scene, mesh and boundary; the scene's ``[hydraulics]``
+    with the cells of its micro tissue, :func:`cell_scale`)."""
+    scene = domain.scene
+    water = None
+    if scene.hydraulics is not None:
+        water = from_scene(scene.hydraulics, scene.regions, cell_scale(scene.micro_nx))
+    return MacroModel(scene, domain.mesh, comm, domain.boundary, water)

@@ -16,6 +16,7 @@ from plantgrowth.models.micro.turgor_newton import TurgorNewton
 from plantgrowth.models.micro.turgor_solve import ElasticParts, TurgorSolve
 from plantgrowth.models.micro.water import CellWater
 from plantgrowth.models.newton import NewtonSolver
+from plantgrowth.models.water_row import water_row
 from plantgrowth.scene import Scene
 
 
@@ -66,9 +67,5 @@ def water_measures(turgor: TurgorSolve, weights: np.ndarray) -> dict[str, float]
     the water held; the water balance error (what came in over the step minus the change of the
     water held: 0 at t = 0); each supply's inflow rate."""
     state = turgor.last
-    row = {
-        "turgor_mean": float(weights @ state.P), "turgor_min": float(state.P.min()),
-        "turgor_max": float(state.P.max()), "water": float(state.water.sum()),
-        "water_balance_error": turgor.balance_error,
-    }  # fmt: skip
-    return row | {f"inflow.{label}": value for label, value in state.supplied.items()}
+    turgor_range = (weights @ state.P, state.P.min(), state.P.max())
+    return water_row(turgor_range, state.water.sum(), turgor.balance_error, state.supplied)

@@ -491,7 +491,8 @@ class MicroModel:
             "u1_max": u1_max,
             "u2_max": u2_max,
             "det_Fg_min": float(np.linalg.det(Fg).min()),
-            **self.regions.measures(self.outlines.area, G, self.strain_magnitudes),
+            **self.regions.measures(self.outlines.area, G, self.strain_magnitudes,
+                                    None if self.turgor is None else self.turgor.last.P),
             **fibre_row,
             **({} if self.turgor is None else water_measures(self.turgor, weights)),
         }
