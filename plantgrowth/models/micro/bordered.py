@@ -39,9 +39,10 @@ def _csr_rows(A: PETSc.Mat, X: sparse.csc_matrix, Y: sparse.csc_matrix, C: np.nd
     indptr, indices, values = A.getValuesCSR()
     shape = (len(indptr) - 1, n_u + len(C))
     X = X.tocoo()
-    top = sparse.csr_matrix((values, indices, indptr), shape) + sparse.csr_matrix(
-        (X.data, (X.row, n_u + X.col)), shape
-    )
+    top = sparse.hstack([  # A's explicit zeros kept: its pattern is the same at every step
+        sparse.csr_matrix((values, indices, indptr), (shape[0], n_u)),
+        sparse.csr_matrix((X.data, (X.row, X.col)), (shape[0], len(C))),
+    ], format="csr")  # fmt: skip
     Y = Y.tocoo()
     gathered = comm.gather((start + Y.row, Y.col, Y.data), root=comm.size - 1)
     if _cell_rows(comm, len(C)) == 0:

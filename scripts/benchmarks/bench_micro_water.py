@@ -1,0 +1,92 @@
+"""Cost of the micro model's water fluxes (issue 35: a hydraulic scene at ``balanced`` costs at
+most 2x the same scene with turgor given): the same micro scene (stress law, preset
+``balanced``) run with ``P1 = Pi + psi_0`` given and with ``[hydraulics]`` (osmotic Pi, initial
+potential psi_0, every edge supplied at psi_0), side by side on one machine, at each Nx and
+kinematics.
+
+Runs ``plantgrowth run`` as whole processes, given then water, per case; records summary.csv's
+per-step seconds (step 0, the initial equilibrium, apart: it solves the given turgor either
+way), their medians over the later steps and the ratio water / given of those medians, with the
+machine and the load average. Writes ``benchmarks/results/micro_water_cost.json``.
+
+    python scripts/benchmarks/bench_micro_water.py [--nx 8 16] [--steps 3]
+        [--kinematics linear finite]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from plantgrowth.base.machine import machine_description
+from plantgrowth.scene.toml_text import dict_to_toml
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "benchmarks/results/micro_water_cost.json"
+PI, PSI0 = 0.0012, -0.0002
+"""Osmotic pressure and initial water potential: turgor Pi + psi_0 = 0.001 in both scenes."""
+
+
+def scene(nx: int, steps: int, kinematics: str, water: bool) -> dict:
+    """The micro scene with the turgor given (``water`` False) or from the water."""
+    data = {"model": "micro", "kinematics": kinematics, "growth": {"law": "stress"},
+            "time": {"t_max": float(steps), "dt": 1.0}, "micro": {"nx": nx},
+            "accuracy": {"preset": "balanced"}}  # fmt: skip
+    if not water:
+        return data | {"pressure": {"P1": PI + PSI0}}
+    supply = [{"edge": e, "conductance": 1.0, "potential": PSI0} for e in ("left", "right", "top")]
+    hydraulics = {"osmotic": PI, "conductivity": 1.0, "initial_potential": PSI0, "supply": supply}
+    return data | {"hydraulics": hydraulics}
+
+
+def step_seconds(data: dict) -> list[float]:
+    """summary.csv's seconds of each step of one ``plantgrowth run`` of the scene data."""
+    exe = Path(sys.executable).with_name("plantgrowth")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "scene.toml"
+        path.write_text(dict_to_toml(data))
+        env = os.environ | {"PLANTGROWTH_CACHE_DIR": "off"}
+        subprocess.run([exe, "run", str(path), "-o", f"{tmp}/o"], check=True,
+                       capture_output=True, env=env)  # fmt: skip
+        with open(Path(tmp) / "o/summary.csv", newline="") as f:
+            return [float(row["seconds"]) for row in csv.DictReader(f)]
+
+
+def case(nx: int, steps: int, kinematics: str) -> dict:
+    """Given and water runs of one case, their per-step seconds and the ratio of the medians
+    over steps 1.. (the water steps)."""
+    out = {}
+    for name, water in (("given", False), ("water", True)):
+        seconds = step_seconds(scene(nx, steps, kinematics, water))
+        out[name] = {"step_seconds": seconds, "median_seconds": statistics.median(seconds[1:])}
+        print(nx, kinematics, name, seconds, flush=True)
+    out["ratio"] = out["water"]["median_seconds"] / out["given"]["median_seconds"]
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--nx", type=int, nargs="+", default=[8, 16])
+    parser.add_argument("--steps", type=int, default=3)
+    parser.add_argument("--kinematics", nargs="+", default=["linear", "finite"])
+    args = parser.parse_args(argv)
+    cases = {}
+    for kinematics in args.kinematics:
+        for nx in args.nx:
+            cases[f"{kinematics}_nx{nx}"] = case(nx, args.steps, kinematics)
+            print(kinematics, nx, "ratio", round(cases[f"{kinematics}_nx{nx}"]["ratio"], 3))
+    result = {"machine": machine_description(), "load_average": os.getloadavg(),
+              "steps": args.steps, "cases": cases}  # fmt: skip
+    OUT.write_text(json.dumps(result, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
