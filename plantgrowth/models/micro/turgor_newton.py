@@ -25,7 +25,8 @@ from mpi4py import MPI
 from plantgrowth.base.errors import RunError
 from plantgrowth.models import diagnostics
 from plantgrowth.models.micro.bordered import BorderedSolve
-from plantgrowth.models.micro.turgor_solve import ElasticParts, WaterSteps, cell_columns
+from plantgrowth.models.micro.cell_columns import CellColumns
+from plantgrowth.models.micro.turgor_solve import ElasticParts, WaterSteps
 from plantgrowth.models.micro.water import CellWater
 from plantgrowth.models.newton import NEWTON_MAX_IT, NEWTON_RTOL, NewtonReport, NewtonSolver
 
@@ -44,19 +45,19 @@ class TurgorNewton(WaterSteps):
         P: the turgor per cell (DG0) the residual reads.
         load_column, area_column: one cell's ``F_c`` and ``D_c`` (cell given by ``indicator``);
         area: one cell's enclosed area V_c (a scalar form, same indicator).
+        columns: splits a form in ``indicator`` into one column per cell.
         water: the water network; dt: the step.
     """
 
     def __init__(
         self, newton: NewtonSolver, parts: ElasticParts, P: fem.Function, load_column: fem.Form,
-        area_column: fem.Form, area: fem.Form, indicator: fem.Function, water: CellWater,
-        dt: float,
+        area_column: fem.Form, area: fem.Form, indicator: fem.Function, columns: CellColumns,
+        water: CellWater, dt: float,
     ) -> None:  # fmt: skip
         super().__init__(water, dt)
         self.newton, self.parts, self.P_function = newton, parts, P
         self.load_column, self.area_column, self.area = load_column, area_column, area
-        self.indicator = indicator
-        self.vector = fem.petsc.create_vector(load_column)
+        self.indicator, self.columns = indicator, columns
         self.bordered = BorderedSolve(newton.A, water.n, parts.comm, "plantgrowth_micro_water_")
 
     def _areas(self) -> np.ndarray:
@@ -114,9 +115,7 @@ class TurgorNewton(WaterSteps):
         newton.A.zeroEntries()
         fem.petsc.assemble_matrix(newton.A, newton.J, bcs=parts.bcs)
         newton.A.assemble()
-        n = self.water.n
-        F = cell_columns(self.load_column, self.vector, self.indicator, parts, n)
-        D = cell_columns(self.area_column, self.vector, self.indicator, parts, n)
+        F, D = self.columns(self.load_column), self.columns(self.area_column)
         du = newton.du
         dP, report = self.bordered.solve(F, D, self.dt * H, newton.b, R_w, du)
         parts.u.vector.axpy(-1.0, du)

@@ -26,6 +26,7 @@ from scipy import sparse
 
 from plantgrowth.models.linear import SolveReport, relative_residual
 from plantgrowth.models.micro.bordered import BorderedSolve
+from plantgrowth.models.micro.cell_columns import CellColumns
 from plantgrowth.models.micro.water import CellWater, WaterState, lumen_offset
 
 
@@ -50,30 +51,6 @@ class ElasticParts:
     bcs: list
     set_cells: Callable[[fem.Function, np.ndarray], None]
     comm: MPI.Comm
-
-
-def cell_columns(
-    form: fem.Form, vector: PETSc.Vec, indicator: fem.Function, parts: ElasticParts, n: int
-) -> sparse.csc_matrix:
-    """(owned dofs, n): this rank's rows of ``form`` assembled for each cell c with
-    ``indicator`` its DG0 indicator, zero on the Dirichlet dofs (collective)."""
-    rows, cols, values = [], [], []
-    for c in range(n):
-        parts.set_cells(indicator, np.eye(1, n, c)[0])
-        with vector.localForm() as local:
-            local.set(0.0)
-        fem.petsc.assemble_vector(vector, form)
-        # membrane facets next to a ghost cell: their share goes to the owner
-        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem.petsc.set_bc(vector, parts.bcs)
-        nonzero = np.flatnonzero(vector.array)
-        rows.append(nonzero)
-        cols.append(np.full(len(nonzero), c))
-        values.append(vector.array[nonzero])
-    return sparse.csc_matrix(
-        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
-        (len(vector.array), n),
-    )
 
 
 class WaterSteps:
@@ -111,20 +88,19 @@ class TurgorSolve(WaterSteps):
 
     Args:
         parts: the walls' problem.
-        column: the form of one cell's membrane pressure load, ``indicator`` its cell's DG0
-            indicator.
+        column: the form of the membrane pressure load of the cells ``columns``' indicator
+            marks; columns: splits it into one column per cell.
         water: the water network; lumen_area: (n,) the cells' reference lumen areas.
         dt: the step.
     """
 
     def __init__(
-        self, parts: ElasticParts, column: fem.Form, indicator: fem.Function, water: CellWater,
+        self, parts: ElasticParts, column: fem.Form, columns: CellColumns, water: CellWater,
         lumen_area: np.ndarray, dt: float,
     ) -> None:  # fmt: skip
         super().__init__(water, dt)
-        self.parts, self.column, self.indicator = parts, column, indicator
+        self.parts, self.column, self.columns = parts, column, columns
         self.lumen_area = lumen_area
-        self.vector = fem.petsc.create_vector(column)
         self.bordered = BorderedSolve(parts.A, water.n, parts.comm, "plantgrowth_micro_water_")
 
     def _lumen_terms(self, B: sparse.csc_matrix) -> np.ndarray:
@@ -136,7 +112,7 @@ class TurgorSolve(WaterSteps):
         (docs/model.md, water fluxes), each later one the backward Euler step from the water
         committed last."""
         parts, water = self.parts, self.water
-        B = cell_columns(self.column, self.vector, self.indicator, parts, water.n)
+        B = self.columns(self.column)
         parts.assemble()
         V0 = lumen_offset(self.lumen_area, Fg)
         if self.held is None:
