@@ -5,8 +5,9 @@ potential psi_0, every edge supplied at psi_0), side by side on one machine, at 
 kinematics.
 
 Runs ``plantgrowth run`` as whole processes, given then water, per case; records summary.csv's
-per-step seconds (step 0, the initial equilibrium, apart: it solves the given turgor either
-way), their medians over the later steps and the ratio water / given of those medians, with the
+per-step seconds, seconds_solve and Newton iterations (step 0, the initial equilibrium, apart: it
+solves the given turgor either way), the medians of the seconds over the later steps and the
+ratio water / given of those medians (finite kinematics: also per Newton iteration), with the
 machine and the load average. Writes ``benchmarks/results/micro_water_cost.json``.
 
     python scripts/benchmarks/bench_micro_water.py [--nx 8 16] [--steps 3]
@@ -46,8 +47,9 @@ def scene(nx: int, steps: int, kinematics: str, water: bool) -> dict:
     return data | {"hydraulics": hydraulics}
 
 
-def step_seconds(data: dict) -> list[float]:
-    """summary.csv's seconds of each step of one ``plantgrowth run`` of the scene data."""
+def step_rows(data: dict) -> dict[str, list[float]]:
+    """summary.csv's seconds, seconds_solve and (finite kinematics) newton_iterations of each
+    step of one ``plantgrowth run`` of the scene data."""
     exe = Path(sys.executable).with_name("plantgrowth")
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "scene.toml"
@@ -56,18 +58,27 @@ def step_seconds(data: dict) -> list[float]:
         subprocess.run([exe, "run", str(path), "-o", f"{tmp}/o"], check=True,
                        capture_output=True, env=env)  # fmt: skip
         with open(Path(tmp) / "o/summary.csv", newline="") as f:
-            return [float(row["seconds"]) for row in csv.DictReader(f)]
+            rows = list(csv.DictReader(f))
+    keys = [k for k in ("seconds", "seconds_solve", "newton_iterations") if k in rows[0]]
+    return {k: [float(row[k]) for row in rows] for k in keys}
 
 
 def case(nx: int, steps: int, kinematics: str) -> dict:
-    """Given and water runs of one case, their per-step seconds and the ratio of the medians
-    over steps 1.. (the water steps)."""
+    """Given and water runs of one case, their per-step columns and the ratio of the medians
+    of the seconds over steps 1.. (the water steps); with Newton, also the ratio of the medians
+    of the seconds per Newton iteration."""
     out = {}
     for name, water in (("given", False), ("water", True)):
-        seconds = step_seconds(scene(nx, steps, kinematics, water))
-        out[name] = {"step_seconds": seconds, "median_seconds": statistics.median(seconds[1:])}
-        print(nx, kinematics, name, seconds, flush=True)
+        rows = step_rows(scene(nx, steps, kinematics, water))
+        out[name] = rows | {"median_seconds": statistics.median(rows["seconds"][1:])}
+        if "newton_iterations" in rows:
+            per = [t / k for t, k in zip(rows["seconds"], rows["newton_iterations"], strict=True)]
+            out[name]["median_seconds_per_iteration"] = statistics.median(per[1:])
+        print(nx, kinematics, name, rows, flush=True)
     out["ratio"] = out["water"]["median_seconds"] / out["given"]["median_seconds"]
+    if "median_seconds_per_iteration" in out["water"]:
+        out["ratio_per_iteration"] = (out["water"]["median_seconds_per_iteration"]
+                                      / out["given"]["median_seconds_per_iteration"])  # fmt: skip
     return out
 
 

@@ -110,7 +110,8 @@ class TurgorNewton(WaterSteps):
 
     def _newton_step(self, P: np.ndarray, R_w: np.ndarray, H: np.ndarray) -> float:
         """One Newton update of u and P (in place) from the residuals (``newton.b``: R_u) and
-        the conductance matrix H; returns the true relative residual of its linear solve."""
+        the conductance matrix H; returns the true relative residual of its linear solve (a failed
+        or inaccurate solve stops the run)."""
         newton, parts = self.newton, self.parts
         newton.A.zeroEntries()
         fem.petsc.assemble_matrix(newton.A, newton.J, bcs=parts.bcs)
@@ -118,6 +119,7 @@ class TurgorNewton(WaterSteps):
         F, D = self.columns(self.load_column), self.columns(self.area_column)
         du = newton.du
         dP, report = self.bordered.solve(F, D, self.dt * H, newton.b, R_w, du)
+        diagnostics.stop_if(diagnostics.solve_problems(report.reason, report.residual), parts.comm)
         parts.u.vector.axpy(-1.0, du)
         parts.u.x.scatter_forward()
         P -= dP
