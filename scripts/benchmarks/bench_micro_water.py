@@ -47,16 +47,19 @@ def scene(nx: int, steps: int, kinematics: str, water: bool) -> dict:
     return data | {"hydraulics": hydraulics}
 
 
-def step_rows(data: dict) -> dict[str, list[float]]:
+def step_rows(data: dict) -> dict[str, list[float]] | dict[str, int | str]:
     """summary.csv's seconds, seconds_solve and (finite kinematics) newton_iterations of each
-    step of one ``plantgrowth run`` of the scene data."""
+    step of one ``plantgrowth run`` of the scene data; a failed run: its exit status and the
+    end of its stderr."""
     exe = Path(sys.executable).with_name("plantgrowth")
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "scene.toml"
         path.write_text(dict_to_toml(data))
         env = os.environ | {"PLANTGROWTH_CACHE_DIR": "off"}
-        subprocess.run([exe, "run", str(path), "-o", f"{tmp}/o"], check=True,
-                       capture_output=True, env=env)  # fmt: skip
+        done = subprocess.run([exe, "run", str(path), "-o", f"{tmp}/o"], capture_output=True,
+                              text=True, env=env)  # fmt: skip
+        if done.returncode != 0:
+            return {"failed": done.returncode, "stderr": done.stderr[-2000:]}
         with open(Path(tmp) / "o/summary.csv", newline="") as f:
             rows = list(csv.DictReader(f))
     keys = [k for k in ("seconds", "seconds_solve", "newton_iterations") if k in rows[0]]
@@ -70,11 +73,13 @@ def case(nx: int, steps: int, kinematics: str) -> dict:
     out = {}
     for name, water in (("given", False), ("water", True)):
         rows = step_rows(scene(nx, steps, kinematics, water))
+        print(nx, kinematics, name, rows, flush=True)
+        if "failed" in rows:
+            return out | {name: rows}
         out[name] = rows | {"median_seconds": statistics.median(rows["seconds"][1:])}
         if "newton_iterations" in rows:
             per = [t / k for t, k in zip(rows["seconds"], rows["newton_iterations"], strict=True)]
             out[name]["median_seconds_per_iteration"] = statistics.median(per[1:])
-        print(nx, kinematics, name, rows, flush=True)
     out["ratio"] = out["water"]["median_seconds"] / out["given"]["median_seconds"]
     if "median_seconds_per_iteration" in out["water"]:
         out["ratio_per_iteration"] = (out["water"]["median_seconds_per_iteration"]
@@ -92,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     for kinematics in args.kinematics:
         for nx in args.nx:
             cases[f"{kinematics}_nx{nx}"] = case(nx, args.steps, kinematics)
-            print(kinematics, nx, "ratio", round(cases[f"{kinematics}_nx{nx}"]["ratio"], 3))
+            print(kinematics, nx, "ratio", cases[f"{kinematics}_nx{nx}"].get("ratio"))
     result = {"machine": machine_description(), "load_average": os.getloadavg(),
               "steps": args.steps, "cases": cases}  # fmt: skip
     OUT.write_text(json.dumps(result, indent=1) + "\n")
