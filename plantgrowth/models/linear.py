@@ -185,14 +185,11 @@ def relative_residual(A: PETSc.Mat, x: PETSc.Vec, b: PETSc.Vec) -> float:
     return value
 
 
-def assemble_and_solve(
-    A: PETSc.Mat, b: PETSc.Vec, a: fem.FormMetaClass, L: fem.FormMetaClass, bcs: list,
-    ksp: PETSc.KSP, u: fem.Function, bound: float = RESIDUAL_BOUND,
-    guess: Callable[[PETSc.Mat, PETSc.Vec, PETSc.Vec], None] | None = None,
-) -> SolveReport:  # fmt: skip
-    """Assemble ``a`` and ``L`` with Dirichlet conditions, solve into ``u`` with ``ksp`` (from
-    ``u`` if its initial guess is nonzero, after ``guess(A, b, u.vector)`` has set it);
-    ``bound``: the report's residual bound."""
+def assemble_system(
+    A: PETSc.Mat, b: PETSc.Vec, a: fem.FormMetaClass, L: fem.FormMetaClass, bcs: list
+) -> None:
+    """Assemble ``a`` into A and ``L`` into b with Dirichlet conditions (lifted, b's owned
+    entries summed over the ranks; ghosts not updated)."""
     A.zeroEntries()
     fem.petsc.assemble_matrix(A, a, bcs=bcs)
     A.assemble()
@@ -202,6 +199,17 @@ def assemble_and_solve(
     fem.petsc.apply_lifting(b, [a], bcs=[bcs])
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     fem.petsc.set_bc(b, bcs)
+
+
+def assemble_and_solve(
+    A: PETSc.Mat, b: PETSc.Vec, a: fem.FormMetaClass, L: fem.FormMetaClass, bcs: list,
+    ksp: PETSc.KSP, u: fem.Function, bound: float = RESIDUAL_BOUND,
+    guess: Callable[[PETSc.Mat, PETSc.Vec, PETSc.Vec], None] | None = None,
+) -> SolveReport:  # fmt: skip
+    """Assemble ``a`` and ``L`` with Dirichlet conditions, solve into ``u`` with ``ksp`` (from
+    ``u`` if its initial guess is nonzero, after ``guess(A, b, u.vector)`` has set it);
+    ``bound``: the report's residual bound."""
+    assemble_system(A, b, a, L, bcs)
     if guess is not None:
         guess(A, b, u.vector)
     ksp.solve(b, u.vector)

@@ -12,6 +12,7 @@ from plantgrowth.forms import micro as micro_forms
 from plantgrowth.meshes.cell_walls import wall_network
 from plantgrowth.meshes.honeycomb import polygon_area
 from plantgrowth.meshes.tissue import TissueLayout, clip_below
+from plantgrowth.models.micro.cell_columns import CellColumns
 from plantgrowth.models.micro.turgor_newton import TurgorNewton
 from plantgrowth.models.micro.turgor_solve import ElasticParts, TurgorSolve
 from plantgrowth.models.micro.water import CellWater
@@ -47,19 +48,21 @@ def turgor_solve(
     )  # fmt: skip
     mesh = parts.u.function_space.mesh
     indicator = fem.Function(fem.FunctionSpace(mesh, ("DG", 0)))  # one cell's, per cell
+    support = fem.form(ufl.inner(indicator * ufl.as_vector((1.0, 1.0)), test) * membrane)
+    columns = CellColumns(support, indicator, parts.set_cells, water.n, parts.bcs)
     if newton is not None:
         u = parts.u
         area = finite_forms.lumen_area(u, indicator, normal, membrane)
         forms = [finite_forms.follower_pressure(u, test, indicator, normal, membrane),
                  ufl.derivative(area, u, test), area]  # fmt: skip
         return TurgorNewton(
-            newton[0], parts, newton[1], *(fem.form(f) for f in forms), indicator, water,
-            scene.time.dt,
+            newton[0], parts, newton[1], *(fem.form(f) for f in forms), indicator, columns,
+            water, scene.time.dt,
         )  # fmt: skip
     column = fem.form(
         micro_forms.membrane_pressure_rhs(test, parts.Fg, indicator, normal, membrane)
     )
-    return TurgorSolve(parts, column, indicator, water, lumen_areas(layout), scene.time.dt)
+    return TurgorSolve(parts, column, columns, water, lumen_areas(layout), scene.time.dt)
 
 
 def water_measures(turgor: TurgorSolve, weights: np.ndarray) -> dict[str, float]:

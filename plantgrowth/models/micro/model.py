@@ -32,7 +32,12 @@ from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
 from plantgrowth.models import diagnostics, fibres, growth
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
-from plantgrowth.models.linear import SolveReport, assemble_and_solve, lu_solver
+from plantgrowth.models.linear import (
+    SolveReport,
+    assemble_and_solve,
+    assemble_system,
+    lu_solver,
+)
 from plantgrowth.models.micro.around import WallsAround
 from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
@@ -134,7 +139,7 @@ class MicroModel:
             )  # fmt: skip
         self.turgor = None
         if hydraulic:
-            parts = ElasticParts(self._linear_solve, self.A, self.b, self.ksp, self.u, self.Fg,
+            parts = ElasticParts(self._assemble, self.A, self.b, self.ksp, self.u, self.Fg,
                                  self.bcs, self._set, comm)  # fmt: skip
             newton = (self.newton, P) if self.finite else None
             self.turgor = turgor_solve(scene, layout, parts, psi, n, membrane, newton)
@@ -379,6 +384,9 @@ class MicroModel:
     def _stress_means(self) -> np.ndarray:
         """(n_cells, 4) wall stress averaged over each cell's own walls."""
         return self._cell_means(self._wall_stress_form)
+
+    def _assemble(self) -> None:
+        assemble_system(self.A, self.b, self.a, self.L, self.bcs)
 
     def _linear_solve(self) -> SolveReport:
         """The linear-kinematics solve ([var_inequal]) into u."""

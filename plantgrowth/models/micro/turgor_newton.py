@@ -5,9 +5,13 @@ wall displacement u and each cell's turgor P by Newton's method on
     R_c(u, P) = V_c(u) - W_c^n - dt [ sum_s g_sc psi_s - (H (P - Pi))_c ] = 0
 
 with V_c the exact area the deformed membrane of cell c encloses (forms/finite.py
-``lumen_area``). Each iteration solves the Jacobian system by its Schur complement in P,
-``(dt H - D^T J^{-1} F) dP = -R_w + D^T J^{-1} R_u`` (J = dR_u/du, F_c = dR_u/dP_c, D_c =
-dV_c/du; J is not symmetric: follower loads), with n + 2 back-solves of J's factorization.
+``lumen_area``). Each iteration solves the Jacobian system
+
+    [ J    F    ] [du]     [R_u]
+    [ D^T  dt H ] [dP] = - [R_w]
+
+(J = dR_u/du, F_c = dR_u/dP_c, D_c = dV_c/du; J is not symmetric: follower loads) by one LU
+factorization of the bordered matrix (plantgrowth/models/micro/bordered.py).
 Full Newton steps from the previous step's state, which growth moves by a strain of order
 dt G; an inverted element or no convergence in NEWTON_MAX_IT iterations stops the run.
 """
@@ -20,13 +24,9 @@ from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.models import diagnostics
-from plantgrowth.models.linear import relative_residual
-from plantgrowth.models.micro.turgor_solve import (
-    ElasticParts,
-    WaterSteps,
-    back_solves,
-    cell_columns,
-)
+from plantgrowth.models.micro.bordered import BorderedSolve
+from plantgrowth.models.micro.cell_columns import CellColumns
+from plantgrowth.models.micro.turgor_solve import ElasticParts, WaterSteps
 from plantgrowth.models.micro.water import CellWater
 from plantgrowth.models.newton import NEWTON_MAX_IT, NEWTON_RTOL, NewtonReport, NewtonSolver
 
@@ -45,19 +45,20 @@ class TurgorNewton(WaterSteps):
         P: the turgor per cell (DG0) the residual reads.
         load_column, area_column: one cell's ``F_c`` and ``D_c`` (cell given by ``indicator``);
         area: one cell's enclosed area V_c (a scalar form, same indicator).
+        columns: splits a form in ``indicator`` into one column per cell.
         water: the water network; dt: the step.
     """
 
     def __init__(
         self, newton: NewtonSolver, parts: ElasticParts, P: fem.Function, load_column: fem.Form,
-        area_column: fem.Form, area: fem.Form, indicator: fem.Function, water: CellWater,
-        dt: float,
+        area_column: fem.Form, area: fem.Form, indicator: fem.Function, columns: CellColumns,
+        water: CellWater, dt: float,
     ) -> None:  # fmt: skip
         super().__init__(water, dt)
         self.newton, self.parts, self.P_function = newton, parts, P
         self.load_column, self.area_column, self.area = load_column, area_column, area
-        self.indicator = indicator
-        self.vector = fem.petsc.create_vector(load_column)
+        self.indicator, self.columns = indicator, columns
+        self.bordered = BorderedSolve(newton.A, water.n, parts.comm, "plantgrowth_micro_water_")
 
     def _areas(self) -> np.ndarray:
         """(n,) V_c(u), the areas the deformed membranes enclose (collective)."""
@@ -109,32 +110,21 @@ class TurgorNewton(WaterSteps):
 
     def _newton_step(self, P: np.ndarray, R_w: np.ndarray, H: np.ndarray) -> float:
         """One Newton update of u and P (in place) from the residuals (``newton.b``: R_u) and
-        the conductance matrix H; returns the worst true relative residual of its linear solves."""
-        newton, parts, comm = self.newton, self.parts, self.parts.comm
+        the conductance matrix H; returns the true relative residual of its linear solve (a failed
+        or inaccurate solve stops the run)."""
+        newton, parts = self.newton, self.parts
         newton.A.zeroEntries()
         fem.petsc.assemble_matrix(newton.A, newton.J, bcs=parts.bcs)
         newton.A.assemble()
-        n = self.water.n
-        F = cell_columns(self.load_column, self.vector, self.indicator, parts, n)
-        D = cell_columns(self.area_column, self.vector, self.indicator, parts, n)
-        x0 = newton.du
-        newton.ksp.solve(newton.b, x0)
-        worst = relative_residual(newton.A, x0, newton.b)
-        DtY = back_solves(newton.ksp, self.vector, F, D, comm)
-        dP = np.linalg.solve(self.dt * H - DtY, -R_w + comm.allreduce(D.T @ x0.array))
-        # du = -(x0 + J^{-1} F dP)
-        y = self.vector.duplicate()
-        rhs = self.vector.duplicate()
-        rhs.array[:] = F @ dP
-        newton.ksp.solve(rhs, y)
-        parts.u.vector.axpy(-1.0, x0)
-        parts.u.vector.axpy(-1.0, y)
+        F, D = self.columns(self.load_column), self.columns(self.area_column)
+        du = newton.du
+        dP, report = self.bordered.solve(F, D, self.dt * H, newton.b, R_w, du)
+        diagnostics.stop_if(diagnostics.solve_problems(report.reason, report.residual), parts.comm)
+        parts.u.vector.axpy(-1.0, du)
         parts.u.x.scatter_forward()
-        y.destroy()
-        rhs.destroy()
-        P += dP
+        P -= dP
         self._set_turgor(P)
-        return worst
+        return report.residual
 
     def _inverted(self, k: int) -> list[str]:
         det_min, where = self.newton.min_det()

@@ -8,11 +8,9 @@ displacement u and each cell's turgor P from the symmetric system
 the membrane pressure load of that cell for P = 1, which is also the derivative of its lumen
 area in u; H: the water network, plantgrowth/models/micro/water.py).
 
-Solved by its Schur complement: the columns K^{-1} B_c are one back-solve each with the
-factorization the step's elasticity solve made anyway, so S = B^T K^{-1} B (n x n, dense,
-reduced over the ranks) costs n back-solves, then ``(S + dt H) P = ...`` is solved by every
-rank alike and u by one more back-solve. Fine for up to a few hundred cells (the cost grows as
-n back-solves per step); a bordered matrix for PETSc would be the way beyond.
+Solved as one bordered sparse system per step (plantgrowth/models/micro/bordered.py): one
+factorization of K bordered by the cells' columns and -dt H. The first step (the given turgor)
+solves K u = f + B P.
 """
 
 from __future__ import annotations
@@ -27,6 +25,8 @@ from petsc4py import PETSc
 from scipy import sparse
 
 from plantgrowth.models.linear import SolveReport, relative_residual
+from plantgrowth.models.micro.bordered import BorderedSolve
+from plantgrowth.models.micro.cell_columns import CellColumns
 from plantgrowth.models.micro.water import CellWater, WaterState, lumen_offset
 
 
@@ -35,15 +35,14 @@ class ElasticParts:
     """The walls' linear problem as the micro model holds it.
 
     Attributes:
-        solve: solves K u = f into u (assembling K and f, factorizing K), leaving the assembled
-            K in ``A`` and f in ``b``.
+        assemble: assembles K into ``A`` and f into ``b`` (Dirichlet conditions applied).
         A, b, ksp, u: its matrix, right-hand side, solver and solution.
         Fg: the growth tensor (DG0); bcs: the Dirichlet conditions.
         set_cells: sets a DG0 function from values per biological cell.
         comm: the mesh's communicator.
     """
 
-    solve: Callable[[], SolveReport]
+    assemble: Callable[[], None]
     A: PETSc.Mat
     b: PETSc.Vec
     ksp: PETSc.KSP
@@ -52,46 +51,6 @@ class ElasticParts:
     bcs: list
     set_cells: Callable[[fem.Function, np.ndarray], None]
     comm: MPI.Comm
-
-
-def cell_columns(
-    form: fem.Form, vector: PETSc.Vec, indicator: fem.Function, parts: ElasticParts, n: int
-) -> sparse.csc_matrix:
-    """(owned dofs, n): this rank's rows of ``form`` assembled for each cell c with
-    ``indicator`` its DG0 indicator, zero on the Dirichlet dofs (collective)."""
-    rows, cols, values = [], [], []
-    for c in range(n):
-        parts.set_cells(indicator, np.eye(1, n, c)[0])
-        with vector.localForm() as local:
-            local.set(0.0)
-        fem.petsc.assemble_vector(vector, form)
-        # membrane facets next to a ghost cell: their share goes to the owner
-        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem.petsc.set_bc(vector, parts.bcs)
-        nonzero = np.flatnonzero(vector.array)
-        rows.append(nonzero)
-        cols.append(np.full(len(nonzero), c))
-        values.append(vector.array[nonzero])
-    return sparse.csc_matrix(
-        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
-        (len(vector.array), n),
-    )
-
-
-def back_solves(
-    ksp: PETSc.KSP, vector: PETSc.Vec, columns: sparse.csc_matrix, left: sparse.csc_matrix,
-    comm: MPI.Comm,
-) -> np.ndarray:  # fmt: skip
-    """``left^T A^{-1} columns`` (n x n, reduced over the ranks), A the factorized matrix of
-    ``ksp``: one back-solve per column."""
-    out = np.empty((left.shape[1], columns.shape[1]))
-    z = vector.duplicate()
-    for c in range(columns.shape[1]):
-        vector.array[:] = columns[:, c].toarray().ravel()
-        ksp.solve(vector, z)
-        out[:, c] = left.T @ z.array
-    z.destroy()
-    return comm.allreduce(out, op=MPI.SUM)
 
 
 class WaterSteps:
@@ -129,20 +88,20 @@ class TurgorSolve(WaterSteps):
 
     Args:
         parts: the walls' problem.
-        column: the form of one cell's membrane pressure load, ``indicator`` its cell's DG0
-            indicator.
+        column: the form of the membrane pressure load of the cells ``columns``' indicator
+            marks; columns: splits it into one column per cell.
         water: the water network; lumen_area: (n,) the cells' reference lumen areas.
         dt: the step.
     """
 
     def __init__(
-        self, parts: ElasticParts, column: fem.Form, indicator: fem.Function, water: CellWater,
+        self, parts: ElasticParts, column: fem.Form, columns: CellColumns, water: CellWater,
         lumen_area: np.ndarray, dt: float,
     ) -> None:  # fmt: skip
         super().__init__(water, dt)
-        self.parts, self.column, self.indicator = parts, column, indicator
+        self.parts, self.column, self.columns = parts, column, columns
         self.lumen_area = lumen_area
-        self.vector = fem.petsc.create_vector(column)
+        self.bordered = BorderedSolve(parts.A, water.n, parts.comm, "plantgrowth_micro_water_")
 
     def _lumen_terms(self, B: sparse.csc_matrix) -> np.ndarray:
         """B^T u (collective)."""
@@ -153,21 +112,27 @@ class TurgorSolve(WaterSteps):
         (docs/model.md, water fluxes), each later one the backward Euler step from the water
         committed last."""
         parts, water = self.parts, self.water
-        B = cell_columns(self.column, self.vector, self.indicator, parts, water.n)
-        parts.solve()  # u = u_f = K^{-1} f, K factorized, b = f
+        B = self.columns(self.column)
+        parts.assemble()
         V0 = lumen_offset(self.lumen_area, Fg)
         if self.held is None:
             P = water.Pi + water.hydraulics.initial_potential
-        else:  # S = B^T K^{-1} B, symmetric to round-off
-            S = back_solves(parts.ksp, self.vector, B, B, parts.comm)
-            S = 0.5 * (S + S.T)
-            P = water.turgor(S, self._lumen_terms(B), self.held, V0, Fg, self.t, self.dt)
+            report = self._given(B, P)
+        else:
+            H, h = water.step_terms(self.held, V0, Fg, self.t, self.dt)
+            P, report = self.bordered.solve(-B, -B, -self.dt * H, parts.b, -h, parts.u.vector)
+        parts.u.x.scatter_forward()
+        self.settle(P, V0 + self._lumen_terms(B), Fg)
+        return report
+
+    def _given(self, B: sparse.csc_matrix, P: np.ndarray) -> SolveReport:
+        """u from ``K u = f + B P`` at the given turgor P."""
+        parts = self.parts
         rhs = parts.b.copy()
         rhs.array[:] += B @ P
         parts.ksp.solve(rhs, parts.u.vector)
-        parts.u.x.scatter_forward()
-        residual = relative_residual(parts.A, parts.u.vector, rhs)
-        report = SolveReport(parts.ksp.getConvergedReason(), residual)
+        report = SolveReport(
+            parts.ksp.getConvergedReason(), relative_residual(parts.A, parts.u.vector, rhs)
+        )
         rhs.destroy()
-        self.settle(P, V0 + self._lumen_terms(B), Fg)
         return report

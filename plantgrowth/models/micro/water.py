@@ -5,8 +5,8 @@ the same on every rank).
 Per step, backward Euler in psi = P - Pi, with V_c(u) the lumen area to first order about the
 grown state (:func:`lumen_offset` + B_c . u):
 ``V_c(u) = W_c^n + dt [ sum_d L ell_cd (psi_d - psi_c) + sum_s g_sc (psi_s - psi_c) ]``
-with ``g_sc = L_s ell_cs`` (an edge) or ``L_r A_c`` (a region). With u = u_f + K^{-1} B P this
-is ``(S + dt H) P = W^n - V0 - B^T u_f + dt (H Pi + sum_s g_s psi_s)``, S = B^T K^{-1} B.
+with ``g_sc = L_s ell_cs`` (an edge) or ``L_r A_c`` (a region), i.e.
+``B^T u + dt H P = W^n - V0 + dt (H Pi + sum_s g_s psi_s)`` (:meth:`CellWater.step_terms`).
 
 Choices the model leaves open: the two halves of a shared wall belong to its two cells (section
 2) and conduct in series, ``L = 2 L_c L_d / (L_c + L_d)`` (0 if either is 0) with L at the cell
@@ -118,13 +118,12 @@ class CellWater:
             out += weights[s.label] * s.potential(t)
         return out
 
-    def turgor(self, S: np.ndarray, Bu_f: np.ndarray, W: np.ndarray, V0: np.ndarray,
-               Fg: np.ndarray, t: float, dt: float) -> np.ndarray:  # fmt: skip
-        """The step's turgor P (n,): ``(S + dt H) P = W - V0 - B^T u_f + dt (H Pi + s)``, with
-        H and the supplies at ``Fg`` and time ``t`` (the step's end)."""
+    def step_terms(self, W: np.ndarray, V0: np.ndarray, Fg: np.ndarray, t: float,
+                   dt: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """H and ``h = W - V0 + dt (H Pi + sum_s g_s psi_s)`` at ``Fg`` and time ``t`` (the
+        step's end): the step's water balance reads ``B^T u + dt H P = h``."""
         H, weights = self.conductance(Fg)
-        rhs = W - V0 - Bu_f + dt * (H @ self.Pi + self.supply_terms(weights, t))
-        return np.linalg.solve(S + dt * H, rhs)
+        return H, W - V0 + dt * (H @ self.Pi + self.supply_terms(weights, t))
 
     def state(self, P: np.ndarray, water: np.ndarray, Fg: np.ndarray, t: float) -> WaterState:
         """The water of a solved step: P, psi, the water held and the inflow rates at time t."""
