@@ -139,6 +139,10 @@ def _walls_around(model: MicroModel) -> WallsAround:
     return WallsAround(layout, model.cell_id, side, model._owned_rows(areas.array, Q0), COMM)
 
 
+CUE_ROUND_OFF = 1e-11
+"""Relative round-off of a cell's averaged wall stress or strain (the director test below)."""
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("walls", ["around", "own"])
 @pytest.mark.parametrize("cue", ["stress", "strain"])
@@ -147,9 +151,12 @@ def test_each_director_turns_toward_its_cue(cue, walls):
     run's: the wall stress or elastic strain of a run without fibres, averaged over the walls
     around each cell (``walls = "around"``, both halves of each shared wall) or over its own
     halves, a cut bottom cell without shear. Over three steps of dt = 1 each director follows
-    the exact step ``tan(a_new - a_Q) = tan(a - a_Q) exp(-k A dt)`` to 1e-9 degrees (the cue's
-    round-off ~1e-11 divided by its smallest anisotropy here, ~1e-3) and never moves away from
-    a_Q."""
+    the exact step ``tan(a_new - a_Q) = tan(a - a_Q) exp(-k A dt)`` to what the cue's round-off
+    leaves of its angle, and never moves away from a_Q. A relative round-off eps of the averaged
+    tensor turns its principal axis by up to eps / A radians (A its anisotropy): each cell's
+    bound is ``degrees(CUE_ROUND_OFF / A)`` with CUE_ROUND_OFF = 1e-11, the averages' round-off
+    from two solves of one system on different partitions (MUMPS on 2 ranks: its A reaches
+    ~1e-3 here, so about 6e-7 degrees; measured 1.1e-9 degrees on 2 ranks, 1e-12 serial)."""
     rate = 2.0
     plain = MicroModel(parse_scene(_data()), COMM)
     feedback = {"cue": cue, "rate": rate} | ({"walls": walls} if walls == "own" else {})
@@ -169,7 +176,8 @@ def test_each_director_turns_toward_its_cue(cue, walls):
         fibred.end_step(1.0)
         before = expected
         expected = fibres.turn_director(before, q.angle, q.anisotropy, rate, 1.0)
-        assert np.abs(fibres.reduce_angle(fibred.director.angle - expected)).max() <= 1e-9
+        bound = np.degrees(CUE_ROUND_OFF / q.anisotropy)
+        assert np.all(np.abs(fibres.reduce_angle(fibred.director.angle - expected)) <= bound)
         closer = np.abs(fibres.reduce_angle(expected - q.angle))
         assert np.all(closer <= np.abs(fibres.reduce_angle(before - q.angle)) + 1e-12)
         Fg = growth.advance(Fg, G, 1.0, "exp")
