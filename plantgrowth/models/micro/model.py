@@ -32,12 +32,7 @@ from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
 from plantgrowth.models import diagnostics, fibres, growth
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
-from plantgrowth.models.linear import (
-    SolveReport,
-    assemble_and_solve,
-    assemble_system,
-    lu_solver,
-)
+from plantgrowth.models.linear import SolveReport, assemble_and_solve, assemble_system, lu_solver
 from plantgrowth.models.micro.around import WallsAround
 from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
@@ -450,8 +445,7 @@ class MicroModel:
         finite kinematics also what Newton's next initial guess is made of (u, its offset)."""
         director = {} if self.director is None else {"fibre_angle": self.director.angle}
         cells = {k: Block.whole(v, self.comm) for k, v in ({"Fg": Fg, "G": G} | director).items()}
-        if self.turgor is not None:  # the water held and the time of the next step
-            turgor = self.turgor
+        if (turgor := self.turgor) is not None:  # the water held and the time of the next step
             water = {"water": turgor.held, "water_time": np.array([turgor.t]), "turgor": turgor.P}
             cells |= {k: Block.whole(v, self.comm) for k, v in water.items()}
         newton = dof_state(self.newton.guess_functions) if self.finite else {}
