@@ -30,7 +30,8 @@ fi
 # 14:18 in one process, 5:53 on 2 workers on a 2-core machine (scripts/README.md, "Tests").
 echo "=== pytest (serial: one rank per test, ${PLANTGROWTH_TEST_WORKERS:-auto} workers)"
 rc=0
-"$PY" -m pytest -q -m "not slow" -n "${PLANTGROWTH_TEST_WORKERS:-auto}" --dist loadscope tests || rc=$?
+"$PY" -m pytest -q -m "not slow" -n "${PLANTGROWTH_TEST_WORKERS:-auto}" --dist loadscope \
+    --durations=40 tests || rc=$?
 if ((rc != 0)); then
     # rc 5 = no tests collected: a failure for the serial run.
     failed+=("pytest-serial(rc=$rc)")
