@@ -175,11 +175,12 @@ def test_mpirun_writes_the_serial_cell_table_and_outlines(finished):
 
 def test_an_extended_run_writes_the_rows_of_a_straight_run(finished):
     """t_max = 1 (rows of steps 0 and 1), then --resume to t_max = 3: step 1 is not on the new
-    schedule (every = 2), so its rows go; the table equals the straight run's (1e-10: the same
-    arithmetic repeated, as tests/test_interruptions.py; under mpirun the resumed run's mesh may
-    be partitioned anew and its distributed LU differs from the straight run's by ~1e-12 of u,
-    which anisotropy and direction divide by g1 - g2, here down to 2e-3 of tr G: 1e-9 absolute
-    for those, measured 1.5e-12 serial and 1.8e-10 under mpirun)."""
+    schedule (every = 2), so its rows go; the table equals the straight run's. Serial: 1e-10, the
+    same arithmetic repeated, as tests/test_interruptions.py. Under mpirun the resumed run's mesh
+    may be partitioned anew, so its distributed LU is another partition's round-off: the 1e-8
+    relative of the serial = mpirun comparison above (measured 1.1e-10 relative in x1 after
+    three steps). Anisotropy and direction divide u's round-off by g1 - g2, here down to 2e-3 of
+    tr G: 1e-9 absolute for those (measured 1.5e-12 serial, 1.8e-10 under mpirun)."""
     directory = finished.parent
     short, extended = directory / "short.toml", directory / "extended"
     write(short, SCENE.replace("t_max = 3", "t_max = 1"))
@@ -188,4 +189,5 @@ def test_an_extended_run_writes_the_rows_of_a_straight_run(finished):
     assert [r["step"] for r in read_csv(extended / "cells.csv")] == [0] * N_CELLS + [1] * N_CELLS
     assert main(["run", str(directory / "micro.toml"), "--resume", str(extended)]) == 0
     MPI.COMM_WORLD.Barrier()
-    assert_same_cells(finished, extended, rel=1e-10, growth_abs=1e-9, other_abs=1e-14)
+    rel = 1e-10 if MPI.COMM_WORLD.size == 1 else 1e-8
+    assert_same_cells(finished, extended, rel=rel, growth_abs=1e-9, other_abs=1e-14)
