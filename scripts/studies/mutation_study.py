@@ -418,6 +418,68 @@ MUTANTS = (
         (("weights = np.sin(count * d) * np.cos(d) / (count * safe)",
           "weights = np.sin(count * d) / (count * safe)"),),
     ),
+    # --- issue 35: water fluxes (docs/model.md, "Water fluxes") ------------------------------
+    # The storage, the conductivity's grown lengths and the supplies are coded twice: in the
+    # macro model (UFL forms and the unit cell's coefficients) and in the micro model's water
+    # network (numpy): one mutant per model. The exact lumen area is the micro model's only.
+    Mutant(
+        "macro_storage_sign", "plantgrowth/models/macro/water.py", "sign",
+        "the macro storage 1/M = +tr dbar[v] instead of -tr dbar[v] (negative: the water held "
+        "at a fixed strain falls as turgor rises; in the step's matrix and in m alike)",
+        (("pr.set_cell_values(self.inv_M, -np.trace(tensors.dbar_v, axis1=1, axis2=2))",
+          "pr.set_cell_values(self.inv_M, np.trace(tensors.dbar_v, axis1=1, axis2=2))"),),
+    ),
+    Mutant(
+        "micro_storage_sign", "plantgrowth/models/micro/turgor_solve.py", "sign",
+        "a micro lumen's area V_c(u) = V_c(0) - B_c . u instead of + B_c . u (the water held "
+        "falls as turgor pushes the membrane out; in the step's water row and the water held "
+        "alike, so the balance still closes)",
+        (("self.bordered.solve(-B, -B, -self.dt * H, parts.b, -h, parts.u.vector)",
+          "self.bordered.solve(-B, B, -self.dt * H, parts.b, -h, parts.u.vector)"),
+         ("self.settle(P, V0 + self._lumen_terms(B), Fg)",
+          "self.settle(P, V0 - self._lumen_terms(B), Fg)")),
+    ),
+    Mutant(
+        "kappa_reference_lengths_macro", "plantgrowth/unitcell/hydraulic_coefficients.py",
+        "wrong configuration",
+        "the unit cell's kappa with the walls' reference lengths l_k instead of the grown "
+        "|Fg t_k| l_k (the macro model's conductivity)",
+        (("kappa += np.linalg.norm(Fg @ t) * length * np.outer(Fg @ d, Fg @ d)",
+          "kappa += length * np.outer(Fg @ d, Fg @ d)"),),
+    ),
+    Mutant(
+        "kappa_reference_lengths_micro", "plantgrowth/models/micro/water.py",
+        "wrong configuration",
+        "the micro water network's shared walls conducting through their reference lengths l "
+        "instead of the grown |Fg t| l",
+        (("ell = 0.5 * (grown_lengths(net.shared, Fg[c]) + grown_lengths(net.shared, Fg[d]))",
+          "ell = np.linalg.norm(net.shared, axis=1)"),),
+    ),
+    Mutant(
+        "supply_sign_macro", "forms/hydraulics.py", "sign",
+        "a supplied edge's inflow L_s |cof(Fg) N| (psi - psi_s) instead of (psi_s - psi) (the "
+        "macro model's edge term: in the step's matrix, its right-hand side and the reported "
+        "inflow alike)",
+        (("return L_s * grown_length(Fg, n) * p * q * ds",
+          "return -L_s * grown_length(Fg, n) * p * q * ds"),),
+    ),
+    Mutant(
+        "supply_sign_micro", "plantgrowth/models/micro/water.py", "sign",
+        "a supplied edge's inflow into a micro cell L_s ell_cs (psi_c - psi_s) instead of "
+        "(psi_s - psi_c) (its weight's sign: in H, the supply term and the reported inflow)",
+        (("return supply.conductance * np.bincount(net.outer_cell[on], lengths, self.n)",
+          "return -supply.conductance * np.bincount(net.outer_cell[on], lengths, self.n)"),),
+    ),
+    Mutant(
+        "finite_lumen_reference_membrane", "forms/finite.py", "wrong configuration",
+        "the micro finite-kinematics lumen constraint V_c with the area the reference membrane "
+        "encloses, (1/2) int X . N_l dS, instead of the deformed one's, "
+        "(1/2) int x . cof(F) N_l dS",
+        (("x = ufl.SpatialCoordinate(u.ufl_function_space().mesh) + u",
+          "x = ufl.SpatialCoordinate(u.ufl_function_space().mesh)"),
+         ("return -0.5 * weight * ufl.inner(x, ufl.dot(cofactor(deformation_gradient(u)), n)) * ds",
+          "return -0.5 * weight * ufl.inner(x, n) * ds")),
+    ),
 )  # fmt: skip
 
 
