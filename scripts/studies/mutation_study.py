@@ -181,8 +181,8 @@ MUTANTS = (
     Mutant(
         "sigma_without_K", "plantgrowth/models/macro/model.py", "wrong law or integrator",
         "growth driven by the elastic part E_hom eps_el only, without K_hom P1",
-        (("growth.homogenized_stress(C, eps_el, K, self.P1)",
-          "growth.homogenized_stress(C, eps_el, None, self.P1)"),),
+        (("growth.homogenized_stress(C, eps_el, K, P)",
+          "growth.homogenized_stress(C, eps_el, None, P)"),),
     ),
     Mutant(
         "interpolation_points_swapped", "plantgrowth/models/macro/model.py", "transposition",
