@@ -2,7 +2,9 @@
 ``[hydraulics]`` is unchanged, the water balance closes, the initial state is at rest, fast
 water gives the scene with P1 = Pi + psi_s, a resumed run continues the water, and mpirun -n 2
 reproduces serial, each with linear and finite kinematics; with linear kinematics, a one-edge
-supply's turgor falls away from it and a fast-growing patch draws water from its neighbours.
+supply's turgor falls away from it and a fast-growing patch draws water from its neighbours;
+a cell holds more water at a higher turgor (both kinematics), and a uniformly stretched
+tissue's walls conduct through their grown lengths (the network alone, no run).
 
 Runs go through ``plantgrowth run`` in process (under mpirun the walls mesh is distributed), on
 small tissues (Nx = 4 or 8, one P2 element across a wall).
@@ -21,8 +23,11 @@ import pytest
 from mpi4py import MPI
 
 from plantgrowth.cli import main
-from plantgrowth.models.micro.model import MicroModel
+from plantgrowth.meshes.cell_walls import wall_network
+from plantgrowth.meshes.tissue import TissueLayout
+from plantgrowth.models.micro.model import MicroModel, scene_cell
 from plantgrowth.models.micro.turgor_newton import WATER_RTOL
+from plantgrowth.models.micro.water import CellWater
 from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import parse_scene
 from plantgrowth.scene.toml_text import dict_to_toml
@@ -271,3 +276,45 @@ def test_a_resumed_run_continues_the_water(kinematics, mpi_tmp_path):
                 assert a[key] == b[key], key
             else:
                 assert b[key] == pytest.approx(a[key], rel=1e-12), key
+
+
+def test_a_uniform_stretch_grows_each_walls_conductance_with_its_grown_length():
+    """The water network of a tissue grown by a uniform ``Fg = diag(a, b)`` (no solve): a shared
+    wall conducts through its grown length ``|Fg t| l`` (docs/model.md, water fluxes), so against
+    Fg = I its conductance ``-H_cd`` is multiplied by b for the walls parallel to x2 and by
+    ``sqrt(a^2 cos^2 theta + b^2 sin^2 theta)`` for the inclined ones (theta = 30: the regular
+    hexagon), whatever their length (the bottom row's cut walls included). The ratios are a few
+    floating-point operations on O(1) numbers: 1e-13 relative is ~500 ulps."""
+    scene = parse_scene(scene_data(hydraulics=hydraulics(L=3.0)))
+    layout = TissueLayout(scene_cell(scene), 4)
+    network = wall_network(layout)
+    n = layout.n_cells
+    water = CellWater(scene.hydraulics, network, np.full(n, 0.001), np.full(n, 3.0), {},
+                      np.ones(n))  # fmt: skip
+    a, b = 1.3, 0.8
+    stretched = water.conductance(np.repeat(np.diag([a, b])[None], n, axis=0))[0]
+    reference = water.conductance(np.repeat(np.eye(2)[None], n, axis=0))[0]
+    c, d = network.pairs.T
+    ratio = stretched[c, d] / reference[c, d]
+    theta = np.radians(layout.cell.theta_deg)
+    vertical = np.abs(network.shared[:, 0]) < 1e-12 * np.abs(network.shared).max()
+    assert vertical.any() and (~vertical).any()
+    np.testing.assert_allclose(ratio[vertical], b, rtol=1e-13)
+    inclined = np.hypot(a * np.cos(theta), b * np.sin(theta))
+    np.testing.assert_allclose(ratio[~vertical], inclined, rtol=1e-13)
+
+
+@pytest.mark.parametrize("kinematics", KINEMATICS)
+def test_the_water_a_cell_holds_rises_with_its_turgor(kinematics, tmp_path):
+    """Storage has the sign of physics: a sealed tissue without growth (law "none": the initial
+    equilibrium only) started at a higher turgor (psi_0 raised by 0.0004, 40% of Pi) holds more
+    water in every cell, as its membranes are pushed out. No tolerance: the gain is 1.3-7.4% of
+    each cell's water (measured; 1.3-1.7% with finite kinematics), the solves' round-off ~1e-14
+    of it."""
+    held = []
+    for psi0 in (0.0, 0.0004):
+        data = scene_data(kinematics=kinematics, growth={"law": "none"},
+                          hydraulics=hydraulics(0.001, 1.0, psi0))  # fmt: skip
+        held.append(cells(run(tmp_path, f"psi{psi0:g}", data), 0)["water"])
+    gain = held[1] - held[0]
+    assert np.all(gain > 0.0), gain
