@@ -28,7 +28,8 @@ wall instead of hexagon areas) was one, since every cell's own walls, cut cells 
 phi_w times its hexagon area.
 
 With ``--only`` the named mutants' entries of an existing JSON file are replaced and the others
-kept (each entry records the commit it was measured on).
+kept (each entry records the commit it was measured on and, since issue 35, the tests it was run
+against: ``killed_by`` is the first failing test of that part of the suite).
 """
 
 from __future__ import annotations
@@ -664,6 +665,7 @@ def main(argv: list[str] | None = None) -> int:
                 or ("timeout" if result["outcome"] == "timeout" else None),
                 "seconds": result["seconds"],
                 "commit": commit,
+                "tests": args.tests,
             }
         )
         status = f"killed by {results[-1]['killed_by']}" if killed else "SURVIVED"
