@@ -3,8 +3,8 @@ backward-Euler step of plantgrowth.models.macro.water, linear kinematics.
 
 The checks are the consequences the docs list: consolidation (Terzaghi's series), fast water
 (the scene with P1 = Pi + psi_s), the water balance, no pressure wiggles after a step change at
-small time steps; water entering from a supply at a higher potential; and the scale of kappa
-(proportional to the real cells' size). All use the
+small time steps; water entering from a supply at a higher potential, the storage's sign at
+zero strain; and the scale of kappa (proportional to the real cells' size). All use the
 reference cell (regular hexagon, w = 0.05, E = 1, nu = 0.3), solved once on COMM_SELF, as the
 homogeneous tensors of every fine cell.
 """
@@ -253,6 +253,27 @@ def test_water_balance_closes(reference):
         Fg = np.repeat(np.eye(2)[None], n, axis=0)
         Fg[:, 0, 0] += 0.05 * (step + 1) * x1 / WIDTH  # growth between steps
         water.set_coefficients(Fg, homogeneous(result, n), [cell] * n)
+
+
+def test_held_at_zero_strain_the_water_rises_with_turgor_by_the_storage(reference):
+    """A homogeneous tissue clamped on every edge but the mirror plane x2 = 0 stays at u = 0
+    under a uniform turgor (no body force, no shear traction on the mirror), so it holds
+    ``m = (1 - phi_w) + P / M`` per unit area, exactly: started at psi_0 = 0 and at 0.0004, the
+    water it holds differs by ``area 0.0004 / M`` with the cell's ``1/M = -tr dbar[v] > 0``
+    (docs/model.md, "Water fluxes": storage has the sign of physics). The two waters (~0.44)
+    are P1 sums of cell integrals whose u is zero up to the LU solve's round-off (~1e-16 of
+    b P ~ 1e-3): their difference (~2e-5) is exact to ~1e-11 relative (measured 1e-12 on one
+    and two ranks); bound 1e-9."""
+    tissue = {"width": 1.0, "height": 0.5, "h": 0.25, "H": 1.0}
+    clamped = {edge: "clamped" for edge in ("left", "right", "top")}
+    held = [
+        water_on(problem_on(tissue, MPI.COMM_WORLD, supports=clamped), reference,
+                 MacroHydraulics(osmotic=PI, initial_potential=psi0)).water_content()
+        for psi0 in (0.0, 0.0004)
+    ]  # fmt: skip
+    inv_M = -np.trace(reference[1].dbar_v)
+    assert inv_M > 0.0
+    assert held[1] - held[0] == pytest.approx(0.5 * 0.0004 * inv_M, rel=1e-9), held
 
 
 def test_water_flows_in_from_a_supply_at_a_higher_potential(reference):
