@@ -127,20 +127,38 @@ def apex(run: Path, scene: pg.Scene) -> dict:
             "apex_over_strand_trG": row["apex.trG"] / row["strand.trG"]}  # fmt: skip
 
 
+def triangles_around_patch(series: ResultSeries) -> tuple[np.ndarray, np.ndarray]:
+    """The reference areas (M,) of the fine triangles and their midpoints' offsets (M, 2) from
+    the patch's centre."""
+    corners = series.points[series.triangles]
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    return area, corners.mean(axis=1) - PATCH
+
+
 def patch_inflow_macro(series: ResultSeries, t: float) -> float:
     """The water that crosses the patch's boundary r = 1 inward per unit time: ``-int Q .
     grad(w) dx`` with w = 1 inside r = 0.8, 0 outside r = 1.2 and linear in r between (the flux
     through the circles 0.8 < r < 1.2, averaged over r), Q the reference-frame water_flux,
     constant on each triangle."""
-    corners = series.points[series.triangles]
-    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    offset = corners.mean(axis=1) - PATCH
+    area, offset = triangles_around_patch(series)
     r = np.hypot(offset[:, 0], offset[:, 1])
     ring = np.abs(r - RADIUS) < 0.2
     Q = series.cell_field("water_flux", t)[ring, :2]
     inward = -(Q * offset[ring]).sum(axis=1) / r[ring]
     return float(area[ring] @ inward / 0.4)
+
+
+def patch_uptake_macro(series: ResultSeries, t: float, phi_w: float) -> float:
+    """What the patch's growth takes up per unit time, ``(1 - phi_w) int_patch Jg tr G dx``
+    over the triangles whose midpoints lie in r < 1: its lumens' growth, at the lumen fraction
+    of the unstrained cell, without the change of their elastic strain and storage. The water
+    from the supply and from the neighbours should add up to it, a check on
+    :func:`patch_inflow_macro`."""
+    area, offset = triangles_around_patch(series)
+    inside = np.hypot(offset[:, 0], offset[:, 1]) < RADIUS
+    grown = area * series.cell_field("Fg", t, "det") * series.cell_field("trG", t)
+    return float((1.0 - phi_w) * grown[inside].sum())
 
 
 def patch_inflow_micro(run: Path, t: float) -> tuple[float, int]:
@@ -166,6 +184,16 @@ def patch_outcome(run: Path, t: float, lateral: float) -> dict:
     out["patch_over_ring_turgor"] = out["patch_turgor"] / out["ring_turgor"]
     out["ring_over_far_turgor"] = out["ring_turgor"] / out["far_turgor"]
     out["ring_over_far_trG"] = out["ring_trG"] / out["far_trG"]
+    return out
+
+
+def macro_patch(run: Path, t: float, scene: pg.Scene) -> dict:
+    """:func:`patch_outcome` of a macro run, with the patch's growth uptake
+    (:func:`patch_uptake_macro`) beside the water it takes from its supply and neighbours."""
+    series = read_series(run)
+    out = patch_outcome(run, t, patch_inflow_macro(series, t))
+    out["growth_uptake"] = patch_uptake_macro(series, t, scene.cell.at(0.0, 0.0).phi_w)
+    out["inflow_over_uptake"] = (out["from_supply"] + out["from_neighbours"]) / out["growth_uptake"]
     return out
 
 
@@ -198,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
         "drought": drought(args.results / "drought", scenes["drought"]),
         "apex_fed_from_below": apex(args.results / "apex_fed_from_below",
                                     scenes["apex_fed_from_below"]),
-        "fast_patch_macro": [patch_outcome(macro, t, patch_inflow_macro(read_series(macro), t))
+        "fast_patch_macro": [macro_patch(macro, t, scenes["fast_patch"])
                              for t in (MICRO_T_MAX, t_max)],
         "fast_patch_micro": patch_outcome(micro, MICRO_T_MAX,
                                           patch_inflow_micro(micro, MICRO_T_MAX)[0]),
