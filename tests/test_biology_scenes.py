@@ -7,7 +7,6 @@ quantity compared) far above the draft preset's error (about 1%, docs/accuracy_c
 
 from __future__ import annotations
 
-import csv
 import tomllib
 from pathlib import Path
 
@@ -23,11 +22,13 @@ from plantgrowth.scene.toml_text import dict_to_toml
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 BIOLOGY = [
-    *sorted(p for p in (SCENES / "biology").glob("*.toml") if not p.stem.startswith("fibres_")),
+    *sorted(p for p in (SCENES / "biology").glob("*.toml") if not p.stem.startswith("fibres_")
+            and "hydraulics" not in tomllib.loads(p.read_text())),
     SCENES / "examples" / "soft_disc.toml",
-]
+]  # fmt: skip
 """The biology scenes and the soft disc example (its region: tests/test_regions.py); the fibre
-scenes (``fibres_*``) are tested in test_biology_fibres.py."""
+scenes (``fibres_*``) are tested in test_biology_fibres.py, the water scenes (``[hydraulics]``)
+in test_biology_water.py."""
 T_MAX = 10.0
 
 
@@ -59,8 +60,7 @@ def top_u2(series, x1: float) -> float:
 
 def test_every_biology_scene_is_tested(runs):
     assert set(runs) == {
-        "anisotropic_pregrowth", "apex_fed_from_below", "dome", "soft_disc", "soft_patch",
-        "stiff_band", "turgor_x2",
+        "anisotropic_pregrowth", "dome", "soft_disc", "soft_patch", "stiff_band", "turgor_x2",
     }  # fmt: skip
 
 
@@ -124,19 +124,3 @@ def test_the_dome_grows_fastest_at_its_soft_summit(runs):
     base = mid[:, 1] < 1.0
     assert trG[summit].mean() > 1.1 * trG[base].mean()
 
-
-def test_the_apex_fed_from_below_grows_slower_than_its_strand(runs):
-    """Water from the strand at the base crosses the cells below to reach the apex, 2 hydraulic
-    lengths (1.2) above it: at t = 10 (about five storage relaxation times) the apex's turgor and
-    growth are below half the strand's (measured 0.23 and 0.24 of them), growth falls with
-    height, and the water balance stays at round-off (docs/outputs.md)."""
-    series, mid = runs["apex_fed_from_below"]
-    with open(series.directory / "summary.csv", newline="") as f:
-        last = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)][-1]
-    assert last["t"] == T_MAX
-    assert last["apex.turgor_mean"] < 0.5 * last["strand.turgor_mean"]
-    assert last["apex.trG"] < 0.5 * last["strand.trG"]
-    assert abs(last["water_balance_error"]) <= 1e-12 * last["water"]
-    trG = series.cell_field("trG", T_MAX)
-    bands = [trG[(mid[:, 1] >= a) & (mid[:, 1] < a + 1.0)].mean() for a in (0.0, 1.0, 2.0)]
-    assert bands[0] > 1.1 * bands[1] and bands[1] > 1.1 * bands[2]  # measured 1.9, 1.7

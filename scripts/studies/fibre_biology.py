@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import tempfile
 import tomllib
 from pathlib import Path
 
@@ -36,7 +35,6 @@ from plantgrowth.base.machine import machine_description
 from plantgrowth.models import growth
 from plantgrowth.models.fibres import cue
 from plantgrowth.results.reader import ResultSeries, read_series
-from plantgrowth.scene.toml_text import dict_to_toml
 from plantgrowth.unitcell.solver import CellSolver
 
 REPO = Path(__file__).resolve().parents[2]
@@ -197,17 +195,11 @@ def pull(run: Path) -> dict:
 def run_without_feedback(results: Path, force: bool) -> Path:
     """Runs the primordium without [feedback] into ``results/<name>_nofeedback`` (unless
     complete) and returns that directory."""
-    from run_gradient_scenes import run_all  # scripts/studies/, next to this file
+    from run_gradient_scenes import run_scene_data  # scripts/studies/, next to this file
 
     data = tomllib.loads((SCENES / "fibres_feedback_primordium.toml").read_text())
     del data["feedback"]
-    with tempfile.TemporaryDirectory() as tmp:
-        scene = Path(tmp) / "fibres_feedback_primordium_nofeedback.toml"
-        scene.write_text(dict_to_toml(data))
-        command = str(Path(sys.executable).with_name("plantgrowth"))
-        if run_all(command, [(scene, results)], 1, force):
-            raise SystemExit("the run without feedback failed")
-    return results / scene.stem
+    return run_scene_data(data, "fibres_feedback_primordium_nofeedback", results, force)
 
 
 def main(argv: list[str] | None = None) -> int:

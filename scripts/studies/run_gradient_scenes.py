@@ -18,11 +18,13 @@ import csv
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import plantgrowth as pg
+from plantgrowth.scene.toml_text import dict_to_toml
 
 PARAMS = ("E", "nu", "P1", "tau", "eta", "w", "l")
 LAWS = ("strain", "stress")
@@ -94,6 +96,19 @@ def run_all(command: str, jobs: list[tuple[Path, Path]], workers: int, force: bo
     failed = [stem for stem, rc, _ in results if rc != 0]
     print(f"{len(results)} runs in {time.perf_counter() - start:.1f} s wall; failed: {failed or 0}")
     return 1 if failed else 0
+
+
+def run_scene_data(data: dict, name: str, results: Path, force: bool) -> Path:
+    """Runs scene data (a variant of a shipped scene) as ``name`` into ``results/<name>``, unless
+    complete (``force`` reruns it), with this interpreter's ``plantgrowth``; returns that
+    directory. Exits with a message naming the run if it fails."""
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = Path(tmp) / f"{name}.toml"
+        scene.write_text(dict_to_toml(data))
+        command = str(Path(sys.executable).with_name("plantgrowth"))
+        if run_all(command, [(scene, results)], 1, force):
+            raise SystemExit(f"the run {name} failed")
+    return results / name
 
 
 if __name__ == "__main__":
