@@ -22,7 +22,6 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from cli_helpers import call
 from mpi4py import MPI
 from test_macro_run import read_summary
 
@@ -270,13 +269,3 @@ def test_a_resumed_run_continues_the_water_and_its_balance(runs, mpi_tmp_path):
             assert b[key] == pytest.approx(a[key], rel=1e-12), key
     if world.size == 1:
         assert b["water_balance_error"] == a["water_balance_error"]
-
-
-def test_compare_refuses_a_hydraulic_scene_by_name(runs, capsys):
-    """``plantgrowth compare`` runs model "both"'s pair, which does not solve water yet."""
-    path, _, _ = runs("two_supplies")
-    code, _, err = call(["compare", path, "--nx", "4", "-o", path.parent / "compare"], capsys)
-    assert code != 0
-    if MPI.COMM_WORLD.rank == 0:
-        assert "hydraulics: plantgrowth compare does not solve water fluxes yet" in err
-    assert not (path.parent / "compare").exists()

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from plantgrowth.base.errors import USER_ERRORS, InputError, RunError, SceneError
+from plantgrowth.base.errors import USER_ERRORS, InputError, RunError
 from plantgrowth.cli.console import solver_signals
 
 if TYPE_CHECKING:
@@ -117,15 +117,11 @@ def compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.runner.scene_run import checked_domain, run_directory
     from plantgrowth.scene import load_scene
     from plantgrowth.scene.plausibility import warn_about
-    from plantgrowth.studies.compare import run_compare
+    from plantgrowth.studies.compare import check_comparable, run_compare
 
     scene = load_scene(args.scene)
     scene.check_micro()
-    if scene.hydraulics is not None:
-        raise SceneError(
-            "hydraulics: plantgrowth compare does not solve water fluxes yet (docs/model.md, "
-            "water fluxes); run the scene with plantgrowth run (model = 'micro' or 'macro')"
-        )
+    check_comparable(scene)
     for nx in args.nx:  # the cheap checks of every Nx first
         layout = TissueLayout(scene_cell(scene), check_nx("--nx", nx))
         if args.resolution is not None:

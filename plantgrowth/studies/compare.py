@@ -3,7 +3,10 @@
 For each Nx the macro model runs on the region the micro tissue covers (the union of its cells'
 mid-line hexagons, cut at x2 = 0) and the micro model on the walls. At the first time step the
 macro displacement is evaluated on the micro walls and compared with [error]:
-``e = sqrt( int (a - A)^2 / int A^2 )`` for u1 and u2.
+``e = sqrt( int (a - A)^2 / int A^2 )`` for u1 and u2. With water fluxes (``[hydraulics]``,
+linear kinematics) the macro model's cells are the micro tissue's (``cell_scale = 4 / Nx``:
+:func:`plantgrowth.models.macro.domain.macro_domain`) and each cell's turgor is compared with
+the macro field P at its centre (:func:`turgor_error`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from matplotlib.tri import TrapezoidMapTriFinder, Triangulation
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
+from plantgrowth.base.errors import SceneError
 from plantgrowth.base.gather import MeshGather
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models import fibres
@@ -39,10 +43,12 @@ COLUMNS = [
     "seconds_macro", "seconds_micro", "dofs_macro", "dofs_micro",
     "err_u1_tmax", "err_u2_tmax", "err_ubar_tmax", "err_G_tmax",
     "err_fibre_angle_tmax", "fibre_order_macro_tmax", "fibre_order_micro_tmax",
+    "err_P", "err_P_tmax",
 ]  # fmt: skip
 """The ``_tmax`` errors are the first-step ones at the last step (empty if only the first step
 ran): both models are Lagrangian on their reference meshes, so u at t_max compares as at t = 0.
-The fibre columns are empty without a director (a scene without fibres)."""
+The fibre columns are empty without a director (a scene without fibres), the turgor columns
+without water fluxes (a scene without ``[hydraulics]``)."""
 
 
 @dataclass(frozen=True)
@@ -51,11 +57,11 @@ class P1Snapshot:
 
     points: np.ndarray  # (n, 2)
     triangles: np.ndarray  # (m, 3)
-    values: np.ndarray  # (n, 2)
+    values: np.ndarray  # (n, k): k = 2 for u, 1 for P
 
     @classmethod
     def gather(cls, u: fem.Function) -> P1Snapshot:
-        """Collect a (distributed) P1 vector function on all ranks."""
+        """Collect a (distributed) P1 function, vector or scalar, on all ranks."""
         everywhere = MeshGather(u.function_space, root=None)
         return cls(everywhere.points(), everywhere.triangles(), everywhere.function(u))
 
@@ -136,6 +142,16 @@ TIE = 1e-9
 """Relative distance within which fine cells count as equally near a point."""
 
 
+def turgor_error(micro_P: np.ndarray, weights: np.ndarray, centres: np.ndarray,
+                 macro_P: P1Snapshot) -> float:  # fmt: skip
+    """Relative difference of the turgor, cell by cell, as [error] over cells:
+    ``sqrt( sum_c Y_c (P_c - P(x_c))^2 / sum_c Y_c P(x_c)^2 )`` with P_c the micro model's
+    turgor of cell c (one value per cell), P(x) the macro turgor field (P1, interpolated at the
+    cell centre x_c) and Y_c the cell's hexagon area."""
+    P = macro_P.evaluate(centres)[:, 0]
+    return float(np.sqrt(np.sum(weights * (micro_P - P) ** 2) / np.sum(weights * P**2)))
+
+
 def nearest_mean(points: np.ndarray, values: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Values (n, k) of the fine cell whose midpoint (``points``) is nearest to each point x,
     or the mean of those equally near (within :data:`TIE`): a cell centre is often a fine mesh
@@ -188,6 +204,18 @@ class CellSnapshot:
         return cls(np.vstack(comm.allgather(points)), np.vstack(comm.allgather(values)))
 
 
+def check_comparable(scene: Scene) -> None:
+    """SceneError for a scene whose two models cannot both run: with ``[hydraulics]`` the macro
+    model solves water fluxes with linear kinematics only (docs/model.md, water fluxes)."""
+    if scene.hydraulics is not None and scene.kinematics != "linear":
+        raise SceneError(
+            f"hydraulics: plantgrowth compare runs the macro model, which solves water fluxes "
+            f"with kinematics = 'linear' only, not {scene.kinematics!r} (docs/model.md, water "
+            "fluxes): compare the scene with kinematics = 'linear', or run its micro model "
+            "with plantgrowth run"
+        )
+
+
 def compare_one(
     scene: Scene, domain: MacroDomain, nx: int, outdir: Path, comm: MPI.Comm,
     resolution: int | None, n_steps: int | None,
@@ -210,6 +238,8 @@ def compare_one(
             if model.director is not None:
                 a = model.director.angle[:n].reshape(n, 1)
                 snapshot["a", step] = CellSnapshot.gather(problem.midpoints[:n, :2], a, comm)
+            if model.water is not None:
+                snapshot["P", step] = P1Snapshot.gather(model.water.P)
 
     def measure_micro(step: int, model) -> None:
         if step in measured:
@@ -223,6 +253,10 @@ def compare_one(
             if model.director is not None:
                 errors[step]["err_fibre_angle"] = director_error(
                     model.director.angle, model.hexagon_area, layout.centres, snapshot["a", step]
+                )
+            if model.turgor is not None:
+                errors[step]["err_P"] = turgor_error(
+                    model.turgor.last.P, model.hexagon_area, layout.centres, snapshot["P", step]
                 )
 
     start = time.perf_counter()
@@ -242,13 +276,16 @@ def compare_one(
     for step, e in errors.items():
         log.info(
             "Nx = %d, step %d, relative errors: err_u1 = %.4g (pinned gauge %.4g), err_u2 = %.4g, "
-            "err_ubar = %.4g, err_G = %.4g",
+            "err_ubar = %.4g, err_G = %.4g%s",
             nx, step, e["err_u1"], e["err_u1_pinned"], e["err_u2"], e["err_ubar"], e["err_G"],
+            f", err_P = {e['err_P']:.4g}" if "err_P" in e else "",
         )  # fmt: skip
     at_tmax = errors.get(last) if last > 0 else None
     fibred = at_tmax is not None and "err_fibre_angle" in at_tmax
+    watered = "err_P" in errors[0]
     return {
-        "nx": nx, "delta": 1.0 / nx, **errors[0],
+        "nx": nx, "delta": 1.0 / nx, **errors[0], "err_P": errors[0].get("err_P"),
+        "err_P_tmax": at_tmax["err_P"] if watered and at_tmax is not None else None,
         **{f"{k}_tmax": None if at_tmax is None else at_tmax[k]
            for k in ("err_u1", "err_u2", "err_ubar", "err_G")},
         "rate_macro_t0": macro_rows[0]["growth_rate_area"],
@@ -288,7 +325,9 @@ def run_compare(
                 writer.writerows([["" if r[c] is None else f"{r[c]:.10g}" for c in COLUMNS]
                                   for r in rows])  # fmt: skip
     if len(rows) > 1:
-        for key in ("err_u1", "err_u2", "err_ubar", "err_G"):
+        for key in ("err_u1", "err_u2", "err_ubar", "err_G", "err_P_tmax"):
+            if any(r[key] is None for r in rows):
+                continue  # err_P_tmax: a scene without water, or the first step only
             rate = fitted_rate([r["nx"] for r in rows], [r[key] for r in rows])
             log.info("%s ~ delta^%.2f (least-squares fit over Nx = %s)", key, rate, nxs)
     return rows

@@ -14,6 +14,7 @@ from mpi4py import MPI
 
 from plantgrowth.meshes import polygon
 from plantgrowth.meshes.msh_file import read_msh
+from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.scene import Scene
 
 RECTANGLE_SIDES = {"bottom": (1, 0.0), "left": (0, 0.0), "right": (0, None), "top": (1, None)}
@@ -52,6 +53,33 @@ def rectangle_boundary(msh: mesh.Mesh, width: float, height: float) -> Boundary:
     tags = mesh.meshtags(msh, 1, indices[order].astype(np.int32), np.concatenate(values)[order])
     names = {name: tag for tag, name in enumerate(RECTANGLE_SIDES, start=1)}
     return Boundary(tags, (names["bottom"],), names, (0.0, 0.0))
+
+
+def outline_boundary(msh: mesh.Mesh, layout: TissueLayout) -> Boundary:
+    """The boundary of a micro tissue's outline (:func:`meshes.tissue.build_outline_mesh`), its
+    edges named as the micro model names its cells' outer walls (meshes/cell_walls.py): the
+    facets on x2 = 0 ``bottom`` (the symmetry plane), the top row's facets facing up (outward
+    n2 > 0) ``top``, every other ``left`` (n1 < 0) or ``right``; the origin pinned. Each facet
+    lies on one cell's outer mid-line side, whose outward normal is ``(d2, -d1)`` for the side's
+    vector d (the hexagons run counter-clockwise)."""
+    names = {name: tag for tag, name in enumerate(RECTANGLE_SIDES, start=1)}
+    facets = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+    middle = mesh.compute_midpoints(msh, 1, facets)[:, :2]
+    tol = 1e-8 * layout.delta_s
+    cell, normal = np.full(len(facets), -1), np.zeros((len(facets), 2))
+    for i in range(layout.n_cells):
+        loop = layout.hexagon(i)
+        for p, q in zip(loop, np.roll(loop, -1, axis=0), strict=True):
+            d = q - p
+            along = np.clip((middle - p) @ d / (d @ d), 0.0, 1.0)
+            on = np.linalg.norm(middle - p - along[:, None] * d, axis=1) <= tol
+            cell[on], normal[on] = i, (d[1], -d[0])
+    tags = np.where(normal[:, 0] < 0.0, names["left"], names["right"])
+    tags[(cell // layout.nx == layout.nx // 2 - 1) & (normal[:, 1] > 0.0)] = names["top"]
+    tags[np.abs(middle[:, 1]) <= tol] = names["bottom"]
+    order = np.argsort(facets)
+    tagged = mesh.meshtags(msh, 1, facets[order].astype(np.int32), tags[order].astype(np.int32))
+    return Boundary(tagged, (names["bottom"],), names, (0.0, 0.0))
 
 
 def shape_domain(scene: Scene, comm: MPI.Comm) -> tuple[mesh.Mesh, Boundary]:
