@@ -18,6 +18,7 @@ from results_json import write_results
 
 from plantgrowth.base.errors import InputError
 from plantgrowth.base.tensors import det2, voigt_matrix
+from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models import growth
 from plantgrowth.models.macro.hydraulics import (
@@ -31,7 +32,7 @@ from plantgrowth.models.macro.hydraulics import (
 )
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import MacroProblem, rectangle_mesh
-from plantgrowth.models.macro.water import MacroWater
+from plantgrowth.models.macro.water import MacroWater, unit_conductivities
 from plantgrowth.scene import parse_scene
 from plantgrowth.unitcell.homogenization import NodeTensors
 from plantgrowth.unitcell.hydraulic_coefficients import conductivity
@@ -318,6 +319,16 @@ def test_kappa_is_proportional_to_the_cells_size(reference):
     assert water.inflow("right") == pytest.approx(-expected, rel=1e-6)
 
 
+def test_unit_conductivities_are_the_cells_kappa_at_each_fine_cells_Fg():
+    """The fine cells' kappa / L, computed for all cells of one unit cell at once, is the unit
+    cell's conductivity at each Fg (two cells, stretched and sheared Fg)."""
+    rng = np.random.default_rng(35)
+    cells = [HoneycombCell(), HoneycombCell(l1=1.5, theta_deg=20.0, w=0.08)] * 20
+    Fg = np.eye(2) + 0.3 * rng.uniform(-1.0, 1.0, (len(cells), 2, 2))
+    expected = [conductivity(cell, F) for cell, F in zip(cells, Fg, strict=True)]
+    np.testing.assert_allclose(unit_conductivities(cells, Fg), expected, rtol=1e-13, atol=0)
+
+
 def gathered(water: MacroWater) -> np.ndarray:
     """Every rank's (x1, x2, P) rows of the owned P1 dofs, sorted by position."""
     owned = water.Q.dofmap.index_map.size_local
@@ -511,8 +522,9 @@ def test_iterative_path_matches_the_direct_one(reference, dt):
     """One step after the step change on the strip (h = 0.0625), solved by MINRES with the block
     preconditioner (solver.macro = "iterative", rtol 1e-10) and by LU: its true relative
     residual stays within the bound the time loop checks (10 rtol), and P agrees with LU's to
-    1e-6 of the jump (measured serially: 161 and 67 iterations at dt = 1e-4 and 0.1 of W^2/c,
-    true residuals 3e-12 and 5e-13, P within 3e-9 of the jump; on 2 ranks 4e-8)."""
+    1e-6 of the jump (measured serially: 28 and 15 iterations at dt = 1e-4 and 0.1 of W^2/c,
+    true residuals 1.4e-11 and 2.5e-12, P within 4e-9 of the jump; on 2 ranks 4e-8 before K
+    was factorized in the preconditioner, not measured since)."""
     T = WIDTH**2 / diffusion(reference)
     solved = {}
     for kind in ("direct", "iterative"):

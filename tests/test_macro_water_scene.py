@@ -121,6 +121,18 @@ def test_a_scene_without_hydraulics_has_no_water_columns():
     assert not set(summary_columns(scene)) & {"turgor_mean", "water", "water_balance_error"}
 
 
+def test_a_water_model_builds_no_solver_of_u_alone():
+    """With ``[hydraulics]`` the water step solves u and P together: the problem of u alone
+    builds no forms, matrix or solver (issue 35's cost); with the turgor given it does."""
+    world = MPI.COMM_WORLD
+    base = {k: v for k, v in BASE.items() if k != "output"}
+    for tables, built in ((SCENES["two_supplies"], False), ({"pressure": {"P1": PI}}, True)):
+        scene = parse_scene(base | tables)
+        model = model_on(macro_domain(scene, world), world)
+        assert (model.problem.ksp is not None) == built
+        assert (model.water is None) == built
+
+
 def test_the_macro_summary_has_the_micro_models_water_columns(runs):
     path, _, rows = runs("two_supplies")
     columns = water_columns(load_scene(path).hydraulics)

@@ -128,7 +128,7 @@ class MacroModel:
             # its sub-steps re-solve the step at other growth states; the water's state
             # advances once per step
             raise InputError("water fluxes: time.integrator must be 'euler' or 'exp'")
-        self.problem = problem = MacroProblem(scene, mesh, boundary)
+        self.problem = problem = MacroProblem(scene, mesh, boundary, water=hydraulics is not None)
         self.water = None if hydraulics is None else MacroWater(problem, hydraulics)
         self.water_out = None  # the water's fields and summary row: a scene's [hydraulics]
         if self.water is not None and scene.hydraulics is not None:

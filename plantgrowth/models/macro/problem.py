@@ -116,9 +116,13 @@ class MacroProblem:
         msh: the fine mesh.
         boundary: its symmetry facets, pinned vertex and loadable edges; default: the scene's
             rectangle (bottom edge on x2 = 0, a vertex at the origin).
+        water: u is solved with P by a :class:`~plantgrowth.models.macro.water.MacroWater`:
+            the forms, matrix and solver of u alone are not built (``ksp`` stays None).
     """
 
-    def __init__(self, scene: Scene, msh: mesh.Mesh, boundary: Boundary | None = None) -> None:
+    def __init__(
+        self, scene: Scene, msh: mesh.Mesh, boundary: Boundary | None = None, water: bool = False
+    ) -> None:
         self.mesh = msh
         self.boundary = boundary or rectangle_boundary(msh, scene.tissue.width, scene.tissue.height)
         comm = msh.comm
@@ -175,7 +179,10 @@ class MacroProblem:
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         self.solver = scene.solver.macro_kind(self.ndofs)
         self.rtol = scene.solver.macro_rtol
-        self._linear_forms(scene, psi, P1, grad_P1)  # finite kinematics: Newton's predictor
+        self.with_water = water
+        self.ksp = None
+        if not water:
+            self._linear_forms(scene, psi, P1, grad_P1)  # finite kinematics: Newton's predictor
         if self.finite:
             self._finite_forms(scene, psi, P1)
         self._grad_u = fem.Function(self.T0)
@@ -234,6 +241,9 @@ class MacroProblem:
         self.newton_report: NewtonReport | None = None
 
     def _solver_name(self) -> str:
+        if self.with_water:
+            kind = "MINRES + field split" if self.solver == "iterative" else "LU"
+            return kind + " of u and P (water)"
         if self.solver != "iterative":
             return "LU"
         newton = ", Newton: GMRES + GAMG (LU where GMRES stops)" if self.finite else ""

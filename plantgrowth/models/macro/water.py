@@ -12,7 +12,8 @@ supplied edge at small time steps (docs/model.md, "Water fluxes").
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import logging
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import ufl
@@ -34,13 +35,14 @@ from plantgrowth.models.linear import (
 from plantgrowth.models.macro.hydraulics import MacroHydraulics, at_time, sample
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.unitcell.homogenization import NodeTensors
-from plantgrowth.unitcell.hydraulic_coefficients import conductivity
+
+log = logging.getLogger("plantgrowth")
 
 PREFIX = "plantgrowth_macro_water_"
 MAX_IT = 2000
-"""MINRES's iteration limit on the iterative path: 60-160 iterations on the consolidation strip
-(3,000 dofs, rtol 1e-10, dt 1e-4 to 0.1 of the diffusion time); a solve that needs more is
-reported by its converged reason."""
+"""MINRES's iteration limit on the iterative path: 15-28 iterations on the consolidation strip
+(3,000 dofs, rtol 1e-10, dt 1e-4 to 0.1 of the diffusion time), 25 on the apex scene at 25,600
+and 102,000 dofs (rtol 1e-8); a solve that needs more is reported by its converged reason."""
 STABILISATION = 0.25
 """beta = STABILISATION h^2 |b|^2 / E_min, with h the fine cell's longest edge, |b| b's largest
 eigenvalue and E_min = min(E_hom_1111, E_hom_2222). In 1D, ``h^2 b^2 / (4 E)`` makes the P1-P1
@@ -52,15 +54,25 @@ and 1e-6 of the diffusion time, P leaves the range of its old and new values by 
 
 
 def unit_conductivities(cells: Sequence[HoneycombCell], Fg: np.ndarray) -> np.ndarray:
-    """(n, 2, 2) ``kappa / L`` of each fine cell's unit cell at its Fg (docs/model.md, "The unit
-    cell's coefficients"), computed once per distinct (cell, Fg)."""
+    """(n, 2, 2) ``kappa / L`` of each fine cell's unit cell at its Fg (det > 0; docs/model.md,
+    "The unit cell's coefficients"): :func:`~plantgrowth.unitcell.hydraulic_coefficients.
+    conductivity`'s sum over the three wall families, for all the fine cells of one unit cell
+    at once (one call per fine cell took 0.1 ms: 6x a given-turgor step's time, issue 35)."""
     out = np.empty((len(cells), 2, 2))
-    seen: dict[tuple, np.ndarray] = {}
-    for k, (cell, F) in enumerate(zip(cells, Fg, strict=True)):
-        key = (cell, F.tobytes())
-        if key not in seen:
-            seen[key] = conductivity(cell, F)
-        out[k] = seen[key]
+    groups: dict[HoneycombCell, list[int]] = {}
+    for k, cell in enumerate(cells):
+        groups.setdefault(cell, []).append(k)
+    for cell, index in groups.items():
+        F = Fg[index]
+        vertical, rising, falling = cell.wall_tangents()
+        kappa = np.zeros_like(F)
+        for d, t, length in ((cell.b1, vertical, cell.l1), (cell.b2, falling, cell.l2),
+                             (cell.b2 - cell.b1, rising, cell.l2)):  # fmt: skip
+            Fd = F @ d
+            kappa += (length * np.linalg.norm(F @ t, axis=1))[:, None, None] * (
+                Fd[:, :, None] * Fd[:, None, :]
+            )
+        out[index] = kappa / (np.linalg.det(F) * cell.area)[:, None, None]
     return out
 
 
@@ -109,8 +121,8 @@ class MacroWater:
         if problem.K is None:
             problem.K = fem.Function(problem.T0, name="K")
         self.K = problem.K
-        self.inv_M, self.beta, self.L_r, self.Lr_psi_r = (
-            fem.Function(problem.Q0) for _ in range(4)
+        self.inv_M, self.beta, self.L_r, self.Lr_psi_r, self.b2_E = (
+            fem.Function(problem.Q0) for _ in range(5)
         )
         self.kappa = fem.Function(problem.T0, name="kappa")
         self.L_cells = sample(inputs.conductivity, *problem.midpoints[:, :2].T)
@@ -126,9 +138,11 @@ class MacroWater:
             for s in inputs.edges
         }
         self._forms()
+        self._integrals: dict[object, fem.FormMetaClass] = {}  # key -> compiled (_integral)
         self.A = fem.petsc.create_matrix_block(self.a)
         self.b = fem.petsc.create_vector_block(self.L)
         self.x = self.A.createVecRight()
+        self.schur = None  # the iterative path's Schur preconditioner matrix
         self.ksp = self._solver()
         self._m_expr = fem.Expression(
             water.water_held(problem.u, self.P, problem.Fg, self.K, problem.phi_w, self.inv_M),
@@ -148,7 +162,10 @@ class MacroWater:
             PETSc.IS().createGeneral(np.arange(a, b, dtype=np.int32), comm=pr.mesh.comm)
             for a, b in ((start, start + n_u), (start + n_u, start + n_u + n_P))
         )
-        return saddle_point_solver(self.A, fields, pr.mesh.comm, PREFIX, pr.rtol, MAX_IT)
+        self.schur = fem.petsc.create_matrix(self.a_schur)
+        return saddle_point_solver(
+            self.A, fields, self.schur, pr.mesh.comm, PREFIX, pr.rtol, MAX_IT
+        )
 
     def _regions(self, t: float) -> None:
         """L_r and L_r psi_r(t) per fine cell (zero outside the supplied regions)."""
@@ -176,6 +193,10 @@ class MacroWater:
             return storage, stabilised, self.dt * H
 
         S, D, dtH = pressure_block(P)
+        if pr.solver == "iterative":  # its Schur preconditioner: the P block with the fixed-
+            # stress term |b|^2 / E_min in place of B^T K^-1 B (docs/large_tissues.md, "Water
+            # fluxes"): 25 MINRES iterations at 25,600 and 102,000 dofs, 46 with B^T diag(K)^-1 B
+            self.a_schur = fem.form(-(S + D + dtH + self.b2_E * ufl.det(Fg) * P * q * dx))
         a = [
             [macro_bilinear_form(u, v, Fg, C, dx), -water.turgor_coupling(P, v, Fg, K, phi_w, dx)],
             [-water.turgor_coupling(q, u, Fg, K, phi_w, dx), -(S + D + dtH)],
@@ -216,6 +237,7 @@ class MacroWater:
         b_max = np.abs(np.linalg.eigvalsh(b)).max(axis=1)
         E_min = np.minimum(tensors.C[:, 0, 0], tensors.C[:, 1, 1])
         beta = self.stabilisation * longest_edges(pr) ** 2 * b_max**2 / E_min
+        pr.set_cell_values(self.b2_E, b_max**2 / E_min)
         pr.set_cell_values(self.beta, beta)
 
     def set_edge_potential(self, edge: str, potential: float) -> None:
@@ -261,6 +283,10 @@ class MacroWater:
         self.A.zeroEntries()
         fem.petsc.assemble_matrix_block(self.A, self.a, bcs=pr.bcs)
         self.A.assemble()
+        if self.schur is not None:
+            self.schur.zeroEntries()
+            fem.petsc.assemble_matrix(self.schur, self.a_schur)
+            self.schur.assemble()
         with self.b.localForm() as local:
             local.set(0.0)
         fem.petsc.assemble_vector_block(self.b, self.L, self.a, bcs=pr.bcs)
@@ -274,6 +300,9 @@ class MacroWater:
         self._solved()
         residual = relative_residual(self.A, self.x, self.b)
         iterations = 0 if self.ksp.getType() == "preonly" else self.ksp.getIterationNumber()
+        if iterations:
+            log.info("macro water solve: %d MINRES iterations, relative residual %.2g",
+                     iterations, residual)  # fmt: skip
         return SolveReport(self.ksp.getConvergedReason(), residual, iterations, pr.residual_bound)
 
     def _solved(self) -> None:
@@ -321,12 +350,15 @@ class MacroWater:
 
     def water_content(self) -> float:
         """Collective: ``int m dx``, the water the tissue holds."""
-        return self._integral(self.m * ufl.dx)
+        return self._integral("water", lambda: self.m * ufl.dx)
 
     def inflow(self, edge: str | None = None) -> float:
         """Collective: the water entering per unit time at the current state through a supplied
         ``edge`` (``int L_s |cof(Fg) N| (psi_s - psi) ds``), or through every supply (the edges
         and ``int Jg L_r (psi_r - psi) dx``)."""
+        return self._integral(("inflow", edge), lambda: self._inflow_form(edge))
+
+    def _inflow_form(self, edge: str | None) -> ufl.Form:
         pr, psi = self.problem, self.P - self.Pi
         n = ufl.FacetNormal(pr.mesh)
         one = fem.Constant(pr.mesh, PETSc.ScalarType(1.0))
@@ -337,8 +369,12 @@ class MacroWater:
         for name, (L_s, psi_s, ds) in self.edges.items():
             if edge in (None, name):
                 total += water.edge_supply_form(psi_s - psi, one, pr.Fg, L_s, n, ds)
-        return self._integral(total)
+        return total
 
-    def _integral(self, form: ufl.Form) -> float:
-        value = fem.assemble_scalar(fem.form(form))
+    def _integral(self, key: object, form: Callable[[], ufl.Form]) -> float:
+        """Collective: the integral of a form, compiled on its key's first use (each step
+        integrates the same forms: compiling them every time took 30 ms a step, issue 35)."""
+        if key not in self._integrals:
+            self._integrals[key] = fem.form(form())
+        value = fem.assemble_scalar(self._integrals[key])
         return self.problem.mesh.comm.allreduce(value, op=MPI.SUM)
