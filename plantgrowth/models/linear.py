@@ -164,8 +164,8 @@ def saddle_point_solver(
     which negates the Schur block so that the preconditioner is positive definite; ``schur``
     approximates the Schur complement ``-(C + B^T K^-1 B)`` (the caller assembles it before each
     solve). K is factorized (MUMPS): one BoomerAMG cycle on the homogenized honeycomb's K
-    (nearly incompressible) took MINRES from 18 to 189 iterations on the apex scene (8,500
-    dofs), over 1,600 at 25,600 (docs/large_tissues.md, "Water fluxes"). MINRES tests the
+    (nearly incompressible) took MINRES from 18 to 189 iterations on the apex scene (1,728
+    dofs), over 1,600 at 25,620 (docs/large_tissues.md, "Water fluxes"). MINRES tests the
     preconditioned residual: callers check the true one."""
     ksp = PETSc.KSP().create(comm)
     ksp.setOptionsPrefix(prefix)

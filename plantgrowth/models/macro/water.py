@@ -41,8 +41,8 @@ log = logging.getLogger("plantgrowth")
 PREFIX = "plantgrowth_macro_water_"
 MAX_IT = 2000
 """MINRES's iteration limit on the iterative path: 15-28 iterations on the consolidation strip
-(3,000 dofs, rtol 1e-10, dt 1e-4 to 0.1 of the diffusion time), 25 on the apex scene at 25,600
-and 102,000 dofs (rtol 1e-8); a solve that needs more is reported by its converged reason."""
+(3,000 dofs, rtol 1e-10, dt 1e-4 to 0.1 of the diffusion time), 25 on the apex scene at 25,620
+and 100,914 dofs (rtol 1e-8); a solve that needs more is reported by its converged reason."""
 STABILISATION = 0.25
 """beta = STABILISATION h^2 |b|^2 / E_min, with h the fine cell's longest edge, |b| b's largest
 eigenvalue and E_min = min(E_hom_1111, E_hom_2222). In 1D, ``h^2 b^2 / (4 E)`` makes the P1-P1
@@ -195,7 +195,7 @@ class MacroWater:
         S, D, dtH = pressure_block(P)
         if pr.solver == "iterative":  # its Schur preconditioner: the P block with the fixed-
             # stress term |b|^2 / E_min in place of B^T K^-1 B (docs/large_tissues.md, "Water
-            # fluxes"): 25 MINRES iterations at 25,600 and 102,000 dofs, 46 with B^T diag(K)^-1 B
+            # fluxes"): 25 MINRES iterations at 25,620 and 100,914 dofs, 46 with B^T diag(K)^-1 B
             self.a_schur = fem.form(-(S + D + dtH + self.b2_E * ufl.det(Fg) * P * q * dx))
         a = [
             [macro_bilinear_form(u, v, Fg, C, dx), -water.turgor_coupling(P, v, Fg, K, phi_w, dx)],
