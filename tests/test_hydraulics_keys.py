@@ -149,7 +149,7 @@ def test_hydraulics_with_what_cannot_take_it_is_refused(change, fragments):
 
 @pytest.mark.parametrize(
     "model, kinematics, message",
-    [("both", "linear", "hydraulics: model = 'both' does not solve water"),
+    [("both", "finite", "hydraulics: model = 'both' with kinematics = 'finite' does not solve"),
      ("macro", "finite", "hydraulics: model = 'macro' with kinematics = 'finite' does not solve")],
 )  # fmt: skip
 def test_models_without_water_refuse_a_hydraulic_scene(model, kinematics, message):
@@ -159,9 +159,10 @@ def test_models_without_water_refuse_a_hydraulic_scene(model, kinematics, messag
         parse(text)
 
 
-def test_the_macro_model_with_linear_kinematics_takes_a_hydraulic_scene():
-    scene = parse('model = "macro"\n[growth]\nlaw = "stress"\n[hydraulics]\nconductivity = 1\n')
-    assert scene.hydraulics is not None and scene.model == "macro"
+@pytest.mark.parametrize("model", ["macro", "both"])
+def test_the_macro_model_with_linear_kinematics_takes_a_hydraulic_scene(model):
+    scene = parse(f'model = "{model}"\n[growth]\nlaw = "stress"\n[hydraulics]\nconductivity = 1\n')
+    assert scene.hydraulics is not None and scene.model == model
 
 
 @pytest.mark.parametrize(

@@ -270,19 +270,14 @@ def hydraulics_from(
 
 
 def check_supported(model: str, integrator: str, kinematics: str) -> None:
-    """SceneError unless the run can solve water fluxes: the micro model (either kinematics) or
-    the macro model (linear kinematics), with a fixed step (the water advances once per step)."""
-    if model not in ("micro", "macro"):
+    """SceneError unless the run can solve water fluxes: the micro model (either kinematics),
+    the macro model (linear kinematics) or both, with a fixed step (the water advances once per
+    step)."""
+    if model != "micro" and kinematics != "linear":
         raise SceneError(
-            f"hydraulics: model = {model!r} does not solve water fluxes yet "
-            "(docs/model.md, water fluxes): model = 'micro' or 'macro' does; run the two "
-            "models as separate scenes"
-        )
-    if model == "macro" and kinematics != "linear":
-        raise SceneError(
-            f"hydraulics: model = 'macro' with kinematics = {kinematics!r} does not solve water "
-            "fluxes yet (docs/model.md, water fluxes): use kinematics = 'linear', or model = "
-            "'micro'"
+            f"hydraulics: model = {model!r} with kinematics = {kinematics!r} does not solve "
+            "water fluxes in the macro model yet (docs/model.md, water fluxes): use kinematics "
+            "= 'linear', or model = 'micro'"
         )
     if integrator == "adaptive":
         raise SceneError(
@@ -301,9 +296,9 @@ def turgor_input(scene: Any) -> AnyField | None:
 
 def check_water_fields(fields: tuple[str, ...], hydraulics: Hydraulics | None, model: str) -> None:
     """SceneError for an ``[output] fields`` water field (P, psi, water_flux) that the run does
-    not write: they are the macro model's, with ``[hydraulics]``."""
+    not write: they are the macro model's, with ``[hydraulics]`` (model = "macro" or "both")."""
     asked = [name for name in fields if name in WATER_FIELDS]
-    if asked and (hydraulics is None or model != "macro"):
+    if asked and (hydraulics is None or model == "micro"):
         where = (
             "the micro model writes each cell's P and psi in cells.csv"
             if hydraulics is not None
@@ -311,6 +306,6 @@ def check_water_fields(fields: tuple[str, ...], hydraulics: Hydraulics | None, m
         )
         raise SceneError(
             f"output.fields: {asked} are the macro model's water fields, written with "
-            f"[hydraulics] and model = 'macro' (this scene: model = {model!r}"
+            f"[hydraulics] and model = 'macro' or 'both' (this scene: model = {model!r}"
             f"{'' if hydraulics is not None else ', no [hydraulics]'}); {where}"
         )
