@@ -438,6 +438,7 @@ def test_lockhart_ortega():
     t = 10, against the 1% the docs state."""
     comm = MPI.COMM_WORLD
     model = growing_model(comm)
+    assert model.homogenizer.water  # a surrogate's checks would log b's and 1/M's errors
     Fg, G = advance(model, model.initial_growth(), 101)
     problem, water = model.problem, model.water
     phi_w = float(problem.cell_values(problem.phi_w)[0, 0])
