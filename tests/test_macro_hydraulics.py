@@ -11,6 +11,8 @@ homogeneous tensors of every fine cell.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -18,6 +20,7 @@ from results_json import write_results
 
 from plantgrowth.base.errors import InputError
 from plantgrowth.base.tensors import det2, voigt_matrix
+from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models import growth
 from plantgrowth.models.macro.hydraulics import (
@@ -318,6 +321,34 @@ def test_kappa_is_proportional_to_the_cells_size(reference):
     assert water.inflow("right") == pytest.approx(-expected, rel=1e-6)
 
 
+def test_kappa_and_storage_are_each_cells_own(reference):
+    """The macro model's coefficients per fine cell (MacroWater.set_coefficients): kappa is
+    ``cell_scale L conductivity(cell, Fg)`` of that cell's unit cell at its own Fg (the closed
+    form, no surrogate) and 1/M is ``-tr dbar[v]`` of its tensors, on a strip whose cells
+    alternate between two geometries and each grow by their own random Fg (rotations, shears,
+    scalings): equal up to the round-off of writing them into the DG0 functions (none: copies;
+    1e-15 of kappa's size allows a different summation order)."""
+    cell, result = reference
+    problem = strip(0.125)
+    n = problem.n_cells
+    rng = np.random.default_rng(10)
+    Fg = np.eye(2) + rng.uniform(-0.3, 0.3, (n, 2, 2))
+    cells = [cell if k % 2 else HoneycombCell(1.5, 1.0, 20.0, 0.1) for k in range(n)]
+    tensors = homogeneous(result, n)
+    tensors = replace(tensors, dbar_v=tensors.dbar_v * rng.uniform(0.5, 2.0, n)[:, None, None])
+    scale, L = 0.25, 3.0
+    inputs = MacroHydraulics(osmotic=PI, conductivity=L, cell_scale=scale, edges=ends())
+    water = MacroWater(problem, inputs)
+    water.set_coefficients(Fg, tensors, cells)
+    owned = problem.n_owned  # a ghost cell's values are its owner's (its own random Fg)
+    pairs = zip(cells[:owned], Fg[:owned], strict=True)
+    expected = np.array([scale * L * conductivity(c, F) for c, F in pairs])
+    kappa = problem.cell_values(water.kappa)[:owned].reshape(owned, 2, 2)
+    np.testing.assert_allclose(kappa, expected, rtol=0.0, atol=1e-15 * np.abs(expected).max())
+    storage = -np.trace(tensors.dbar_v[:owned], axis1=1, axis2=2)
+    np.testing.assert_array_equal(problem.cell_values(water.inv_M)[:owned, 0], storage)
+
+
 def gathered(water: MacroWater) -> np.ndarray:
     """Every rank's (x1, x2, P) rows of the owned P1 dofs, sorted by position."""
     owned = water.Q.dofmap.index_map.size_local
@@ -407,6 +438,7 @@ def test_lockhart_ortega():
     t = 10, against the 1% the docs state."""
     comm = MPI.COMM_WORLD
     model = growing_model(comm)
+    assert model.homogenizer.water  # a surrogate's checks would log b's and 1/M's errors
     Fg, G = advance(model, model.initial_growth(), 101)
     problem, water = model.problem, model.water
     phi_w = float(problem.cell_values(problem.phi_w)[0, 0])
