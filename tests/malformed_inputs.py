@@ -905,7 +905,7 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
     pressure or conductivity, a missing conductivity, pressure.P1 given as well, a supply on the
     symmetry plane, on an edge or region the scene does not have, twice, without or with a
     non-positive conductance, a bad potential in time, a valid table in a scene whose model
-    (micro, or macro with linear kinematics, take it) or integrator cannot take it, the
+    (micro and macro, either kinematics, take it) or integrator cannot take it, the
     macro model's water fields asked of the micro model, and a bad micro.nx (the cells' size)
     in a macro water scene."""
     what = rng.choice(["wrong_type", "nonfinite", "negative", "missing", "P1", "bottom", "edge",
@@ -955,8 +955,8 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
             {"times": [0.0, 10.0], "values": [0.0, -1e-3], "interpolation": "cubic"},
         ])  # fmt: skip
         expect = ("hydraulics.supply[0].potential",)
-    elif what == "model":  # the macro model solves water with linear kinematics only
-        scene["model"], scene["kinematics"] = rng.choice([("macro", "finite"), ("both", "linear")])
+    elif what == "model":  # the micro and the macro model solve water, not both at once
+        scene["model"], scene["kinematics"] = "both", rng.choice(["linear", "finite"])
         expect = ("hydraulics: model =", "does not solve water")
     elif what == "cell_size":  # a macro water scene's cells are micro.nx's (4 / nx x [cell])
         scene["model"], scene["kinematics"] = "macro", "linear"

@@ -121,7 +121,7 @@ class Hydraulics:
     def supported_by(self, scene: Any) -> AnyField:
         """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its model solves water
         fluxes (:func:`check_supported`)."""
-        check_supported(scene.model, scene.time.integrator, scene.kinematics)
+        check_supported(scene.model, scene.time.integrator)
         return self.osmotic
 
     def regions(self) -> list[Supply]:
@@ -269,20 +269,14 @@ def hydraulics_from(
     return Hydraulics(osmotic, conductivity, psi0, tuple(supplies))
 
 
-def check_supported(model: str, integrator: str, kinematics: str) -> None:
-    """SceneError unless the run can solve water fluxes: the micro model (either kinematics) or
-    the macro model (linear kinematics), with a fixed step (the water advances once per step)."""
+def check_supported(model: str, integrator: str) -> None:
+    """SceneError unless the run can solve water fluxes: the micro or the macro model (either
+    kinematics), with a fixed step (the water advances once per step)."""
     if model not in ("micro", "macro"):
         raise SceneError(
             f"hydraulics: model = {model!r} does not solve water fluxes yet "
             "(docs/model.md, water fluxes): model = 'micro' or 'macro' does; run the two "
             "models as separate scenes"
-        )
-    if model == "macro" and kinematics != "linear":
-        raise SceneError(
-            f"hydraulics: model = 'macro' with kinematics = {kinematics!r} does not solve water "
-            "fluxes yet (docs/model.md, water fluxes): use kinematics = 'linear', or model = "
-            "'micro'"
         )
     if integrator == "adaptive":
         raise SceneError(
