@@ -29,13 +29,18 @@ from test_macro_hydraulics import (
     problem_on,
     water_on,
 )
+from test_macro_run import read_summary
+from test_macro_water_scene import BALANCE, SCENES, read_fields
+from test_macro_water_scene import BASE as SCENE_BASE
 
 from plantgrowth.base.errors import InputError
+from plantgrowth.cli import main
 from plantgrowth.models.macro.hydraulics import EdgeSupply, MacroHydraulics, RegionSupply
 from plantgrowth.models.macro.water import MacroWater
 from plantgrowth.models.macro.water_finite import MacroWaterFinite
 from plantgrowth.models.newton import NEWTON_RTOL
 from plantgrowth.scene import parse_scene
+from plantgrowth.scene.toml_text import dict_to_toml
 from plantgrowth.unitcell.solver import CellSolver
 
 pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
@@ -169,3 +174,27 @@ def test_distributed_and_resumed_runs_match_one_rank():
     9e-16 of Pi on 2 ranks). Under ``mpirun -n 2`` this is serial against distributed and
     resumed at once."""
     assert_resumes_exactly("finite")
+
+
+def test_a_finite_scene_runs_with_the_water_outputs(mpi_tmp_path):
+    """``plantgrowth run`` of test_macro_water_scene's two_supplies scene (an edge and a
+    region, the region drying at t = 2) with ``kinematics = "finite"``: the summary carries
+    Newton's iterations and the water columns, the balance column closes to Newton's tolerance
+    (below test_macro_water_scene.BALANCE = 1e-12 of the water held; measured at most 1.3e-14)
+    and the fields P and psi = P - Pi are written at every step."""
+    path, outdir = mpi_tmp_path / "finite.toml", mpi_tmp_path / "out"
+    if MPI.COMM_WORLD.rank == 0:
+        path.write_text(
+            dict_to_toml(SCENE_BASE | SCENES["two_supplies"] | {"kinematics": "finite"})
+        )
+    MPI.COMM_WORLD.Barrier()
+    assert main(["run", str(path), "-o", str(outdir)]) == 0
+    MPI.COMM_WORLD.Barrier()  # rank 0 writes the last summary row after the last collective
+    rows = read_summary(outdir / "summary.csv")
+    assert len(rows) == 4 and all(row["newton_iterations"] >= 1 for row in rows[1:])
+    for row in rows:
+        assert abs(row["water_balance_error"]) <= BALANCE * row["water"]
+    assert rows[-1]["turgor_mean"] < 0.5 * PI  # the water drawn: turgor fell
+    for step in range(len(rows)):
+        fields = read_fields(outdir, step)
+        assert fields["psi"][:, 0] == pytest.approx(fields["P"][:, 0] - PI, abs=1e-15)
