@@ -281,8 +281,9 @@ BOTH = {
 }  # fmt: skip
 
 
-def test_both_models_solve_the_water_as_each_alone(mpi_tmp_path):
-    """``model = "both"`` with ``[hydraulics]``: its micro side is the micro model's run of the
+@pytest.mark.parametrize("kinematics", ["linear", "finite"])
+def test_both_models_solve_the_water_as_each_alone(mpi_tmp_path, kinematics):
+    """``model = "both"`` with ``[hydraulics]``, either kinematics: its micro side is the micro model's run of the
     scene (rows equal to a ``model = "micro"`` run's: the same solves, bit for bit on one rank;
     on two, 1e-8 relative, the micro model's serial = mpirun bound: parallel MUMPS's round-off
     on the thin walls' system differs from run to run, measured 3e-11 in u1_max), and its macro
@@ -294,9 +295,10 @@ def test_both_models_solve_the_water_as_each_alone(mpi_tmp_path):
     paths = {m: mpi_tmp_path / f"{m}.toml" for m in ("both", "micro")}
     if world.rank == 0:
         path = paths["both"]
-        path.write_text(dict_to_toml(BASE | BOTH))
+        both = BASE | BOTH | {"kinematics": kinematics}
+        path.write_text(dict_to_toml(both))
         micro = {"model": "micro", "output": {"precision": "float64", "fields": ["u"]}}
-        paths["micro"].write_text(dict_to_toml(BASE | BOTH | micro))  # P: the macro model's
+        paths["micro"].write_text(dict_to_toml(both | micro))  # P: the macro model's
     world.Barrier()
     for model, path in paths.items():
         assert main(["run", str(path), "-o", str(mpi_tmp_path / model)]) == 0

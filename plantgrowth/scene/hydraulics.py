@@ -119,9 +119,9 @@ class Hydraulics:
         )  # fmt: skip
 
     def supported_by(self, scene: Any) -> AnyField:
-        """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its model solves water
+        """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its run solves water
         fluxes (:func:`check_supported`)."""
-        check_supported(scene.model, scene.time.integrator, scene.kinematics)
+        check_supported(scene.time.integrator)
         return self.osmotic
 
     def regions(self) -> list[Supply]:
@@ -269,16 +269,9 @@ def hydraulics_from(
     return Hydraulics(osmotic, conductivity, psi0, tuple(supplies))
 
 
-def check_supported(model: str, integrator: str, kinematics: str) -> None:
-    """SceneError unless the run can solve water fluxes: the micro model (either kinematics),
-    the macro model (linear kinematics) or both, with a fixed step (the water advances once per
-    step)."""
-    if model != "micro" and kinematics != "linear":
-        raise SceneError(
-            f"hydraulics: model = {model!r} with kinematics = {kinematics!r} does not solve "
-            "water fluxes in the macro model yet (docs/model.md, water fluxes): use kinematics "
-            "= 'linear', or model = 'micro'"
-        )
+def check_supported(integrator: str) -> None:
+    """SceneError unless the run can solve water fluxes: every model (micro, macro, both) in
+    either kinematics does, with a fixed step (the water advances once per step)."""
     if integrator == "adaptive":
         raise SceneError(
             "hydraulics: time.integrator = 'adaptive' re-solves steps at sub-step times, which "
