@@ -283,14 +283,14 @@ BOTH = {
 
 @pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_both_models_solve_the_water_as_each_alone(mpi_tmp_path, kinematics):
-    """``model = "both"`` with ``[hydraulics]``, either kinematics: its micro side is the micro model's run of the
-    scene (rows equal to a ``model = "micro"`` run's: the same solves, bit for bit on one rank;
-    on two, 1e-8 relative, the micro model's serial = mpirun bound: parallel MUMPS's round-off
-    on the thin walls' system differs from run to run, measured 3e-11 in u1_max), and its macro
-    side, on the cells' region with their size, solves the water too: P in its fields, the
-    balance closed to BALANCE, and in both models the growing tissue draws water from the
-    supplied edge while its turgor falls below Pi (growth takes water faster than the walls
-    conduct it)."""
+    """``model = "both"`` with ``[hydraulics]``, either kinematics: its micro side is the micro
+    model's run of the scene (rows equal to a ``model = "micro"`` run's: the same solves, bit for
+    bit on one rank; on two, 1e-8 relative, the micro model's serial = mpirun bound: parallel
+    MUMPS's round-off on the thin walls' system differs from run to run, measured 3e-11 in
+    u1_max), and its macro side, on the cells' region with their size, solves the water too: P in
+    its fields, the balance closed to BALANCE, and in both models the growing tissue draws water
+    from the supplied edge while its turgor falls below Pi (growth takes water faster than the
+    walls conduct it)."""
     world = MPI.COMM_WORLD
     paths = {m: mpi_tmp_path / f"{m}.toml" for m in ("both", "micro")}
     if world.rank == 0:
