@@ -1,4 +1,5 @@
-"""The macro model's water (docs/model.md, "Water fluxes", macro model), linear kinematics.
+"""The macro model's water (docs/model.md, "Water fluxes", macro model); linear kinematics but
+for :func:`water_held_finite` (the finite step's residual: models/macro/water_finite.py).
 
 Turgor P is a field solved with u; the water held per unit reference area is
 ``m = Jg [(1 - phi_w) + b : eps_el + P / M]`` with the Biot tensor ``b = (1 - phi_w) I - K_hom``.
@@ -16,6 +17,7 @@ from __future__ import annotations
 import ufl
 
 from .elasticity import elastic_strain, grown_length, growth_strain, growth_weighted_work
+from .finite import elastic_deformation, green_lagrange_strain
 
 
 def biot_tensor(K, phi_w):
@@ -27,6 +29,16 @@ def water_held(u, P, Fg, K, phi_w, inv_M):
     """``m = Jg [(1 - phi_w) + b : eps_el(u, Fg) + P / M]`` per unit reference area."""
     b = biot_tensor(K, phi_w)
     return ufl.det(Fg) * ((1.0 - phi_w) + ufl.inner(b, elastic_strain(u, Fg)) + inv_M * P)
+
+
+def water_held_finite(u, P, Fg, K, phi_w, inv_M):
+    """``m = Jg [(1 - phi_w) det(Fe) - K_hom : Ee + P / M]`` per unit reference area, finite
+    kinematics (Fe, Ee: forms/finite.py): its derivative in u is minus the turgor's part of the
+    finite macro residual's derivative in P, ``Jg ((1 - phi_w) cof(Fe) - Fe K_hom) : grad(du)
+    Fg^{-1}``, so the (u, P) Jacobian is symmetric."""
+    Fe = elastic_deformation(u, Fg)
+    Ee = green_lagrange_strain(u, Fg)
+    return ufl.det(Fg) * ((1.0 - phi_w) * ufl.det(Fe) - ufl.inner(K, Ee) + inv_M * P)
 
 
 def water_at_rest(q, Fg, K, phi_w, dx) -> ufl.Form:

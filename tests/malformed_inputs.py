@@ -904,12 +904,12 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
     """``[hydraulics]`` (docs/model.md, water fluxes): wrong types, NaN/inf, a negative osmotic
     pressure or conductivity, a missing conductivity, pressure.P1 given as well, a supply on the
     symmetry plane, on an edge or region the scene does not have, twice, without or with a
-    non-positive conductance, a bad potential in time, a valid table in a scene whose model
-    (micro, or macro with linear kinematics, take it) or integrator cannot take it, the
+    non-positive conductance, a bad potential in time, a valid table in a scene whose
+    integrator cannot take it (every model, in either kinematics, takes it), the
     macro model's water fields asked of the micro model, and a bad micro.nx (the cells' size)
     in a macro water scene."""
     what = rng.choice(["wrong_type", "nonfinite", "negative", "missing", "P1", "bottom", "edge",
-                       "region", "twice", "conductance", "times", "model", "fields",
+                       "region", "twice", "conductance", "times", "fields",
                        "cell_size", "adaptive"])  # fmt: skip
     scene = base_scene(rng, micro=True)
     scene["model"] = "micro"
@@ -955,9 +955,6 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
             {"times": [0.0, 10.0], "values": [0.0, -1e-3], "interpolation": "cubic"},
         ])  # fmt: skip
         expect = ("hydraulics.supply[0].potential",)
-    elif what == "model":  # the macro model solves water with linear kinematics only
-        scene["model"], scene["kinematics"] = rng.choice([("macro", "finite"), ("both", "linear")])
-        expect = ("hydraulics: model =", "does not solve water")
     elif what == "cell_size":  # a macro water scene's cells are micro.nx's (4 / nx x [cell])
         scene["model"], scene["kinematics"] = "macro", "linear"
         scene["time"] = {"t_max": 2.0, "dt": 1.0}

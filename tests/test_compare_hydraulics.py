@@ -21,11 +21,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import ufl
-from cli_helpers import call, shared_dir
+from cli_helpers import shared_dir
 from dolfinx import fem
 from mpi4py import MPI
 
-from plantgrowth.base.errors import SceneError
 from plantgrowth.cli import main
 from plantgrowth.meshes.cell_walls import wall_network
 from plantgrowth.meshes.tissue import TissueLayout
@@ -34,7 +33,7 @@ from plantgrowth.models.macro.hydraulics import cell_scale
 from plantgrowth.models.micro.model import scene_cell
 from plantgrowth.scene import parse_scene
 from plantgrowth.scene.toml_text import dict_to_toml
-from plantgrowth.studies.compare import COLUMNS, check_comparable, run_compare
+from plantgrowth.studies.compare import COLUMNS, run_compare
 
 NXS = (4, 8)
 SCENE = {
@@ -115,21 +114,6 @@ def test_the_macro_side_has_the_micro_tissues_cells_and_edges(nx):
             assert length == pytest.approx(np.linalg.norm(network.outer[on], axis=1).sum(), 1e-12)
     perimeter = fem.form(one * ufl.ds(domain=domain.mesh))
     assert total == pytest.approx(MPI.COMM_WORLD.allreduce(fem.assemble_scalar(perimeter)), 1e-12)
-
-
-def test_finite_kinematics_with_water_is_a_named_error(tmp_path_factory, capsys):
-    """The macro model solves water fluxes with linear kinematics only: compare refuses the
-    finite scene by name before anything is written."""
-    scene = parse_scene(SCENE | {"kinematics": "finite"})
-    with pytest.raises(SceneError, match="kinematics = 'linear' only, not 'finite'"):
-        check_comparable(scene)
-    base = shared_dir(tmp_path_factory, "compare_finite_water")
-    path = write_scene(base, "finite", SCENE | {"kinematics": "finite"})
-    code, _, err = call(["compare", path, "--nx", "4", "-o", base / "out"], capsys)
-    assert code == 2
-    if MPI.COMM_WORLD.rank == 0:
-        assert "hydraulics: plantgrowth compare runs the macro model" in err
-    assert not (base / "out").exists()
 
 
 @pytest.mark.mpi

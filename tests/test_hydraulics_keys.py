@@ -147,21 +147,13 @@ def test_hydraulics_with_what_cannot_take_it_is_refused(change, fragments):
         assert fragment in str(e.value)
 
 
-@pytest.mark.parametrize(
-    "model, kinematics, message",
-    [("both", "linear", "hydraulics: model = 'both' does not solve water"),
-     ("macro", "finite", "hydraulics: model = 'macro' with kinematics = 'finite' does not solve")],
-)  # fmt: skip
-def test_models_without_water_refuse_a_hydraulic_scene(model, kinematics, message):
-    text = (f'model = "{model}"\nkinematics = "{kinematics}"\n[growth]\nlaw = "stress"\n'
-            "[hydraulics]\nconductivity = 1\n")  # fmt: skip
-    with pytest.raises(SceneError, match=message):
-        parse(text)
-
-
-def test_the_macro_model_with_linear_kinematics_takes_a_hydraulic_scene():
-    scene = parse('model = "macro"\n[growth]\nlaw = "stress"\n[hydraulics]\nconductivity = 1\n')
-    assert scene.hydraulics is not None and scene.model == "macro"
+@pytest.mark.parametrize("kinematics", ["linear", "finite"])
+@pytest.mark.parametrize("model", ["macro", "micro", "both"])
+def test_every_model_takes_a_hydraulic_scene_in_either_kinematics(model, kinematics):
+    scene = parse(f'model = "{model}"\nkinematics = "{kinematics}"\n[growth]\nlaw = "stress"\n'
+                  "[hydraulics]\nconductivity = 1\n")  # fmt: skip
+    assert scene.hydraulics is not None
+    assert (scene.model, scene.kinematics) == (model, kinematics)
 
 
 @pytest.mark.parametrize(

@@ -117,11 +117,10 @@ def compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.runner.scene_run import checked_domain, run_directory
     from plantgrowth.scene import load_scene
     from plantgrowth.scene.plausibility import warn_about
-    from plantgrowth.studies.compare import check_comparable, run_compare
+    from plantgrowth.studies.compare import run_compare
 
     scene = load_scene(args.scene)
     scene.check_micro()
-    check_comparable(scene)
     for nx in args.nx:  # the cheap checks of every Nx first
         layout = TissueLayout(scene_cell(scene), check_nx("--nx", nx))
         if args.resolution is not None:

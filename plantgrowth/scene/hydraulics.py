@@ -119,9 +119,9 @@ class Hydraulics:
         )  # fmt: skip
 
     def supported_by(self, scene: Any) -> AnyField:
-        """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its model solves water
+        """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its run solves water
         fluxes (:func:`check_supported`)."""
-        check_supported(scene.model, scene.time.integrator, scene.kinematics)
+        check_supported(scene.time.integrator)
         return self.osmotic
 
     def regions(self) -> list[Supply]:
@@ -269,21 +269,9 @@ def hydraulics_from(
     return Hydraulics(osmotic, conductivity, psi0, tuple(supplies))
 
 
-def check_supported(model: str, integrator: str, kinematics: str) -> None:
-    """SceneError unless the run can solve water fluxes: the micro model (either kinematics) or
-    the macro model (linear kinematics), with a fixed step (the water advances once per step)."""
-    if model not in ("micro", "macro"):
-        raise SceneError(
-            f"hydraulics: model = {model!r} does not solve water fluxes yet "
-            "(docs/model.md, water fluxes): model = 'micro' or 'macro' does; run the two "
-            "models as separate scenes"
-        )
-    if model == "macro" and kinematics != "linear":
-        raise SceneError(
-            f"hydraulics: model = 'macro' with kinematics = {kinematics!r} does not solve water "
-            "fluxes yet (docs/model.md, water fluxes): use kinematics = 'linear', or model = "
-            "'micro'"
-        )
+def check_supported(integrator: str) -> None:
+    """SceneError unless the run can solve water fluxes: every model (micro, macro, both) in
+    either kinematics does, with a fixed step (the water advances once per step)."""
     if integrator == "adaptive":
         raise SceneError(
             "hydraulics: time.integrator = 'adaptive' re-solves steps at sub-step times, which "
@@ -301,9 +289,9 @@ def turgor_input(scene: Any) -> AnyField | None:
 
 def check_water_fields(fields: tuple[str, ...], hydraulics: Hydraulics | None, model: str) -> None:
     """SceneError for an ``[output] fields`` water field (P, psi, water_flux) that the run does
-    not write: they are the macro model's, with ``[hydraulics]``."""
+    not write: they are the macro model's, with ``[hydraulics]`` (model = "macro" or "both")."""
     asked = [name for name in fields if name in WATER_FIELDS]
-    if asked and (hydraulics is None or model != "macro"):
+    if asked and (hydraulics is None or model == "micro"):
         where = (
             "the micro model writes each cell's P and psi in cells.csv"
             if hydraulics is not None
@@ -311,6 +299,6 @@ def check_water_fields(fields: tuple[str, ...], hydraulics: Hydraulics | None, m
         )
         raise SceneError(
             f"output.fields: {asked} are the macro model's water fields, written with "
-            f"[hydraulics] and model = 'macro' (this scene: model = {model!r}"
+            f"[hydraulics] and model = 'macro' or 'both' (this scene: model = {model!r}"
             f"{'' if hydraulics is not None else ', no [hydraulics]'}); {where}"
         )

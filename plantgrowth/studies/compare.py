@@ -4,7 +4,7 @@ For each Nx the macro model runs on the region the micro tissue covers (the unio
 mid-line hexagons, cut at x2 = 0) and the micro model on the walls. At the first time step the
 macro displacement is evaluated on the micro walls and compared with [error]:
 ``e = sqrt( int (a - A)^2 / int A^2 )`` for u1 and u2. With water fluxes (``[hydraulics]``,
-linear kinematics) the macro model's cells are the micro tissue's (``cell_scale = 4 / Nx``:
+either kinematics) the macro model's cells are the micro tissue's (``cell_scale = 4 / Nx``:
 :func:`plantgrowth.models.macro.domain.macro_domain`) and each cell's turgor is compared with
 the macro field P at its centre (:func:`turgor_error`).
 """
@@ -24,7 +24,6 @@ from matplotlib.tri import TrapezoidMapTriFinder, Triangulation
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
-from plantgrowth.base.errors import SceneError
 from plantgrowth.base.gather import MeshGather
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models import fibres
@@ -202,18 +201,6 @@ class CellSnapshot:
     @classmethod
     def gather(cls, points: np.ndarray, values: np.ndarray, comm: MPI.Comm) -> CellSnapshot:
         return cls(np.vstack(comm.allgather(points)), np.vstack(comm.allgather(values)))
-
-
-def check_comparable(scene: Scene) -> None:
-    """SceneError for a scene whose two models cannot both run: with ``[hydraulics]`` the macro
-    model solves water fluxes with linear kinematics only (docs/model.md, water fluxes)."""
-    if scene.hydraulics is not None and scene.kinematics != "linear":
-        raise SceneError(
-            f"hydraulics: plantgrowth compare runs the macro model, which solves water fluxes "
-            f"with kinematics = 'linear' only, not {scene.kinematics!r} (docs/model.md, water "
-            "fluxes): compare the scene with kinematics = 'linear', or run its micro model "
-            "with plantgrowth run"
-        )
 
 
 def compare_one(

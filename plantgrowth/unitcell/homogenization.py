@@ -94,6 +94,15 @@ def _pack(result: CellResult) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def water_errors(tensors: NodeTensors) -> tuple[float, float]:
+    """Relative errors of the first of two points' ``b = (1 - phi_w) I - K_hom`` (Frobenius) and
+    ``1/M = -tr dbar[v]`` against the second's (docs/model.md, "The unit cell's coefficients")."""
+    b = (1.0 - tensors.phi_w)[:, None, None] * np.eye(2) - tensors.K
+    inv_M = -np.trace(tensors.dbar_v, axis1=1, axis2=2)
+    b_error = np.linalg.norm(b[0] - b[1]) / np.linalg.norm(b[1])
+    return float(b_error), float(abs(inv_M[0] - inv_M[1]) / abs(inv_M[1]))
+
+
 class Homogenizer:
     """Solves and caches the cell problems of a run.
 
@@ -105,6 +114,8 @@ class Homogenizer:
         comm: the communicator whose ranks share the cell problems.
         cell_tolerance: relative error accepted from the surrogate (0: solve every distinct
             rounded input exactly).
+        water: the run has water fluxes (pressure and strain_averages are then True): the
+            surrogate's accuracy checks also log the errors of b and 1/M (:func:`water_errors`).
     """
 
     def __init__(
@@ -115,8 +126,10 @@ class Homogenizer:
         strain_averages: bool,
         comm: MPI.Comm,
         cell_tolerance: float = 0.0,
+        water: bool = False,
     ) -> None:
         self.resolution = resolution
+        self.water = water
         self.tol = key_tolerance
         self.pressure = pressure
         self.strain_averages = strain_averages
@@ -358,14 +371,18 @@ class Homogenizer:
             local = k - sum(len(f) for f in flags[:owner])
             values = exact(local)
             found = (self.surrogate.relative_difference(answer.values[local], values), s[local])
-        error, where = self.comm.bcast(found, root=owner)
+            if self.water:
+                both = self._unpack(np.stack([answer.values[local], values]), np.ones(2))
+                found += water_errors(both)
+        error, where, *water = self.comm.bcast(found, root=owner)
         self.checks += 1
         self.largest_checked_error = max(self.largest_checked_error, error)
         log.info(
             "%s %d: one cell problem solved exactly (cell stretch s = (%.4f, %.4f)) differs by "
             "%.2e (relative) from the interpolated tensors; largest so far %.2e, allowed "
-            "accuracy.cell_tolerance = %.1e", CHECK_LINE, self.checks, *where, error,
+            "accuracy.cell_tolerance = %.1e%s", CHECK_LINE, self.checks, *where, error,
             self.largest_checked_error, self.surrogate.tolerance,
+            f"; water: b by {water[0]:.2e}, 1/M by {water[1]:.2e}" if water else "",
         )  # fmt: skip
         return 1
 

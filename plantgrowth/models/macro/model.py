@@ -13,10 +13,11 @@ tensors P1-interpolated to the fine cells.
 Fibred walls (``[walls]``, docs/fibres.md): the director angle is a state variable per fine cell
 (:mod:`plantgrowth.models.macro.director`), passed to the cell problems with the nodes' E_f / E.
 
-Water fluxes (``hydraulics``, docs/model.md "Water fluxes"; linear kinematics): the step solves
-u and P together (:mod:`plantgrowth.models.macro.water`) over the time step that ended with the
-previous step (the first step: the equilibrium at P = Pi + psi_0), and the growth law reads the
-solved P; the water held is a state variable like Fg.
+Water fluxes (``hydraulics``, docs/model.md "Water fluxes"): the step solves u and P together
+(:mod:`plantgrowth.models.macro.water`; finite kinematics: :mod:`~.water_finite`, by Newton)
+over the time step that ended with the previous step (the first step: the equilibrium at
+P = Pi + psi_0), and the growth law reads the solved P; the water held is a state variable like
+Fg.
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from plantgrowth.models.macro.hydraulics import MacroHydraulics, cell_scale, fro
 from plantgrowth.models.macro.problem import MacroProblem
 from plantgrowth.models.macro.resolution import field_sampling
 from plantgrowth.models.macro.water import MacroWater
+from plantgrowth.models.macro.water_finite import MacroWaterFinite
 from plantgrowth.models.macro.water_outputs import MacroWaterOutputs
 from plantgrowth.models.regions import RegionStatistics
 from plantgrowth.models.step import (
@@ -129,7 +131,9 @@ class MacroModel:
             # advances once per step
             raise InputError("water fluxes: time.integrator must be 'euler' or 'exp'")
         self.problem = problem = MacroProblem(scene, mesh, boundary, water=hydraulics is not None)
-        self.water = None if hydraulics is None else MacroWater(problem, hydraulics)
+        self.water = None
+        if hydraulics is not None:
+            self.water = (MacroWaterFinite if problem.finite else MacroWater)(problem, hydraulics)
         self.water_out = None  # the water's fields and summary row: a scene's [hydraulics]
         if self.water is not None and scene.hydraulics is not None:
             self.water_out = MacroWaterOutputs(
@@ -163,7 +167,7 @@ class MacroModel:
         self.homogenizer = Homogenizer(
             scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
             problem.K is not None or self.water is not None, self.strain_averages, comm,
-            scene.accuracy.cell_tolerance,
+            scene.accuracy.cell_tolerance, water=self.water is not None,
         )  # fmt: skip
         self.cells = None  # each fine cell's unit cell: kappa (water only)
         if self.water is not None:

@@ -105,11 +105,18 @@ class MacroWater:
         stabilisation: beta's factor (``STABILISATION``; 0: the unstabilised pair, for checks).
     """
 
+    finite = False
+    """The kinematics this class solves (:class:`plantgrowth.models.macro.water_finite.
+    MacroWaterFinite`: finite)."""
+
     def __init__(
         self, problem: MacroProblem, inputs: MacroHydraulics, stabilisation: float = STABILISATION
     ) -> None:
-        if problem.finite:
-            raise InputError("water fluxes: the macro model solves linear kinematics only")
+        if problem.finite != self.finite:
+            raise InputError(
+                f"water fluxes: {type(self).__name__} solves "
+                f"{'finite' if self.finite else 'linear'} kinematics only"
+            )
         self.problem, self.inputs, self.stabilisation = problem, inputs, stabilisation
         msh = problem.mesh
         self.Q = fem.FunctionSpace(msh, ("Lagrange", 1))
@@ -141,13 +148,17 @@ class MacroWater:
         self._integrals: dict[object, fem.FormMetaClass] = {}  # key -> compiled (_integral)
         self.A = fem.petsc.create_matrix_block(self.a)
         self.b = fem.petsc.create_vector_block(self.L)
-        self.x = self.A.createVecRight()
+        self.x = fem.petsc.create_vector_block(self.L)  # ghosted: Newton's x0 (finite)
         self.schur = None  # the iterative path's Schur preconditioner matrix
         self.ksp = self._solver()
         self._m_expr = fem.Expression(
-            water.water_held(problem.u, self.P, problem.Fg, self.K, problem.phi_w, self.inv_M),
-            self.m.function_space.element.interpolation_points(),
+            self._water_held(), self.m.function_space.element.interpolation_points()
         )
+
+    def _water_held(self) -> ufl.core.expr.Expr:
+        """m(u, P), linear kinematics."""
+        pr = self.problem
+        return water.water_held(pr.u, self.P, pr.Fg, self.K, pr.phi_w, self.inv_M)
 
     def _solver(self) -> PETSc.KSP:
         """LU (MUMPS on any number of ranks), or for the problem's iterative kind MINRES with
@@ -178,21 +189,34 @@ class MacroWater:
         self.problem.set_cell_values(self.L_r, L_r)
         self.problem.set_cell_values(self.Lr_psi_r, Lr_psi_r)
 
+    def _pressure_terms(self, p, q) -> tuple[ufl.Form, ufl.Form, ufl.Form]:
+        """The water rows' terms in p: storage ``S(p, q)``, stabilisation ``D(p, q)`` and
+        ``dt H(p, q)``."""
+        pr, dx = self.problem, ufl.dx
+        edges = [(L_s, ds) for L_s, _, ds in self.edges.values()]
+        storage = water.storage_form(p, q, pr.Fg, self.inv_M, dx)
+        stabilised = water.grown_gradient_form(p, q, pr.Fg, self.beta, dx)
+        H = water.conductance_form(p, q, pr.Fg, self.kappa, self.L_r, dx, edges)
+        return storage, stabilised, self.dt * H
+
+    def _known_water(self, q) -> ufl.Form:
+        """The water rows' known part, ``D(P^n, q) + dt [H(Pi, q) + int Jg L_r psi_r q + sum_s
+        int L_s |cof(Fg) N| psi_s q]``: the stabilisation's old P and what the supplies bring."""
+        pr, dx = self.problem, ufl.dx
+        supplied = self.Lr_psi_r * ufl.det(pr.Fg) * q * dx
+        n = ufl.FacetNormal(pr.mesh)
+        for L_s, psi_s, ds in self.edges.values():
+            supplied += water.edge_supply_form(psi_s, q, pr.Fg, L_s, n, ds)
+        D_old = self._pressure_terms(self.P_old, q)[1]
+        return D_old + self._pressure_terms(self.Pi, q)[2] + self.dt * supplied
+
     def _forms(self) -> None:
         """The step's block forms ``[K  -B; -B^T  -(S + D + dt H)]`` and right-hand side."""
         pr, dx = self.problem, ufl.dx
         Fg, C, K, phi_w = pr.Fg, pr.C, self.K, pr.phi_w
         u, v = ufl.TrialFunction(pr.V), ufl.TestFunction(pr.V)
         P, q = ufl.TrialFunction(self.Q), ufl.TestFunction(self.Q)
-        edges = [(L_s, ds) for L_s, _, ds in self.edges.values()]
-
-        def pressure_block(p):
-            storage = water.storage_form(p, q, Fg, self.inv_M, dx)
-            stabilised = water.grown_gradient_form(p, q, Fg, self.beta, dx)
-            H = water.conductance_form(p, q, Fg, self.kappa, self.L_r, dx, edges)
-            return storage, stabilised, self.dt * H
-
-        S, D, dtH = pressure_block(P)
+        S, D, dtH = self._pressure_terms(P, q)
         if pr.solver == "iterative":  # its Schur preconditioner: the P block with the fixed-
             # stress term |b|^2 / E_min in place of B^T K^-1 B (docs/large_tissues.md, "Water
             # fluxes"): 25 MINRES iterations at 25,620 and 100,914 dofs, 46 with B^T diag(K)^-1 B
@@ -201,14 +225,7 @@ class MacroWater:
             [macro_bilinear_form(u, v, Fg, C, dx), -water.turgor_coupling(P, v, Fg, K, phi_w, dx)],
             [-water.turgor_coupling(q, u, Fg, K, phi_w, dx), -(S + D + dtH)],
         ]
-        supplied = self.Lr_psi_r * ufl.det(Fg) * q * dx
-        n = ufl.FacetNormal(pr.mesh)
-        for L_s, psi_s, ds in self.edges.values():
-            supplied += water.edge_supply_form(psi_s, q, Fg, L_s, n, ds)
-        _, D_old, _ = pressure_block(self.P_old)
-        H_Pi = water.conductance_form(self.Pi, q, Fg, self.kappa, self.L_r, dx, edges)
-        rhs_p = water.water_at_rest(q, Fg, K, phi_w, dx) - self.m * q * dx - D_old
-        rhs_p -= self.dt * (H_Pi + supplied)
+        rhs_p = water.water_at_rest(q, Fg, K, phi_w, dx) - self.m * q * dx - self._known_water(q)
         rhs_u = macro_growth_rhs(v, Fg, C, dx)
         rhs_u += pr.loads.terms(lambda f, nn, ds: boundary_traction(f, v, Fg, nn, ds))
         self.a, self.L = fem.form(a), fem.form([rhs_u, rhs_p])

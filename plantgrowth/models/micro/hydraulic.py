@@ -31,20 +31,21 @@ def lumen_areas(layout: TissueLayout) -> np.ndarray:
 
 
 def turgor_solve(
-    scene: Scene, layout: TissueLayout, parts: ElasticParts, test: ufl.Argument, normal,
-    membrane: ufl.Measure, newton: tuple[NewtonSolver, fem.Function] | None = None,
+    scene: Scene, layout: TissueLayout, hexagon_area: np.ndarray, parts: ElasticParts,
+    test: ufl.Argument, normal, membrane: ufl.Measure,
+    newton: tuple[NewtonSolver, fem.Function] | None = None,
 ) -> TurgorSolve | TurgorNewton:  # fmt: skip
-    """The water step of a micro tissue (``scene`` over the tissue's extent) from its walls'
-    problem ``parts``, with ``test`` the displacement test function and ``membrane`` the
-    membranes' measure; finite kinematics: ``newton``, the walls' Newton solver and the turgor
-    function its residual reads."""
+    """The water step of a micro tissue (``scene`` over the tissue's extent, its cells'
+    reference hexagon areas ``hexagon_area``) from its walls' problem ``parts``, with ``test``
+    the displacement test function and ``membrane`` the membranes' measure; finite kinematics:
+    ``newton``, the walls' Newton solver and the turgor function its residual reads."""
     hydraulics = scene.hydraulics
     centres = layout.centres.T
     water = CellWater(
         hydraulics, wall_network(layout), hydraulics.osmotic(*centres),
         hydraulics.conductivity(*centres),
         {s.name: scene.regions[s.name].inside(layout.centres) for s in hydraulics.regions()},
-        np.array([polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]),
+        hexagon_area,
     )  # fmt: skip
     mesh = parts.u.function_space.mesh
     indicator = fem.Function(fem.FunctionSpace(mesh, ("DG", 0)))  # one cell's, per cell

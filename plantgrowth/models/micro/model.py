@@ -132,12 +132,15 @@ class MicroModel:
                 residual, self.u, self.bcs, lambda A: lu_solver(A, comm, "plantgrowth_micro_"),
                 load, self._newton_floor, self.stability.smallest, predictor=self._linear_solve,
             )  # fmt: skip
+        self.hexagon_area = np.array(
+            [polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]
+        )
         self.turgor = None
         if hydraulic:
             parts = ElasticParts(self._assemble, self.A, self.b, self.ksp, self.u, self.Fg,
                                  self.bcs, self._set, comm)  # fmt: skip
-            newton = (self.newton, P) if self.finite else None
-            self.turgor = turgor_solve(scene, layout, parts, psi, n, membrane, newton)
+            self.turgor = turgor_solve(scene, layout, self.hexagon_area, parts, psi, n, membrane,
+                                       (self.newton, P) if self.finite else None)  # fmt: skip
         driving = (
             self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx, wall_fibres)
             if scene.growth.law == "stress"
@@ -156,9 +159,6 @@ class MicroModel:
                     layout, self.cell_id, self.director.side,
                     self._owned_rows(areas.array.reshape(-1, 1), Q0)[:, 0], comm,
                 )  # fmt: skip
-        self.hexagon_area = np.array(
-            [polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]
-        )
 
         self._vector_dg0 = fem.VectorFunctionSpace(msh, ("DG", 0))
         self.G_out = fem.Function(T0, name="G")
