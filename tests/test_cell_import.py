@@ -5,10 +5,13 @@
 from __future__ import annotations
 
 import json
+import re
 import runpy
+import tomllib
 from pathlib import Path
 from types import SimpleNamespace
 
+import malformed_inputs as mi
 import numpy as np
 import pytest
 import tifffile
@@ -123,50 +126,17 @@ def test_a_vertex_on_a_neighbours_side_is_shared(tmp_path):
 # --- bad images and tables ------------------------------------------------------------------------
 
 
-def grid(rows: int = 3, cols: int = 4, size: int = 8, margin: int = 2) -> np.ndarray:
-    """A label image of rows x cols square cells of size x size pixels, labels 1.., background
-    ``margin`` pixels wide around them."""
-    out = np.zeros((rows * size + 2 * margin, cols * size + 2 * margin), dtype=np.int32)
-    for r in range(rows):
-        for c in range(cols):
-            out[margin + r * size : margin + (r + 1) * size,
-                margin + c * size : margin + (c + 1) * size] = 1 + r * cols + c  # fmt: skip
-    return out
-
-
-def _set(image: np.ndarray, where: tuple, value) -> np.ndarray:
-    image = image.copy()
-    image[where] = value
-    return image
-
-
-BAD_IMAGES = {
-    "3D": (np.stack([grid(), grid()]), "a 3D image of shape"),
-    "RGB": (np.stack([grid()] * 3, axis=-1).astype(np.uint8), r"an RGB\(A\) image"),
-    "mask": (grid() > 0, "a binary mask"),
-    "fraction": (_set(grid().astype(np.float32), (5, 5), 2.5), "a non-integer label 2.5"),
-    "negative": (_set(grid(), (5, 5), -3), "a negative label -3 at column 5, row 5"),
-    "no_background": (grid(margin=0), "no background"),
-    "no_cells": (np.zeros((20, 20), np.uint8), "no cells"),
-    "split": (_set(grid(), (slice(18, 26), slice(18, 26)), 2), "label 2 is split into 2"),
-    "one_pixel": (_set(grid(), (1, 5), 99), "cell 99 has 1 pixels"),  # in the margin
-    "small": (_set(grid(), (slice(0, 3), slice(4, 7)), 99), "cell 99 has 9 pixels"),
-    "hole": (_set(grid(), (slice(4, 6), slice(4, 6)), 0), r"cell 1 has a hole \(background"),
-    "island": (_set(grid(), (slice(3, 8), slice(3, 8)), 99), r"cell 1 has a hole \(cell 99"),
-    "enclosed": (_set(grid(), (slice(9, 11), slice(9, 11)), 0), "enclosed by the tissue"),
-}
-
-
-@pytest.mark.parametrize("case", BAD_IMAGES, ids=list(BAD_IMAGES))
+@pytest.mark.parametrize("case", mi.BAD_IMAGES, ids=list(mi.BAD_IMAGES))
 def test_bad_image_is_named(case, tmp_path):
-    image, message = BAD_IMAGES[case]
+    """The fuzzer's bad images (tests/malformed_inputs.py), each with its error."""
+    image, message = mi.BAD_IMAGES[case]
     tifffile.imwrite(tmp_path / "cells.tif", image)
-    with pytest.raises(SceneError, match=r"tissue.cells = '.*cells.tif': .*" + message):
+    with pytest.raises(SceneError, match=r"tissue.cells = '.*cells.tif': .*" + re.escape(message)):
         imported(tmp_path, "cells.tif")
 
 
 def test_a_grid_and_an_isolated_cell_are_traced(tmp_path):
-    image = grid()
+    image = mi.label_grid()
     image[:, -1:] = 0
     wide = np.pad(image, ((0, 0), (0, 12)))
     wide[4:12, -10:-2] = 50  # a cell with background all round: allowed
@@ -183,62 +153,39 @@ def test_unreadable_image_is_named(tmp_path):
         imported(tmp_path, "cells.tif")
 
 
-SQUARE = [[0, 0], [1, 0], [1, 1], [0, 1]]
-AROUND = [(0, 0), (1, 0), (2, 0), (2, 1), (2, 2), (1, 2), (0, 2), (0, 1)]  # squares round (1, 1)
-RING = [{"id": k, "vertices": [[x + i, y + j] for x, y in SQUARE]}
-        for k, (i, j) in enumerate(AROUND)]  # fmt: skip
-BAD_TABLES = {
-    "few": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, 0]]}]}, "cell 1: 2 vertices"),
-    "nan": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, float("nan")], [0, 1]]}]},
-            "cell 1: a vertex is not finite"),
-    "text": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, "a"], [0, 1]]}]}, "pairs of numbers"),
-    "ids": ({"cells": [{"id": 1, "vertices": SQUARE}, {"id": 1, "vertices": SQUARE}]},
-            "cell id 1 is repeated"),
-    "id_type": ({"cells": [{"id": "a", "vertices": SQUARE}]}, "ids must be integers"),
-    "bow_tie": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, 1], [1, 0], [0, 1]]}]},
-                "cell 1: its polygon intersects itself"),
-    "repeat": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, 0], [1, 0], [0, 1]]}]},
-               "cell 1: a vertex is repeated"),
-    "overlap": ({"cells": [{"id": 1, "vertices": SQUARE},
-                           {"id": 2, "vertices": [[0.5, 0], [1.5, 0], [1.5, 1], [0.5, 1]]}]},
-                "cells 1 and 2 overlap"),
-    "hole": ({"cells": RING}, "background enclosed by the tissue"),
-    "below": ({"cells": [{"id": 4, "vertices": [[0, -1], [1, 0], [0, 1]]}]},
-              "cell 4 reaches x2 = -1 < 0"),
-    "unknown_key": ({"cells": [], "units": "um"}, "unknown key 'units'"),
-    "empty": ({"cells": []}, "no cells"),
-    "pixel_size": ({"cells": [{"id": 1, "vertices": SQUARE}], "pixel_size": -1},
-                   "pixel_size = -1 must be a number > 0"),
-}  # fmt: skip
-
-
-@pytest.mark.parametrize("case", BAD_TABLES, ids=list(BAD_TABLES))
+@pytest.mark.parametrize("case", mi.BAD_TABLES, ids=list(mi.BAD_TABLES))
 def test_bad_table_is_named(case, tmp_path):
-    table, message = BAD_TABLES[case]
+    """The fuzzer's bad polygon tables, each with its error."""
+    table, message = mi.BAD_TABLES[case]
     (tmp_path / "cells.json").write_text(json.dumps(table))
-    with pytest.raises(SceneError, match=r"tissue.cells = '.*cells.json': .*" + message):
+    with pytest.raises(SceneError, match=r"tissue.cells = '.*cells.json': .*" + re.escape(message)):
         imported(tmp_path, "cells.json", None)
 
 
-@pytest.mark.parametrize(
-    "text, message",
-    [
-        ("id,x,y\n1,0,0\n", "expected the header cell_id,x,y"),
-        ("cell_id,x,y\n1,0,0\n1,1,zero\n", "line 3: expected cell_id,x,y"),
-        ("cell_id,x,y\n1,0,0\n1,1,0\n1,1,1\n2,2,0\n2,3,0\n2,3,1\n1,0,1\n", "cell id 1 is repeated"),
-        ('{"cells": [', "cannot be read as JSON"),
-    ],
-)
+BAD_TEXT = [*mi.BAD_CSV.values(), ('{"cells": [', "cannot be read as JSON")]
+
+
+@pytest.mark.parametrize("text, message", BAD_TEXT)
 def test_bad_csv_or_json_text_is_named(text, message, tmp_path):
     name = "cells.json" if text.startswith("{") else "cells.csv"
     (tmp_path / name).write_text(text)
-    with pytest.raises(SceneError, match=message):
+    with pytest.raises(SceneError, match=re.escape(message)):
         imported(tmp_path, name, None)
 
 
 def test_table_and_scene_pixel_sizes_must_agree(tmp_path):
-    (tmp_path / "t.json").write_text(json.dumps({"cells": [{"id": 1, "vertices": SQUARE}],
+    (tmp_path / "t.json").write_text(json.dumps({"cells": [{"id": 1, "vertices": mi.SQUARE}],
                                                  "pixel_size": 2.0}))  # fmt: skip
     with pytest.raises(SceneError, match="pixel_size = 2.0 in the file, but tissue.pixel_size"):
         imported(tmp_path, "t.json", 3.0)
     assert imported(tmp_path, "t.json", 2.0).areas[0] == 4.0
+
+
+def test_imported_scene_round_trips_through_toml():
+    scene = load_scene(EXAMPLE / "synthetic.toml")
+    data = scene.to_dict()
+    assert data["tissue"]["cells"] == str(EXAMPLE / "synthetic_r05.tif")  # made absolute
+    assert data["tissue"]["pixel_size"] == 0.02 and "nx" not in data["micro"]
+    again = parse_scene(tomllib.loads(scene.to_toml()))
+    assert again.tissue == scene.tissue
+    assert cell_polygons(again) is cell_polygons(scene)  # the same file: read once
