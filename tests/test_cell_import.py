@@ -49,8 +49,8 @@ def test_round_trip_image_to_the_generators_cells():
     """Image -> polygons equal the generator's within a pixel's error: each traced vertex is a
     pixel corner within about one pixel p of the true one (the rasterised wall's staircase is
     within p/sqrt(2) of it, the Douglas-Peucker tolerance 1.5 p straightens it), so a cell's
-    area is within its perimeter times p (measured: 0.34 P p), its perimeter within 2 p per
-    side (measured: 1.95 p), its centroid within p (measured: 0.36 p), and every wall longer
+    area is within its perimeter times p (measured: 0.29 P p), its perimeter within 2 p per
+    side (measured: 1.93 p), its centroid within p (measured: 0.41 p), and every wall longer
     than the 2-pixel collapse tolerance is found (neighbour counts equal)."""
     cells = cell_polygons(load_scene(EXAMPLE / "synthetic.toml"))
     truth = MAKER.generated()
