@@ -20,6 +20,8 @@ Pure numpy and scipy.spatial. The rule, for ``N = Nx^2/2`` cells (``Nx`` even: `
    than :data:`SHORT_SIDE` times the honeycomb's shortest side are collapsed into their
    midpoint (on x2 = 0 if an end is there): near-degenerate Voronoi vertices, which a wall mesh
    could not resolve, become points where four cells meet. None exists at r = 0.
+6. The tissue is moved along x1 so that it starts at x1 = 0 (as the honeycomb does; at r > 0
+   the outer cells may reach past it): it lies in x1 >= 0, x2 >= 0.
 
 Measured (N = 512, seeds 0-1, interior cells; tests/test_tissue_cells.py checks the trend):
 area CV 0.05 / 0.14 / 0.24 and neighbour-count standard deviation 0 / 0.70 / 1.03 at
@@ -152,6 +154,8 @@ def voronoi_tissue(cell: HoneycombCell, n_cells: int, seed: int, r: float) -> Ce
     tissue = CellPolygons.from_loops(loops, labels=np.arange(n_cells))
     shortest = SHORT_SIDE * layout.delta_s * min(0.5 * cell.l1, cell.l2)  # the cut sides: l1/2
     tissue = _collapse_short_sides(tissue, shortest)
+    left = min(float(tissue.vertices[:, 0].min()), 0.0)  # outer cells may reach past x1 = 0
+    tissue = CellPolygons(tissue.vertices - [left, 0.0], tissue.cells, tissue.labels)
     tissue.check()
     return tissue
 

@@ -53,7 +53,7 @@ def test_irregular_tissue_is_seeded_valid_and_on_the_half_plane(r):
     other = voronoi_tissue(cell, 72, 4, r)
     assert other.vertices.shape != a.vertices.shape or not np.allclose(other.vertices, a.vertices)
     a.check()
-    assert a.vertices[:, 1].min() >= 0.0
+    assert a.vertices[:, 1].min() >= 0.0 and a.vertices[:, 0].min() == 0.0  # x1 from 0 too
     # the bottom row stays cut by the symmetry plane: each has a side on x2 = 0
     for i in range(12):
         assert np.count_nonzero(a.polygon(i)[:, 1] == 0.0) == 2, i

@@ -120,10 +120,15 @@ def _imported_cells(spec: ImportedCells, mtime: int, size: int) -> CellPolygons:
         from plantgrowth.meshes.polygon_table import table_cells
 
         return table_cells(spec.path, spec.pixel_size, name)
-    from plantgrowth.meshes.label_checks import as_labels, check_labels, read_labels
+    from plantgrowth.meshes.label_checks import (
+        absorb_specks,
+        as_labels,
+        check_labels,
+        read_labels,
+    )
     from plantgrowth.meshes.label_tracing import trace_cells
 
-    labels = as_labels(read_labels(spec.path, name), name)
+    labels = absorb_specks(as_labels(read_labels(spec.path, name), name))
     check_labels(labels, name)
     try:
         return trace_cells(labels, spec.pixel_size)
