@@ -4,6 +4,8 @@ S, regularity = r}`` (meshes/voronoi_tissue.py), the scene key and its named err
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -11,7 +13,7 @@ from mpi4py import MPI
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.meshes.voronoi_tissue import SHORT_SIDE, voronoi_tissue
-from plantgrowth.scene import SceneError, parse_scene
+from plantgrowth.scene import SceneError, load_scene, parse_scene
 from plantgrowth.scene.tissue_cells import cell_polygons
 
 ROUND_OFF = 1e-12
@@ -152,10 +154,12 @@ def test_generated_tissue_needs_a_constant_cell():
 
 
 @pytest.mark.mpi
-def test_every_rank_generates_the_same_cells():
+def test_every_rank_generates_and_imports_the_same_cells():
+    """Each rank builds the cells itself (generated, or traced from the shipped image)."""
     comm = MPI.COMM_WORLD
-    tissue = voronoi_tissue(CELLS[1], 32, 11, 0.7)
-    for vertices in comm.allgather(tissue.vertices):
-        assert np.array_equal(vertices, tissue.vertices)
-    for loops in comm.allgather([c.tolist() for c in tissue.cells]):
-        assert loops == [c.tolist() for c in tissue.cells]
+    example = Path(__file__).resolve().parents[1] / "scenes" / "real_tissues" / "synthetic.toml"
+    for tissue in (voronoi_tissue(CELLS[1], 32, 11, 0.7), cell_polygons(load_scene(example))):
+        for vertices in comm.allgather(tissue.vertices):
+            assert np.array_equal(vertices, tissue.vertices)
+        for loops in comm.allgather([c.tolist() for c in tissue.cells]):
+            assert loops == [c.tolist() for c in tissue.cells]
