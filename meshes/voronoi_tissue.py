@@ -16,7 +16,8 @@ Pure numpy and scipy.spatial. The rule, for ``N = Nx^2/2`` cells (``Nx`` even: `
 4. One Lloyd step (each seed moved to its cell's centroid, the bottom row's x2 kept at 0, the
    mirror redone) evens out the smallest cells while keeping the disorder that r made: r = 0
    is a fixed point (the hexagon centres are its centroids).
-5. The kept cells are the seeds' Voronoi cells, the bottom row clipped at x2 = 0; sides shorter
+5. The kept cells are the seeds' Voronoi cells cut at x2 = 0 (the bottom row's, and a few whose
+   seeds were reflected near the plane, have a side on it, exactly at x2 = 0); sides shorter
    than :data:`SHORT_SIDE` times the honeycomb's shortest side are collapsed into their
    midpoint (on x2 = 0 if an end is there): near-degenerate Voronoi vertices, which a wall mesh
    could not resolve, become points where four cells meet. None exists at r = 0.
@@ -150,7 +151,7 @@ def voronoi_tissue(cell: HoneycombCell, n_cells: int, seed: int, r: float) -> Ce
             seeds[bottom, 1] = 0.0
     tol = 1e-9 * 4.0 * max(cell.l1, cell.l2)
     loops = [p / stretch for p in cells]
-    loops = [_clip_below(p, tol) if bottom[i] else p for i, p in enumerate(loops)]
+    loops = [_clip_below(p, tol) for p in loops]  # others may have a side on x2 = 0 too
     tissue = CellPolygons.from_loops(loops, labels=np.arange(n_cells))
     shortest = SHORT_SIDE * layout.delta_s * min(0.5 * cell.l1, cell.l2)  # the cut sides: l1/2
     tissue = _collapse_short_sides(tissue, shortest)
