@@ -202,3 +202,12 @@ def test_imported_scene_round_trips_through_toml():
     again = parse_scene(tomllib.loads(scene.to_toml()))
     assert again.tissue == scene.tissue
     assert cell_polygons(again) is cell_polygons(scene)  # the same file: read once
+
+
+def test_a_file_removed_after_the_scene_was_read_is_named(tmp_path):
+    tifffile.imwrite(tmp_path / "cells.tif", mi.label_grid())
+    scene = parse_scene(BASE | {"tissue": {"cells": "cells.tif", "pixel_size": 1.0}},
+                        directory=tmp_path)  # fmt: skip
+    (tmp_path / "cells.tif").unlink()
+    with pytest.raises(SceneError, match="tissue.cells = .*cells.tif.*No such file"):
+        cell_polygons(scene)

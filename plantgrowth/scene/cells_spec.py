@@ -106,9 +106,11 @@ def imported_cells(spec: ImportedCells) -> CellPolygons:
     """The checked cells of an imported file, in the scene's length unit (docs/real_tissues.md);
     a SceneError names the file and the fault. Cached on the file's path, size, modification
     time and the pixel size: do not modify the result."""
-    stat = os.stat(spec.path)
     try:
+        stat = os.stat(spec.path)
         return _imported_cells(spec, stat.st_mtime_ns, stat.st_size)
+    except OSError as e:  # removed or unreadable since the scene was read
+        raise SceneError(f"tissue.cells = {spec.path!r}: {e.strerror or e}") from None
     except GeometryError as e:
         raise SceneError(str(e)) from None
 
