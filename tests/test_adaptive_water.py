@@ -140,7 +140,7 @@ def test_adaptive_agrees_with_a_small_fixed_step(runs, kind):
     at its end, off their mean over it by up to half its length times their rate of change
     (taken from the reference's rows), for the adaptive run's longest kept water step and the
     reference's. Measured (serial): micro, N = 6, water steps 1/8 to 1/4:
-    states 0.5% of the promise, rates 32% of their bound; macro, N = 8: every kept sub-step h =
+    states 0.6% of the promise, rates 32% of their bound; macro, N = 8: every kept sub-step h =
     1/4, whose two halves are the reference's steps (equal rows: the test below). Wrong water
     in the sub-steps shows here only when large (every solve advancing the water by dt: macro 3
     to 8 times the bounds, micro within them): the balance and equal-step tests catch it)."""
