@@ -907,8 +907,8 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
     """``[hydraulics]`` (docs/model.md, water fluxes): wrong types, NaN/inf, a negative osmotic
     pressure or conductivity, a missing conductivity, pressure.P1 given as well, a supply on the
     symmetry plane, on an edge or region the scene does not have, twice, without or with a
-    non-positive conductance, a bad potential in time, a valid table in a scene whose
-    integrator cannot take it (every model, in either kinematics, takes it), the
+    non-positive conductance, a bad potential in time, a valid table with the adaptive
+    integrator at a tolerance out of range (every model and integrator takes water fluxes), the
     macro model's water fields asked of the micro model, and a bad micro.nx (the cells' size)
     in a macro water scene."""
     what = rng.choice(["wrong_type", "nonfinite", "negative", "missing", "P1", "bottom", "edge",
@@ -967,8 +967,9 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
         scene["output"] = {"fields": ["u", rng.choice(["P", "psi", "water_flux"])]}
         expect = ("output.fields", "macro model's water fields")
     else:
-        scene["time"] = {"t_max": 2.0, "dt": 1.0, "integrator": "adaptive"}
-        expect = ("hydraulics: time.integrator = 'adaptive'",)
+        tolerance = rng.choice([0.0, -1e-3, 0.5])
+        scene["time"] = {"t_max": 2.0, "dt": 1.0, "integrator": "adaptive", "tolerance": tolerance}
+        expect = ("time.tolerance",)
     table.setdefault("supply", [supply])
     scene["hydraulics"] = table
     return scene, expect

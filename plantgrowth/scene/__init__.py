@@ -129,7 +129,7 @@ inclined wall length l2 = 1)::
                                # "fibre_direction", micro cells.csv "fibre_angle": the director)
     [hydraulics]               # water fluxes (none by default: turgor is pressure.P1), micro
     osmotic = 0.001            # or macro (either kinematics; its cells are those of micro.nx),
-                               # exp or euler integrator (docs/model.md, water fluxes):
+                               # any integrator (docs/model.md, water fluxes):
     conductivity = 1.0         # Pi, a field >= 0, replaces pressure.P1 (not with it); L, a field
     initial_potential = 0.0    # >= 0, required; psi_0: every cell starts at P = Pi + psi_0
     [[hydraulics.supply]]      # any number: edge = "left" | "right" | "top" (an outline's or
