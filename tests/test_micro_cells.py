@@ -226,3 +226,25 @@ def test_a_pressurised_free_tissue_solves_and_its_supports_hold_nothing(kinemati
         reactions, load = _reactions(model)
         assert COMM.allreduce(len(reactions)) >= 3
         assert COMM.allreduce(np.abs(reactions).max(initial=0.0), op=MPI.MAX) < 1e-8 * load
+
+
+def test_a_generated_tissue_at_regularity_zero_is_the_honeycomb_and_r_half_runs(tmp_path):
+    """``[tissue] cells = {voronoi = 8, ...}`` (Nx = 4): at r = 0 the micro model on the
+    generated cells (w scaled by 4 / Nx) gives the honeycomb's u and cells.csv to ROUND_OFF; at
+    r = 0.5 ``plantgrowth run`` writes cells.csv with the cells' neighbour counts (not all alike)
+    and perimeters."""
+    from test_micro_water import cells, run
+
+    data = scene_data(NX, 1.0, "linear", pressure={"P1": 0.001})
+    regular = data | {"tissue": {"cells": {"voronoi": 8, "seed": 2, "regularity": 0.0}}}
+    regular["micro"] = {"resolution": 1}
+    generated = MicroModel(parse_scene(regular), COMM)
+    assert generated.layout is None and generated.tissue.n_cells == 8
+    reference, given = _answers(MicroModel(parse_scene(data), COMM), 1), _answers(generated, 1)
+    for key in reference:
+        assert _relative(reference[key], given[key]) < ROUND_OFF, key
+    irregular = regular | {"tissue": {"cells": {"voronoi": 8, "seed": 2, "regularity": 0.5}}}
+    table = cells(run(tmp_path, "irregular", irregular), 0)
+    assert len(table["cell"]) == 8
+    assert len(set(table["neighbours"].tolist())) > 1
+    assert np.all(table["perimeter_ref"] > 0.0)

@@ -45,7 +45,7 @@ def checked_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> Macro
         if domain is not None:
             check_macro_places(domain.scene, *domain.places(), comm)
         if nx is not None or scene.model in ("micro", "both"):
-            check_micro_places(scene, scene.micro_nx if nx is None else nx)
+            check_micro_places(scene, nx)
     return domain
 
 

@@ -29,7 +29,7 @@ from plantgrowth.forms import micro as micro_forms
 from plantgrowth.forms.elasticity import wall_bilinear_form
 from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
-from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
+from plantgrowth.meshes.tissue import FACET_TAGS, build_walls_mesh
 from plantgrowth.models import diagnostics, fibres, growth
 from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude, strain_peak
 from plantgrowth.models.growth_fields import GrowthFields
@@ -45,6 +45,7 @@ from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
 from plantgrowth.models.regions import RegionStatistics
 from plantgrowth.models.step import StepResult, clamped_fraction, max_abs_components
 from plantgrowth.scene import Scene
+from plantgrowth.scene.micro_tissue import micro_tissue
 
 log = logging.getLogger("plantgrowth")
 
@@ -60,19 +61,17 @@ class MicroModel:
     Args:
         scene: the scene (cell geometry, material and growth fields, pressure).
         comm: communicator the walls mesh is distributed on.
-        nx: cells per row of the honeycomb (default: the scene's ``micro.nx``).
+        nx: cells per row of a honeycomb instead of the scene's tissue (a command's ``--nx``).
         resolution: P2 elements across one cell's wall (default: ``micro.resolution``).
-        tissue: the cells (default: the ``Nx`` honeycomb, :meth:`CellTissue.from_layout`).
+        tissue: the cells (default: the scene's, :func:`plantgrowth.scene.micro_tissue`).
     """
 
     def __init__(
         self, scene: Scene, comm: MPI.Comm, nx: int | None = None,
         resolution: int | None = None, tissue: CellTissue | None = None,
     ) -> None:  # fmt: skip
-        self.layout = None  # the honeycomb the cells are, if they are one
-        if tissue is None:
-            self.layout = TissueLayout(scene_cell(scene), scene.micro_nx if nx is None else nx)
-            tissue = CellTissue.from_layout(self.layout)
+        tissue = micro_tissue(scene, nx) if tissue is None else tissue
+        self.layout = tissue.honeycomb  # the honeycomb the cells are, if they are one
         self.tissue = tissue
         self.scene = scene = scene.over_extent(*tissue.bounding_box)  # fields span this tissue
         self.comm = comm
