@@ -47,7 +47,10 @@ def inward_offset(loop: np.ndarray, w: float, name: str) -> np.ndarray:
         if shape.geom_type == "Polygon" and not shape.is_empty:
             void = np.asarray(polygon.orient(shape, 1.0).exterior.coords)[:-1]
     if len(void) < 3 or polygon_area(void) <= 0.0:
-        raise GeometryError(f"{name}: the wall thickness w = {w:.4g} leaves no single void")
+        raise GeometryError(
+            f"{name}: the wall thickness w = {w:.4g} (cell.w; a generated tissue's times 4 / Nx) "
+            "leaves it no void or a void in pieces: cell.w must be smaller"
+        )
     return void
 
 

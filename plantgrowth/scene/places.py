@@ -23,6 +23,7 @@ from mpi4py import MPI
 
 from plantgrowth.base.errors import SceneError
 from plantgrowth.meshes.honeycomb import GeometryError
+from plantgrowth.meshes.tissue import wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.scene.fields import ExprField, check_value
 from plantgrowth.scene.limits import FG0_RANGE, RANGES
@@ -111,6 +112,16 @@ def check_macro_places(scene: Scene, nodes: np.ndarray, midpoints: np.ndarray, c
     check_geometry(scene, nodes)
     check_ranges(scene, midpoints, "fine cell midpoint", comm)
     check_regions(scene, midpoints, "fine cell midpoint", comm)
+
+
+def check_micro_tissue(scene: Scene) -> None:
+    """A scene's given cells (``[tissue] cells``) make voids and an affordable walls mesh
+    (nothing for the honeycomb: Scene.check_micro checks it)."""
+    if scene.tissue.cells is not None:
+        try:
+            wall_mesh_size(micro_tissue(scene), scene.micro_resolution)
+        except GeometryError as e:
+            raise SceneError(str(e)) from None
 
 
 def check_micro_places(scene: Scene, nx: int | None = None) -> None:
