@@ -54,11 +54,13 @@ def inward_offset(loop: np.ndarray, w: float, name: str) -> np.ndarray:
     return void
 
 
-def _mirror_united(loop: np.ndarray, tol: float) -> np.ndarray:
+def _mirror_united(loop: np.ndarray, tol: float, name: str) -> np.ndarray:
     """A cut cell's polygon united with its mirror image about x2 = 0 (CCW), the two ends of
     its cut dropped where the sides through them continue straight (the honeycomb's hexagon)."""
     on = np.abs(loop[:, 1]) < tol
     n = len(loop)
+    if np.count_nonzero(on != np.roll(on, 1)) != 2:
+        raise GeometryError(f"{name}: a cut cell must meet x2 = 0 along one run of sides only")
     start = next(k for k in range(n) if on[k] and on[k - 1] and not on[(k + 1) % n])
     loop = np.roll(loop, -start, axis=0)  # starts where the cut ends, runs over the top
     end = next(k for k in range(1, n) if abs(loop[k, 1]) < tol)
@@ -148,7 +150,9 @@ class CellTissue:
         if (layout := self.honeycomb) is not None:
             return layout.delta_s * layout.cell.hexagon() + layout.centres[i]
         loop = self.polygon(i)
-        return _mirror_united(loop, self.tolerance) if self.cut[i] else loop
+        if not self.cut[i]:
+            return loop
+        return _mirror_united(loop, self.tolerance, f"cell {self.cells.labels[i]}")
 
     def void(self, i: int) -> np.ndarray:
         """Cell i's void: its whole polygon offset inward by w (a cut cell's is open at x2 = 0:
