@@ -101,6 +101,12 @@ class CellTissue:
         cells.check()
         if not (np.isfinite(w) and w > 0.0):
             raise GeometryError(f"cell.w = {w!r} is invalid: the wall thickness must be > 0")
+        lowest = float(cells.vertices[:, 1].min())
+        if lowest < -1e-9 * float(np.abs(cells.vertices).max()):
+            raise GeometryError(
+                f"the cells reach x2 = {lowest:.4g}: a tissue must lie in x2 >= 0 (x2 = 0 is "
+                "its symmetry plane where a cell has a side on it)"
+            )
         sides = np.array(list(cells.sides()))
         lengths = np.linalg.norm(cells.vertices[sides[:, 0]] - cells.vertices[sides[:, 1]], axis=1)
         length = min(w, 0.25 * float(np.median(lengths)))

@@ -113,7 +113,8 @@ def test_a_non_convex_cell_gets_its_mitred_void_and_a_thick_wall_a_named_error()
     """An L-shaped cell (three unit squares, w = 0.1): its void is the L offset inward with a
     mitred re-entrant corner, [0.1, 1.9] x [0.1, 0.9] and [0.1, 0.9] x [0.9, 1.9] (shifted up
     by 1), area 1.8 * 0.8 + 0.8 * 1.0 = 2.24 (a few roundings of O(1) numbers: 1e-12 relative).
-    w = 0.6 leaves no void: a GeometryError naming the wall thickness."""
+    w = 0.6 leaves no void: a GeometryError naming the wall thickness; cells below x2 = 0 one
+    naming the half-plane."""
     square = np.array([[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]], dtype=float) + [0, 1]
     cells = CellPolygons.from_loops([square])
     void = CellTissue.from_cells(cells, 0.1).void(0)
@@ -123,6 +124,9 @@ def test_a_non_convex_cell_gets_its_mitred_void_and_a_thick_wall_a_named_error()
     )
     with pytest.raises(GeometryError, match="wall thickness"):
         CellTissue.from_cells(cells, 0.6).void(0)
+    below = CellPolygons.from_loops([square - [0.0, 1.5]])
+    with pytest.raises(GeometryError, match="x2 >= 0"):
+        CellTissue.from_cells(below, 0.1)
 
 
 @pytest.mark.parametrize("water", [False, True], ids=["turgor", "water"])
