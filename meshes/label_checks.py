@@ -1,10 +1,11 @@
 """Reading and checking a 2D label image (issue 34): one integer label per cell, 0 background.
 
-TIFF through tifffile, PNG through skimage.io. A GeometryError names the file (``name``) and what
-is wrong: not a 2D integer image, negative labels, no background, no cell, a label in several
-4-connected pieces, a cell of fewer than :data:`MIN_CELL_PIXELS` pixels, a cell with a hole
-(background or another cell inside it), background enclosed by the tissue. Positions are given
-as (column, row) of the image, from its top-left pixel.
+TIFF through tifffile, PNG through skimage.io. Specks (a label's detached pieces of fewer than
+:data:`MIN_CELL_PIXELS` pixels) go to the label bordering them most. A GeometryError names the
+file (``name``) and what is wrong: not a 2D integer image, negative labels, no background, no
+cell, a label in several 4-connected pieces, a cell of fewer than :data:`MIN_CELL_PIXELS`
+pixels, a cell with a hole (background or another cell inside it), background enclosed by the
+tissue. Positions are given as (column, row) of the image, from its top-left pixel.
 """
 
 from __future__ import annotations
@@ -72,6 +73,29 @@ def as_labels(image: np.ndarray, name: str) -> np.ndarray:
     return labels
 
 
+def absorb_specks(labels: np.ndarray) -> np.ndarray:
+    """``labels`` with every piece of a label smaller than MIN_CELL_PIXELS that is not the
+    label's largest (4-connected) piece given to the label bordering it most (background
+    included): the specks a rasteriser or a segmentation leaves, e.g. a corner pixel touching
+    its cell diagonally. Larger second pieces are left to :func:`check_labels`."""
+    pieces = measure.label(labels, background=0, connectivity=1)
+    out = labels.copy()
+    by_label: dict[int, list] = {}
+    for region in measure.regionprops(pieces, intensity_image=labels):
+        by_label.setdefault(int(region.intensity_max), []).append(region)
+    for label, regions in by_label.items():
+        for region in sorted(regions, key=lambda r: -r.area)[1:]:
+            if region.area >= MIN_CELL_PIXELS:
+                continue
+            r0, c0 = max(region.bbox[0] - 1, 0), max(region.bbox[1] - 1, 0)
+            window = (slice(r0, region.bbox[2] + 1), slice(c0, region.bbox[3] + 1))
+            speck = pieces[window] == region.label
+            border = labels[window][ndimage.binary_dilation(speck) & ~speck]
+            border = border[border != label]
+            out[window][speck] = np.bincount(border).argmax() if border.size else 0
+    return out
+
+
 def check_labels(labels: np.ndarray, name: str) -> None:
     """A GeometryError unless every cell (label > 0) is one 4-connected piece of at least
     MIN_CELL_PIXELS pixels without holes, and the background (0) is present and connected to
@@ -87,12 +111,11 @@ def check_labels(labels: np.ndarray, name: str) -> None:
     pieces = measure.label(labels, background=0, connectivity=1)
     regions = measure.regionprops(pieces, intensity_image=labels)
     owner = np.array([int(r.intensity_max) for r in regions])
-    split = np.bincount(owner)
-    if (twice := np.flatnonzero(split > 1)).size:
+    if (twice := np.flatnonzero(np.bincount(owner) > 1)).size:
         label = int(twice[0])
         raise GeometryError(
-            f"{name}: label {label} is split into {split[label]} separate pieces "
-            f"(4-connected; one {_where(labels == label)}): one label per cell"
+            f"{name}: label {label} is split into {np.count_nonzero(owner == label)} separate "
+            f"pieces (4-connected; one {_where(labels == label)}): one label per cell"
         )
     for region, label in zip(regions, owner, strict=True):
         if region.area < MIN_CELL_PIXELS:

@@ -8,7 +8,7 @@ On the graph of pixel corners (the image padded with background):
    pair's boundary ends, since the checks leave no cell touching itself across a corner (a cell
    with background all round is one closed polyline). Each polyline is
    simplified by Douglas-Peucker with tolerance :data:`SIMPLIFY_PIXELS`, its ends kept.
-3. Tiny walls: a wall whose ends are closer than :data:`COLLAPSE_PIXELS` is removed and its two
+3. Tiny walls: a wall shorter than :data:`COLLAPSE_PIXELS` (simplified) is removed and its two
    junctions merged into one (at their mean): a corner where four cells meet, or a three-way
    junction that the pixels split into two.
 4. Cells: each cell's walls, run with the cell on their left, joined end to start into one
@@ -36,7 +36,7 @@ and its end junctions are within half a pixel's diagonal (0.71) of the straight 
 sample, so within 1.41 of the chord between the ends: a straight wall becomes one segment
 (at 0.5 or 1.0 the staircase stays and perimeters come out 5-20 pixels too long)."""
 COLLAPSE_PIXELS = 2.0
-"""Walls shorter than this (end to end, in pixels) are collapsed into a point."""
+"""Walls shorter than this (simplified, in pixels) are collapsed into a point."""
 
 
 def _segments(padded: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -106,9 +106,11 @@ def imported_cells(spec: ImportedCells) -> CellPolygons:
     """The checked cells of an imported file, in the scene's length unit (docs/real_tissues.md);
     a SceneError names the file and the fault. Cached on the file's path, size, modification
     time and the pixel size: do not modify the result."""
-    stat = os.stat(spec.path)
     try:
+        stat = os.stat(spec.path)
         return _imported_cells(spec, stat.st_mtime_ns, stat.st_size)
+    except OSError as e:  # removed or unreadable since the scene was read
+        raise SceneError(f"tissue.cells = {spec.path!r}: {e.strerror or e}") from None
     except GeometryError as e:
         raise SceneError(str(e)) from None
 
@@ -120,10 +122,15 @@ def _imported_cells(spec: ImportedCells, mtime: int, size: int) -> CellPolygons:
         from plantgrowth.meshes.polygon_table import table_cells
 
         return table_cells(spec.path, spec.pixel_size, name)
-    from plantgrowth.meshes.label_checks import as_labels, check_labels, read_labels
+    from plantgrowth.meshes.label_checks import (
+        absorb_specks,
+        as_labels,
+        check_labels,
+        read_labels,
+    )
     from plantgrowth.meshes.label_tracing import trace_cells
 
-    labels = as_labels(read_labels(spec.path, name), name)
+    labels = absorb_specks(as_labels(read_labels(spec.path, name), name))
     check_labels(labels, name)
     try:
         return trace_cells(labels, spec.pixel_size)

@@ -42,7 +42,7 @@ def rasterise(tissue: CellPolygons, pixel_size: float, margin: int) -> np.ndarra
     """The label image of ``tissue`` (module docstring): cell i is label i + 1."""
     top = tissue.vertices.max(axis=0)
     n_cols, n_rows = (int(np.ceil(x / pixel_size)) + margin for x in top)
-    labels = np.zeros((n_rows, n_cols), dtype=np.uint8)
+    labels = np.zeros((n_rows, n_cols), dtype=np.uint8 if tissue.n_cells < 256 else np.uint16)
     for i in range(tissue.n_cells):
         p = tissue.polygon(i) / pixel_size
         rows, cols = fill(n_rows - p[:, 1] - 0.5, p[:, 0] - 0.5, labels.shape)
