@@ -86,6 +86,9 @@ class CellTissue:
     honeycomb: the TissueLayout the cells are, if they are one: its own coordinates of each
         cell's hexagon, void and centre are used (equal to the general ones to round-off), so
         the honeycomb runs bit for bit as before cells could be given.
+    mirrored: (n_cells,) which cells are cut by the symmetry plane (default None: every cell
+        with a side on x2 = 0). A cell with a side on x2 = 0 that is not cut meets its own
+        mirror image there: that side is a wall (its half w thick, u2 = 0 on the plane).
     """
 
     cells: CellPolygons
@@ -93,11 +96,15 @@ class CellTissue:
     mesh_length: float
     name: str
     honeycomb: TissueLayout | None = None
+    mirrored: tuple[bool, ...] | None = None
 
     @classmethod
-    def from_cells(cls, cells: CellPolygons, w: float) -> CellTissue:
-        """A tissue of given cells and wall thickness w; mesh length ``min(w, l / 4)``, l the
-        median side length (the honeycomb's ``min(w, min(l1, l2) / 4)``)."""
+    def from_cells(
+        cls, cells: CellPolygons, w: float, cut: np.ndarray | None = None
+    ) -> CellTissue:
+        """A tissue of given cells and wall thickness w, ``cut`` (n_cells,) the cells cut by the
+        symmetry plane (default: every cell with a side on it); mesh length ``min(w, l / 4)``,
+        l the median side length (the honeycomb's ``min(w, min(l1, l2) / 4)``)."""
         cells.check()
         if not (np.isfinite(w) and w > 0.0):
             raise GeometryError(f"cell.w = {w!r} is invalid: the wall thickness must be > 0")
@@ -110,7 +117,12 @@ class CellTissue:
         sides = np.array(list(cells.sides()))
         lengths = np.linalg.norm(cells.vertices[sides[:, 0]] - cells.vertices[sides[:, 1]], axis=1)
         length = min(w, 0.25 * float(np.median(lengths)))
-        return cls(cells, float(w), length, f"{cells.n_cells} given cells")
+        mirrored = None if cut is None else tuple(bool(c) for c in cut)
+        tissue = cls(cells, float(w), length, f"{cells.n_cells} given cells", None, mirrored)
+        bad = np.flatnonzero(tissue.cut & ~tissue.on_plane)
+        if bad.size:
+            raise GeometryError(f"cell {cells.labels[bad[0]]} is cut but has no side on x2 = 0")
+        return tissue
 
     @classmethod
     def from_layout(cls, layout: TissueLayout) -> CellTissue:
@@ -136,10 +148,15 @@ class CellTissue:
         return 1e-9 * float(np.abs(self.cells.vertices).max())
 
     @cached_property
-    def cut(self) -> np.ndarray:
+    def on_plane(self) -> np.ndarray:
         """(n_cells,) whether each cell has a side on the symmetry plane x2 = 0."""
         on = np.abs(self.cells.vertices[:, 1]) < self.tolerance
         return np.array([bool(np.any(on[c] & on[np.roll(c, -1)])) for c in self.cells.cells])
+
+    @cached_property
+    def cut(self) -> np.ndarray:
+        """(n_cells,) whether each cell is cut by the symmetry plane (:attr:`mirrored`)."""
+        return self.on_plane if self.mirrored is None else np.array(self.mirrored)
 
     @property
     def cut_cells(self) -> np.ndarray:
@@ -149,7 +166,7 @@ class CellTissue:
     @property
     def symmetric(self) -> bool:
         """Whether the tissue has the symmetry plane x2 = 0 (some cell has a side on it)."""
-        return bool(self.cut.any())
+        return bool(self.on_plane.any())
 
     def outline(self, i: int) -> np.ndarray:
         """Cell i's whole polygon: a cut cell's united with its mirror image."""

@@ -1,8 +1,9 @@
 """The wall network of a micro tissue (docs/model.md sections 7, 12): which cells share which
 mid-line segment, and which outer walls lie on which edge of the tissue (pure numpy).
 
-Segments are the sides of the cells' mid-line polygons (a cut cell's side on the symmetry plane
-x2 = 0 is no wall). A side that two cells have is a shared wall; a side of one cell only is an
+Segments are the sides of the cells' mid-line polygons but those on the symmetry plane x2 = 0
+(a cut cell's is no wall; a wall there between a cell and its own mirror image carries no water,
+by symmetry). A side that two cells have is a shared wall; a side of one cell only is an
 outer wall, on the edge of the tissue's bounding box [x1_min, x1_max] x [x2_min, x2_max] that its
 outward normal n faces ("top": n2 > 0, "left": n1 < 0, "right": n1 > 0) and, of those, the one
 nearest to its midpoint (the honeycomb: the top row's walls facing up are "top", the other rows'
@@ -57,8 +58,8 @@ def wall_network(source: CellTissue | TissueLayout) -> WallNetwork:
     for cell, loop in enumerate(tissue.cells.cells):
         for a, b in zip(loop.tolist(), np.roll(loop, -1).tolist(), strict=False):
             p, q = vertices[a], vertices[b]
-            if tissue.cut[cell] and abs(p[1]) < tol and abs(q[1]) < tol:
-                continue  # the cut on the symmetry plane
+            if abs(p[1]) < tol and abs(q[1]) < tol:
+                continue  # on the symmetry plane: a cut, or a wall with the cell's own mirror
             sides.setdefault((min(a, b), max(a, b)), []).append((cell, q - p, 0.5 * (p + q)))
     pairs, shared, outer_cell, outer, edges = [], [], [], [], []
     for found in sides.values():

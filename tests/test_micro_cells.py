@@ -17,6 +17,7 @@ from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models.micro.around import side_pairs
 from plantgrowth.models.micro.model import MicroModel, scene_cell
 from plantgrowth.scene import parse_scene
+from plantgrowth.scene.micro_tissue import micro_tissue
 
 COMM = MPI.COMM_WORLD
 NX = 4
@@ -249,7 +250,7 @@ def test_a_generated_tissue_at_regularity_zero_is_the_honeycomb_and_r_half_runs(
     """``[tissue] cells = {voronoi = 8, ...}`` (Nx = 4): at r = 0 the micro model on the
     generated cells (w scaled by 4 / Nx) gives the honeycomb's u and cells.csv to ROUND_OFF; at
     r = 0.5 ``plantgrowth run`` writes cells.csv with the cells' neighbour counts (not all alike)
-    and perimeters."""
+    and perimeters; only the bottom row is cut (seed 6: a top-row cell on x2 = 0 is not)."""
     from test_micro_water import cells, run
 
     data = scene_data(NX, 1.0, "linear", pressure={"P1": 0.001})
@@ -260,8 +261,15 @@ def test_a_generated_tissue_at_regularity_zero_is_the_honeycomb_and_r_half_runs(
     reference, given = _answers(MicroModel(parse_scene(data), COMM), 1), _answers(generated, 1)
     for key in reference:
         assert _relative(reference[key], given[key]) < ROUND_OFF, key
-    irregular = regular | {"tissue": {"cells": {"voronoi": 8, "seed": 2, "regularity": 0.5}}}
+    irregular = regular | {"tissue": {"cells": {"voronoi": 8, "seed": 1, "regularity": 0.5}}}
     table = cells(run(tmp_path, "irregular", irregular), 0)
     assert len(table["cell"]) == 8
     assert len(set(table["neighbours"].tolist())) > 1
     assert np.all(table["perimeter_ref"] > 0.0)
+    # seed 6: a top-row cell reaches x2 = 0 beside its own mirror image, by a side shorter
+    # than 2 w: it is no cut cell (its void, not mirrored, is one polygon)
+    meets = regular | {"tissue": {"cells": {"voronoi": 8, "seed": 6, "regularity": 0.5}}}
+    tissue = micro_tissue(parse_scene(meets))
+    assert tissue.cut.tolist() == [True] * NX + [False] * NX
+    assert np.any(tissue.on_plane & ~tissue.cut)
+    assert tissue.wall_area > 0.0

@@ -3,7 +3,9 @@ cells of ``[tissue] cells`` when given, else the honeycomb of ``micro.nx`` Nx ce
 
 Wall thickness: a generated tissue's (and the honeycomb's) is ``cell.w`` scaled like its cells,
 ``w delta_s`` with ``delta_s = 4 / Nx``; an imported tissue's is ``cell.w`` in the scene's length
-unit, the unit of its cells' coordinates."""
+unit, the unit of its cells' coordinates. A generated tissue's cut cells are its bottom row (seeds
+on x2 = 0); another cell with a side on x2 = 0 meets its own mirror image there. An imported
+tissue cannot tell them apart: every cell with a side on x2 = 0 is taken as cut."""
 
 from __future__ import annotations
 
@@ -33,8 +35,8 @@ def micro_tissue(scene: Scene, nx: int | None = None) -> CellTissue:
     w = float(scene.cell.w(0.0, 0.0))
     spec = scene.tissue.cells
     try:
-        if isinstance(spec, GeneratedCells):
-            return CellTissue.from_cells(cells, w * 4.0 / spec.nx)
+        if isinstance(spec, GeneratedCells):  # its bottom row (labels < Nx) is the cut one
+            return CellTissue.from_cells(cells, w * 4.0 / spec.nx, cells.labels < spec.nx)
         return CellTissue.from_cells(cells, w)
     except GeometryError as e:
         raise SceneError(f"tissue.cells: {e}") from None
