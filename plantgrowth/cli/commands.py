@@ -93,7 +93,7 @@ def _on_rank0(work: Callable[[], str], command: str, comm: MPI.Comm) -> int:
 
 def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.scene import load_scene
-    from plantgrowth.scene.places import needs_place_checks
+    from plantgrowth.scene.places import check_micro_tissue, needs_place_checks
     from plantgrowth.scene.plausibility import warn_about
 
     scene = load_scene(args.scene)
@@ -102,6 +102,8 @@ def validate_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
         solver_signals()
         check_used_values(scene, comm)
+    elif scene.model in ("micro", "both"):
+        check_micro_tissue(scene)  # given cells: their voids and walls mesh (pure numpy)
     warn_about(scene)
     if comm.rank == 0:
         print(

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from plantgrowth.base.errors import InputError
-from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.results.reader import ResultSeries
 from plantgrowth.scene import parse_scene
+from plantgrowth.scene.micro_tissue import micro_tissue
 from plantgrowth.scene.parameters import parse_parameters
 from plantgrowth.scene.regions import Region, parse_regions
 
@@ -62,11 +62,12 @@ def region_outlines(series: ResultSeries, t: float) -> dict[str, np.ndarray]:
         starts = outline.segments[np.argsort(ids, kind="stable"), 0]
         polygons = np.split(starts, np.cumsum(np.bincount(ids))[:-1])
         scene = parse_scene(data)
-        midpoints = TissueLayout(scene.cell.at(0.0, 0.0), scene.micro_nx).centres
+        tissue = micro_tissue(scene)
+        midpoints = tissue.centres
         if len(midpoints) != len(polygons):
             raise InputError(
                 f"--regions: {series.directory} has {len(polygons)} cells, its scene.toml "
-                f"{len(midpoints)} (micro.nx = {scene.micro_nx})"
+                f"{len(midpoints)} ({tissue.name})"
             )
     return {
         name: x[boundary_edges(polygons, region.inside(midpoints))]

@@ -24,7 +24,12 @@ from plantgrowth.runner.output import atomic_write_text, prepare_directory
 from plantgrowth.runner.rundir import CLI_OPTIONS, Options, check_resumable, claim
 from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import Scene
-from plantgrowth.scene.places import check_macro_places, check_micro_places, needs_place_checks
+from plantgrowth.scene.places import (
+    check_macro_places,
+    check_micro_places,
+    check_micro_tissue,
+    needs_place_checks,
+)
 from plantgrowth.scene.plausibility import warn_about
 
 log = logging.getLogger("plantgrowth")
@@ -39,13 +44,15 @@ def checked_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> Macro
         SceneError: a field out of its range where the run uses it (the first place in
             (key, x1, x2) order, the same on every rank).
     """
+    if nx is None and scene.model in ("micro", "both"):
+        check_micro_tissue(scene)
     macro = nx is not None or scene.model in ("macro", "both")
     domain = macro_domain(scene, comm, nx) if macro else None
     if needs_place_checks(scene):
         if domain is not None:
             check_macro_places(domain.scene, *domain.places(), comm)
         if nx is not None or scene.model in ("micro", "both"):
-            check_micro_places(scene, scene.micro_nx if nx is None else nx)
+            check_micro_places(scene, nx)
     return domain
 
 

@@ -23,10 +23,11 @@ from mpi4py import MPI
 
 from plantgrowth.base.errors import SceneError
 from plantgrowth.meshes.honeycomb import GeometryError
-from plantgrowth.meshes.tissue import TissueLayout
+from plantgrowth.meshes.tissue import wall_mesh_size
 from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.scene.fields import ExprField, check_value
 from plantgrowth.scene.limits import FG0_RANGE, RANGES
+from plantgrowth.scene.micro_tissue import micro_tissue
 from plantgrowth.scene.schema import Scene
 
 DET_RANGE = (0.0, np.inf, True, True)
@@ -113,12 +114,23 @@ def check_macro_places(scene: Scene, nodes: np.ndarray, midpoints: np.ndarray, c
     check_regions(scene, midpoints, "fine cell midpoint", comm)
 
 
-def check_micro_places(scene: Scene, nx: int) -> None:
-    """The fields at the cell centres of the micro tissue of ``nx`` cells per row."""
-    layout = TissueLayout(scene.cell.at(0.0, 0.0), nx)
-    tissue_scene = scene.over_extent(*layout.bounding_box)
-    check_ranges(tissue_scene, layout.centres, "cell", MPI.COMM_SELF, numbered=True)
-    check_regions(scene, layout.centres, "cell centre", MPI.COMM_SELF)
+def check_micro_tissue(scene: Scene) -> None:
+    """A scene's given cells (``[tissue] cells``) make voids and an affordable walls mesh
+    (nothing for the honeycomb: Scene.check_micro checks it)."""
+    if scene.tissue.cells is not None:
+        try:
+            wall_mesh_size(micro_tissue(scene), scene.micro_resolution)
+        except GeometryError as e:
+            raise SceneError(str(e)) from None
+
+
+def check_micro_places(scene: Scene, nx: int | None = None) -> None:
+    """The fields at the cell centres of the micro tissue: the scene's (its cells, or micro.nx's
+    honeycomb), or the honeycomb of ``nx`` cells per row."""
+    tissue = micro_tissue(scene, nx)
+    tissue_scene = scene.over_extent(*tissue.bounding_box)
+    check_ranges(tissue_scene, tissue.centres, "cell", MPI.COMM_SELF, numbered=True)
+    check_regions(scene, tissue.centres, "cell centre", MPI.COMM_SELF)
 
 
 def check_regions(scene: Scene, points: np.ndarray, what: str, comm: MPI.Comm) -> None:

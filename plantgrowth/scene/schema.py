@@ -188,10 +188,10 @@ class Scene:
                 "no held edges: the cellular tissue has no straight side to hold; hold edges with "
                 "model = 'macro'"
             )
-        try:  # the walls mesh must be affordable
-            wall_mesh_size(
-                TissueLayout(self.cell.at(0.0, 0.0), self.micro_nx), self.micro_resolution
-            )
+        try:  # the walls mesh must be affordable (given cells: check_micro_tissue)
+            if self.tissue.cells is None:
+                layout = TissueLayout(self.cell.at(0.0, 0.0), self.micro_nx)
+                wall_mesh_size(layout, self.micro_resolution)
         except GeometryError as e:
             raise SceneError(str(e)) from None
 
