@@ -1,0 +1,153 @@
+"""The macro model from a tissue given as cells (issue 34, docs/model.md "The macro model from
+cells"): the region the cells cover, meshed conforming to them, each fine cell's unit cell the
+hexagon grown by ``Fg Fs`` with Fs its cell's shape.
+
+Built on cells made here (the regular honeycomb of TissueLayout, stretched or with perturbed
+vertices), not on the scene key, which i34-import owns. Meshes are built on COMM_WORLD, so under
+mpirun the models are distributed and every measure reduced.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+from scipy.linalg import expm
+
+from plantgrowth.base.errors import SceneError
+from plantgrowth.base.gather import MeshGather
+from plantgrowth.meshes.cell_outline import cell_of_points, tissue_outline
+from plantgrowth.meshes.cell_polygons import CellPolygons
+from plantgrowth.meshes.honeycomb import GeometryError, polygon_area
+from plantgrowth.meshes.tissue import TissueLayout
+from plantgrowth.models.macro.domain import cells_domain, macro_domain
+from plantgrowth.models.macro.model import model_on
+from plantgrowth.scene import parse_scene
+
+NX = 4
+BASE = {"tissue": {"h": 0.35}, "growth": {"law": "stress"}, "micro": {"nx": NX},
+        "accuracy": {"preset": "draft"}}  # fmt: skip
+LU_ROUND_OFF = 1e-11  # same (or affinely mapped) linear systems solved by LU: measured ~1e-13
+NEWTON = 1e-8  # finite kinematics: both runs stop Newton at RESIDUAL_BOUND = 1e-8 (measured 4e-10)
+MEASURES = ("area", "growth_rate_11", "growth_rate_22", "growth_rate_area")
+
+
+def scene(**tables):
+    return parse_scene({"model": "macro"} | BASE | tables)
+
+
+def honeycomb(M: np.ndarray | None = None) -> CellPolygons:
+    """Today's micro tissue of Nx = 4 as cells, each stretched by M."""
+    layout, M = TissueLayout(scene().cell.at(0.0, 0.0), NX), np.eye(2) if M is None else M
+    return CellPolygons.from_loops([layout.hexagon(i) @ M.T for i in range(layout.n_cells)])
+
+
+def perturbed(seed: int = 5, amount: float = 0.15) -> CellPolygons:
+    """The honeycomb with every vertex moved by up to ``amount`` cells (along x1 only on
+    x2 = 0): an irregular tissue whose cells still share their walls."""
+    cells = honeycomb()
+    move = np.random.default_rng(seed).uniform(-amount, amount, cells.vertices.shape)
+    move[np.abs(cells.vertices[:, 1]) < 1e-12, 1] = 0.0
+    vertices = cells.vertices + move * TissueLayout(scene().cell.at(0.0, 0.0), NX).delta_s
+    return CellPolygons(vertices, cells.cells, cells.labels)
+
+
+def run(model, steps: int) -> list[dict[str, float]]:
+    """``steps`` steps of the model (exp integrator), the measures of each."""
+    Fg, rows = model.initial_growth(), []
+    for _ in range(steps):
+        G = model.step(Fg).G
+        rows.append(model.measures(Fg, G))
+        Fg = np.array([expm(g) @ f for g, f in zip(G, Fg, strict=True)])
+    return rows
+
+
+def assert_same(rows, expected, rtol):
+    for row, want in zip(rows, expected, strict=True):
+        for key in MEASURES:
+            assert row[key] == pytest.approx(want[key], rel=rtol), key
+
+
+@pytest.mark.mpi
+def test_a_regular_honeycomb_given_as_cells_is_todays_macro_model_on_its_outline():
+    """Fs = I on every fine cell, the mesh and boundary those of the micro tissue's outline: the
+    same displacement to round-off."""
+    world = MPI.COMM_WORLD
+    cells = cells_domain(scene(), honeycomb(), world)
+    today = macro_domain(parse_scene({"model": "both"} | BASE), world, NX)
+    a, b = model_on(cells, world), model_on(today, world)
+    assert np.allclose(a.shape, np.eye(2), rtol=0, atol=1e-14)
+    assert_same(run(a, 1), run(b, 1), LU_ROUND_OFF)
+    u_a, u_b = (MeshGather(m.problem.V, root=None).function(m.problem.u) for m in (a, b))
+    assert np.abs(u_a - u_b).max() <= LU_ROUND_OFF * np.abs(u_b).max()  # canonical node order
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("kinematics", ["linear", "finite"])
+def test_a_stretched_honeycomb_is_the_scene_grown_by_its_stretch(kinematics):
+    """Cells stretched by M = diag(a, b) (stress free as measured) against the honeycomb's
+    outline with growth.Fg0 = M: the same tissue, mapped by M (u_b(X) = u_a(M X) + (M - I) X
+    makes the two weak forms equal, linear or finite), so the same current area and growth
+    rates, step after step."""
+    world, M = MPI.COMM_WORLD, np.diag([1.3, 0.8])
+    a = model_on(cells_domain(scene(kinematics=kinematics), honeycomb(M), world), world)
+    grown = {"growth": {"law": "stress", "Fg0": M.tolist()}}
+    b_scene = parse_scene({"model": "both", "kinematics": kinematics} | BASE | grown)
+    b = model_on(macro_domain(b_scene, world, NX), world)
+    Fs = np.diag([1.3, 0.8]) / np.sqrt(1.3 * 0.8)  # against the cells' mean size
+    assert np.allclose(a.shape, Fs, rtol=0, atol=1e-13)
+    steps = 2 if kinematics == "finite" else 1  # finite: G anisotropic, Fg then Fs
+    assert_same(run(a, steps), run(b, steps), NEWTON if kinematics == "finite" else LU_ROUND_OFF)
+
+
+@pytest.mark.mpi
+def test_each_fine_cell_takes_its_cells_shape():
+    """The mesh conforms to the cells: the fine triangles a cell holds add up to its polygon's
+    area (1e-10: sums of many triangle areas), and each carries that cell's Fs."""
+    world, cells = MPI.COMM_WORLD, perturbed()
+    domain = cells_domain(scene(), cells, world)
+    model = model_on(domain, world)
+    n = model.problem.n_owned
+    midpoints = model.problem.midpoints[:n, :2]
+    owner = cell_of_points(cells, midpoints)
+    areas = np.bincount(owner, weights=model.problem.areas, minlength=cells.n_cells)
+    areas = world.allreduce(areas, op=MPI.SUM)
+    assert np.allclose(areas, cells.areas, rtol=1e-10)
+    assert np.array_equal(model.shape[:n], domain.cell_shape.shapes.Fg0[owner])
+    assert len(np.unique(model.shape[:n].reshape(n, 4), axis=0)) > 1  # not all alike
+
+
+@pytest.mark.mpi
+def test_an_irregular_tissue_gives_the_same_answer_on_any_number_of_ranks():
+    """COMM_SELF (each rank alone, serial) against COMM_WORLD: the same measures (the LU
+    solves differ in ordering only)."""
+    cells = perturbed()
+    alone = run(model_on(cells_domain(scene(), cells, MPI.COMM_SELF), MPI.COMM_SELF), 1)
+    shared = run(model_on(cells_domain(scene(), cells, MPI.COMM_WORLD), MPI.COMM_WORLD), 1)
+    assert_same(shared, alone, LU_ROUND_OFF)
+
+
+def test_the_outline_is_the_union_of_the_cells():
+    cells = perturbed()
+    outline = tissue_outline(cells)
+    assert polygon_area(outline) == pytest.approx(cells.areas.sum(), rel=1e-12)
+    apart = CellPolygons.from_loops([cells.polygon(0), cells.polygon(0) + [10.0, 0.0]])
+    with pytest.raises(GeometryError, match="2 separate regions"):
+        tissue_outline(apart)
+
+
+def test_points_find_their_cell():
+    cells = perturbed()
+    assert np.array_equal(cell_of_points(cells, cells.centroids), np.arange(cells.n_cells))
+    outside = cells.vertices[[np.argmax(cells.vertices[:, 0])]] + [1e-9, 0.0]
+    nearest = np.argmin(np.linalg.norm(cells.centroids - outside, axis=1))
+    assert cell_of_points(cells, outside)[0] == nearest
+
+
+def test_bad_tissues_of_cells_are_refused():
+    lifted = honeycomb()
+    lifted = CellPolygons(lifted.vertices + [0.0, 1.0], lifted.cells, lifted.labels)
+    with pytest.raises(GeometryError, match="side on x2 = 0"):
+        cells_domain(scene(), lifted, MPI.COMM_SELF)
+    with pytest.raises(SceneError, match="cell.w is a field"):
+        cells_domain(scene(cell={"w": {"from": 0.05, "to": 0.06}}), honeycomb(), MPI.COMM_SELF)
