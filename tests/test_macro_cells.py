@@ -69,20 +69,20 @@ def assert_same(rows, expected, rtol):
 
 
 @pytest.mark.mpi
-def test_a_regular_honeycomb_given_as_cells_is_todays_macro_model_on_its_outline():
-    """Fs = I on every fine cell, the mesh and boundary those of the micro tissue's outline: the
-    same displacement to round-off."""
+def test_a_regular_generated_tissue_is_todays_macro_model_on_its_outline():
+    """``[tissue] cells = {voronoi = 8}`` (r = 0: today's honeycomb of Nx = 4) with model =
+    "macro": Fs = I on every fine cell, the mesh and boundary those of the micro tissue's
+    outline, so the same displacement to round-off (in canonical node order)."""
     world = MPI.COMM_WORLD
-    cells = cells_domain(scene(), honeycomb(), world)
-    today = macro_domain(parse_scene({"model": "both"} | BASE), world, NX)
-    a, b = model_on(cells, world), model_on(today, world)
+    cells = scene(tissue={"h": 0.35, "cells": {"voronoi": NX * NX // 2}})
+    today = parse_scene({"model": "both"} | BASE)
+    a, b = model_on(macro_domain(cells, world), world), model_on(macro_domain(today, world), world)
     assert np.allclose(a.shape, np.eye(2), rtol=0, atol=1e-14)
     assert_same(run(a, 1), run(b, 1), LU_ROUND_OFF)
     u_a, u_b = (MeshGather(m.problem.V, root=None).function(m.problem.u) for m in (a, b))
-    assert np.abs(u_a - u_b).max() <= LU_ROUND_OFF * np.abs(u_b).max()  # canonical node order
+    assert np.abs(u_a - u_b).max() <= LU_ROUND_OFF * np.abs(u_b).max()
 
 
-@pytest.mark.mpi
 @pytest.mark.parametrize("kinematics", ["linear", "finite"])
 def test_a_stretched_honeycomb_is_the_scene_grown_by_its_stretch(kinematics):
     """Cells stretched by M = diag(a, b) (stress free as measured) against the honeycomb's
@@ -119,11 +119,11 @@ def test_each_fine_cell_takes_its_cells_shape():
 
 @pytest.mark.mpi
 def test_an_irregular_tissue_gives_the_same_answer_on_any_number_of_ranks():
-    """COMM_SELF (each rank alone, serial) against COMM_WORLD: the same measures (the LU
-    solves differ in ordering only)."""
-    cells = perturbed()
-    alone = run(model_on(cells_domain(scene(), cells, MPI.COMM_SELF), MPI.COMM_SELF), 1)
-    shared = run(model_on(cells_domain(scene(), cells, MPI.COMM_WORLD), MPI.COMM_WORLD), 1)
+    """A generated tissue at r = 0.5: COMM_SELF (each rank alone, serial) against COMM_WORLD,
+    the same measures (the LU solves differ in ordering only)."""
+    sc = scene(tissue={"h": 0.35, "cells": {"voronoi": NX * NX // 2, "seed": 3, "regularity": 0.5}})
+    alone = run(model_on(macro_domain(sc, MPI.COMM_SELF), MPI.COMM_SELF), 1)
+    shared = run(model_on(macro_domain(sc, MPI.COMM_WORLD), MPI.COMM_WORLD), 1)
     assert_same(shared, alone, LU_ROUND_OFF)
 
 

@@ -25,6 +25,7 @@ from plantgrowth.models.macro.boundary import (
 from plantgrowth.models.macro.coarse import coarse_grid_for
 from plantgrowth.models.macro.problem import mesh_bounding_box, rectangle_mesh
 from plantgrowth.scene import Scene
+from plantgrowth.scene.tissue_cells import cell_polygons
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,11 @@ def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroDo
     its cells cover, with the scene's fields spanning that region's extent
     (docs/model.md section 7) and its ``micro.nx`` set to ``nx``: with water fluxes the macro
     model's cells are those cells (``cell_scale = 4 / nx``, docs/model.md "The cells' size"),
-    and its edges are those of the cells' outer walls (:func:`outline_boundary`)."""
+    and its edges are those of the cells' outer walls (:func:`outline_boundary`). A scene with
+    ``tissue.cells`` runs on those cells (:func:`cells_domain`), whatever ``nx``."""
+    cells = cell_polygons(scene)
+    if cells is not None:
+        return cells_domain(scene, cells, comm)
     if nx is None and scene.model != "both":
         if scene.tissue.shape is not None:
             return MacroDomain(scene, *shape_domain(scene, comm))
