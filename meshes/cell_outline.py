@@ -32,7 +32,7 @@ def tissue_outline(cells: CellPolygons) -> np.ndarray:
     union = unary_union([Polygon(cells.polygon(i)) for i in range(cells.n_cells)])
     if union.geom_type != "Polygon":
         raise GeometryError(
-            f"tissue cells: the cells form {len(union.geoms)} separate regions, not one tissue"
+            f"tissue.cells: the cells form {len(union.geoms)} separate regions, not one tissue"
         )
     return np.array(orient(union, 1.0).exterior.coords)[:-1]
 

@@ -126,7 +126,7 @@ def cell_shapes(cells: CellPolygons, cell: HoneycombCell, delta: float | None = 
     """The shapes of ``cells`` against ``cell``'s hexagon scaled by ``delta`` (default: the
     scale that gives the tissue's mean cell area, so a regular honeycomb gets Fg0 = I)."""
     if np.any(cells.vertices[:, 1] < -1e-9 * float(np.ptp(cells.vertices, axis=0).max())):
-        raise GeometryError("tissue cells: every vertex must lie in x2 >= 0 (x2 = 0 is the "
+        raise GeometryError("tissue.cells: every vertex must lie in x2 >= 0 (x2 = 0 is the "
                             "symmetry plane)")  # fmt: skip
     cut = on_symmetry_plane(cells)
     moments = [(mirrored_moment if c else second_moment)(cells.polygon(i))

@@ -100,7 +100,7 @@ def cells_boundary(msh: mesh.Mesh, cells: CellPolygons) -> Boundary:
     low = np.abs(mesh.compute_midpoints(msh, 1, facets)[:, 1]) <= 1e-8 * extent
     if len(on_plane) < 2 or not msh.comm.allreduce(int(low.sum()), op=MPI.SUM):
         raise GeometryError(
-            "tissue cells: the macro model needs cells with a side on x2 = 0 (the symmetry "
+            "tissue.cells: the macro model needs cells with a side on x2 = 0 (the symmetry "
             "plane, u2 = 0 there), and none has one"
         )
     tags = np.where(low, CELLS_EDGES["bottom"], CELLS_EDGES["outer"]).astype(np.int32)

@@ -12,7 +12,11 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 from plantgrowth.base.errors import SceneError
-from plantgrowth.meshes.cell_outline import CellShapeField, build_cells_outline_mesh
+from plantgrowth.meshes.cell_outline import (
+    CellShapeField,
+    build_cells_outline_mesh,
+    tissue_outline,
+)
 from plantgrowth.meshes.cell_polygons import CellPolygons
 from plantgrowth.meshes.cell_shapes import cell_shapes
 from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
@@ -88,6 +92,7 @@ def cells_domain(scene: Scene, cells: CellPolygons, comm: MPI.Comm) -> MacroDoma
             "geometry (each cell's shape is measured against that hexagon)"
         )
     cells.check()
+    tissue_outline(cells)  # one connected tissue, else a named error
     shapes = cell_shapes(cells, scene.cell.at(0.0, 0.0))
     msh = build_cells_outline_mesh(cells, scene.tissue.h, comm)[0]
     width, height = (float(x) for x in cells.vertices.max(axis=0))
