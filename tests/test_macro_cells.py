@@ -21,7 +21,7 @@ from plantgrowth.meshes.cell_polygons import CellPolygons
 from plantgrowth.meshes.honeycomb import GeometryError, polygon_area
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models.macro.domain import cells_domain, macro_domain
-from plantgrowth.models.macro.model import model_on
+from plantgrowth.models.macro.model import MacroModel, model_on
 from plantgrowth.scene import parse_scene
 
 NX = 4
@@ -151,3 +151,16 @@ def test_bad_tissues_of_cells_are_refused():
         cells_domain(scene(), apart, MPI.COMM_SELF)
     with pytest.raises(SceneError, match="cell.w is a field"):
         cells_domain(scene(cell={"w": {"from": 0.05, "to": 0.06}}), honeycomb(), MPI.COMM_SELF)
+
+
+def test_the_unit_cell_is_the_hexagon_grown_by_the_cells_shape_then_growth():
+    """Reference hexagon -> (Fs) measured cell -> (Fg) grown cell: the tensors of a fine cell at
+    Fg are those of the plain model at ``Fg Fs`` (not ``Fs Fg``: a growth that does not commute
+    with the shapes tells them apart). Same inputs, same cell problems: to round-off."""
+    domain = cells_domain(scene(), perturbed(), MPI.COMM_SELF)
+    shaped = model_on(domain, MPI.COMM_SELF)
+    plain = MacroModel(domain.scene, domain.mesh, MPI.COMM_SELF, domain.boundary)
+    Fg = np.broadcast_to(np.array([[1.2, 0.3], [-0.1, 0.9]]), shaped.shape.shape)
+    C = shaped.cell_tensors(Fg).C
+    assert np.allclose(C, plain.cell_tensors(Fg @ shaped.shape).C, rtol=1e-12, atol=0)
+    assert not np.allclose(C, plain.cell_tensors(shaped.shape @ Fg).C, rtol=1e-3, atol=0)
