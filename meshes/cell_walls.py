@@ -1,10 +1,13 @@
 """The wall network of a micro tissue (docs/model.md sections 7, 12): which cells share which
 mid-line segment, and which outer walls lie on which edge of the tissue (pure numpy).
 
-Segments are the sides of the cells' mid-line hexagons (the bottom row cut at x2 = 0; the cut
-itself, on the symmetry plane, is no wall). A side that two cells have is a shared wall; a side
-of one cell only is an outer wall, on the edge its outward normal n and its cell's place name:
-"top" for the top row's outer walls facing up (n2 > 0), else "left" (n1 < 0) or "right".
+Segments are the sides of the cells' mid-line polygons (a cut cell's side on the symmetry plane
+x2 = 0 is no wall). A side that two cells have is a shared wall; a side of one cell only is an
+outer wall, on the edge of the tissue's bounding box [x1_min, x1_max] x [x2_min, x2_max] that its
+outward normal n faces ("top": n2 > 0, "left": n1 < 0, "right": n1 > 0) and, of those, the one
+nearest to its midpoint (the honeycomb: the top row's walls facing up are "top", the other rows'
+outer walls "left" or "right"). A wall facing none of them (n = (0, -1), a free tissue's
+bottom) goes to the nearest of the three.
 """
 
 from __future__ import annotations
@@ -13,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .tissue import TissueLayout
+from .cell_tissue import CellTissue, as_tissue
+from .tissue import TissueLayout  # noqa: TC001
 
 EDGE_NAMES = ("left", "right", "top")
 
@@ -35,43 +39,42 @@ class WallNetwork:
     outer_edge: np.ndarray
 
 
-def wall_network(layout: TissueLayout) -> WallNetwork:
-    """The shared and outer walls of the cells of ``layout``."""
-    loops = [layout.hexagon(i) for i in range(layout.n_cells)]
-    stacked = np.vstack(loops)
-    scale = 1e-9 * np.abs(stacked).max()
-    # a vertex of several cells is one point: merge to round-off, as the cell outlines do
-    _, ids = np.unique(np.round(stacked / scale), axis=0, return_inverse=True)
-    ids = ids.reshape(-1)
+def outer_edge(tissue: CellTissue, midpoint: np.ndarray, normal: np.ndarray) -> str:
+    """The edge name of an outer wall (module docstring)."""
+    low, high = tissue.cells.vertices.min(axis=0), tissue.cells.vertices.max(axis=0)
+    distance = {"left": midpoint[0] - low[0], "right": high[0] - midpoint[0],
+                "top": high[1] - midpoint[1]}  # fmt: skip
+    facing = {"left": normal[0] < 0.0, "right": normal[0] > 0.0, "top": normal[1] > 0.0}
+    names = [name for name in EDGE_NAMES if facing[name]] or list(EDGE_NAMES)
+    return min(names, key=lambda name: distance[name])
+
+
+def wall_network(source: CellTissue | TissueLayout) -> WallNetwork:
+    """The shared and outer walls of the cells of a tissue (a TissueLayout: its honeycomb)."""
+    tissue = as_tissue(source)
+    vertices, tol = tissue.cells.vertices, tissue.tolerance
     sides: dict[tuple[int, int], list[tuple[int, np.ndarray]]] = {}
-    start = 0
-    for cell, loop in enumerate(loops):
-        n = len(loop)
-        for k in range(n):
-            p, q = loop[k], loop[(k + 1) % n]
-            if abs(p[1]) < scale and abs(q[1]) < scale:
+    for cell, loop in enumerate(tissue.cells.cells):
+        for a, b in zip(loop.tolist(), np.roll(loop, -1).tolist(), strict=False):
+            p, q = vertices[a], vertices[b]
+            if tissue.cut[cell] and abs(p[1]) < tol and abs(q[1]) < tol:
                 continue  # the cut on the symmetry plane
-            key = tuple(sorted((int(ids[start + k]), int(ids[start + (k + 1) % n]))))
-            sides.setdefault(key, []).append((cell, q - p))
-        start += n
-    top_row = layout.nx // 2 - 1
-    pairs, shared, outer_cell, outer, outer_edge = [], [], [], [], []
+            sides.setdefault((min(a, b), max(a, b)), []).append((cell, q - p, 0.5 * (p + q)))
+    pairs, shared, outer_cell, outer, edges = [], [], [], [], []
     for found in sides.values():
         if len(found) == 2:
             pairs.append((found[0][0], found[1][0]))
             shared.append(found[0][1])
             continue
-        cell, d = found[0]
-        normal = np.array([d[1], -d[0]])  # outward: the hexagons run counter-clockwise
-        row = cell // layout.nx
-        edge = "top" if row == top_row and normal[1] > 0.0 else "left" if normal[0] < 0 else "right"
+        cell, d, midpoint = found[0]
+        normal = np.array([d[1], -d[0]])  # outward: the polygons run counter-clockwise
         outer_cell.append(cell)
         outer.append(d)
-        outer_edge.append(edge)
+        edges.append(outer_edge(tissue, midpoint, normal))
     return WallNetwork(
         np.array(pairs, dtype=np.int64).reshape(-1, 2), np.array(shared).reshape(-1, 2),
         np.array(outer_cell, dtype=np.int64), np.array(outer).reshape(-1, 2),
-        np.array(outer_edge),
+        np.array(edges),
     )  # fmt: skip
 
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from .cell_tissue import CellTissue, as_tissue
 from .gmsh_api import gmsh_api
 from .honeycomb import GeometryError, HoneycombCell
 from .unit_cell import check_resolution, check_triangles
@@ -120,20 +121,19 @@ def _add_polygon(points: np.ndarray) -> int:
     return occ.addPlaneSurface([occ.addCurveLoop(lines)])
 
 
-def _build_walls_model(layout: TissueLayout, h: float) -> None:
+def _build_walls_model(tissue: CellTissue, h: float) -> None:
     gmsh = gmsh_api()
 
     gmsh.model.add("tissue")
     occ = gmsh.model.occ
-    n = layout.n_cells
-    hexagons = [(2, _add_polygon(layout.hexagon(i))) for i in range(n)]
-    voids = [(2, _add_polygon(layout.void(i))) for i in range(n)]
-    _, pieces = occ.fragment(hexagons, voids)
+    n = tissue.n_cells
+    polygons = [(2, _add_polygon(tissue.polygon(i))) for i in range(n)]
+    voids = [(2, _add_polygon(tissue.void(i))) for i in range(n)]
+    _, pieces = occ.fragment(polygons, voids)
     occ.synchronize()
-    # a hexagon's pieces are its walls and its void; a void's pieces are void only
+    # a polygon's pieces are its walls and its void; a void's pieces are void only
     void_surfaces = sorted({tag for piece in pieces[n:] for _, tag in piece})
     owner = {i: sorted({t for _, t in pieces[i]} - set(void_surfaces)) for i in range(n)}
-    scale = layout.delta_s * max(layout.cell.l1, layout.cell.l2)
     membrane = {
         tag for s in void_surfaces for _, tag in gmsh.model.getBoundary([(2, s)], oriented=False)
     }
@@ -148,7 +148,7 @@ def _build_walls_model(layout: TissueLayout, h: float) -> None:
         y = [gmsh.model.getValue(0, p, [])[1] for _, p in gmsh.model.getBoundary([(1, curve)])]
         if curve in membrane:
             groups["membrane"].append(curve)
-        elif max(abs(v) for v in y) < 1e-9 * scale:
+        elif max(abs(v) for v in y) < tissue.tolerance:
             groups["bottom"].append(curve)
         else:
             groups["outer"].append(curve)
@@ -187,26 +187,31 @@ def _to_dolfinx(build, comm: MPI.Comm, model_rank: int):
             gmsh.model.remove()
 
 
-def wall_mesh_size(layout: TissueLayout, resolution: int, name: str = "micro.resolution") -> float:
-    """``resolution`` elements across one cell's own wall ``w delta_s`` (capped by the walls'
-    length as in the unit cell); a mesh above :data:`MAX_TRIANGLES` is refused."""
+def wall_mesh_size(
+    tissue: CellTissue | TissueLayout, resolution: int, name: str = "micro.resolution"
+) -> float:
+    """``resolution`` elements across one cell's own wall w (capped by the walls' length as in
+    the unit cell: :attr:`CellTissue.mesh_length`); a mesh above :data:`MAX_TRIANGLES` is
+    refused."""
     check_resolution(name, resolution)
-    cell = layout.cell
-    h = layout.delta_s * min(cell.w, 0.25 * min(cell.l1, cell.l2)) / resolution
-    walls = cell.phi_w * cell.area * layout.delta_s**2 * layout.n_cells
-    check_triangles(f"{name} (with Nx = {layout.nx})", resolution, walls, h, MAX_TRIANGLES)
+    tissue = as_tissue(tissue)
+    h = tissue.mesh_length / resolution
+    check_triangles(
+        f"{name} (with {tissue.name})", resolution, tissue.wall_area, h, MAX_TRIANGLES
+    )
     return h
 
 
 def build_walls_mesh(
-    layout: TissueLayout, resolution: int, comm: MPI.Comm = MPI.COMM_WORLD, model_rank: int = 0
-):
-    """Mesh of the walls of all cells: ``(mesh, cell_tags, facet_tags)``.
-
-    Cell tags are ``cell id + 1`` (each cell's own walls); facet tags ``FACET_TAGS``.
-    """
-    h = wall_mesh_size(layout, resolution)
-    return _to_dolfinx(lambda: _build_walls_model(layout, h), comm, model_rank)
+    tissue: CellTissue | TissueLayout, resolution: int, comm: MPI.Comm = MPI.COMM_WORLD,
+    model_rank: int = 0,
+):  # fmt: skip
+    """Mesh of the walls of all cells (a TissueLayout: its honeycomb's): ``(mesh, cell_tags,
+    facet_tags)``. Cell tags are ``cell id + 1`` (each cell's own walls); facet tags
+    ``FACET_TAGS`` ("bottom": the cut cells' sides on the symmetry plane x2 = 0)."""
+    tissue = as_tissue(tissue)
+    h = wall_mesh_size(tissue, resolution)
+    return _to_dolfinx(lambda: _build_walls_model(tissue, h), comm, model_rank)
 
 
 def build_outline_mesh(

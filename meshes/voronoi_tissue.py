@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial import Voronoi
 
 from .cell_polygons import CellPolygons
 from .geometry_error import GeometryError
@@ -85,6 +84,8 @@ def _clip_below(polygon: np.ndarray, tol: float) -> np.ndarray:
 
 def _regions(points: np.ndarray, n_real: int) -> list[np.ndarray]:
     """The Voronoi cells (CCW vertex arrays) of the first ``n_real`` points."""
+    from scipy.spatial import Voronoi  # not at import: the scene key's checks need no scipy
+
     vor = Voronoi(points)
     out = []
     for i in range(n_real):

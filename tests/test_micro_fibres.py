@@ -32,8 +32,8 @@ from mpi4py import MPI
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models import fibres, growth
 from plantgrowth.models.macro.model import macro_model
-from plantgrowth.models.micro.around import WallsAround, around_map, neighbours
-from plantgrowth.models.micro.director import nearest_sides
+from plantgrowth.models.micro.around import WallsAround, around_map, neighbours, side_pairs
+from plantgrowth.models.micro.director import nearest_sides, padded_outlines
 from plantgrowth.models.micro.model import MicroModel, scene_cell
 from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import parse_scene
@@ -130,13 +130,13 @@ def test_homogeneous_fibred_tissue_grows_across_the_fibres_toward_the_macro_rate
 def _walls_around(model: MicroModel) -> WallsAround:
     """The walls around each cell of a model's mesh, each triangle on the side of its cell's
     hexagon nearest to its midpoint (as MicroDirector assigns them)."""
-    layout, n_owned = model.layout, model.n_owned
-    hexagons = np.stack([layout.delta_s * layout.cell.hexagon() + c for c in layout.centres])
+    tissue, n_owned, cells = model.tissue, model.n_owned, model.cell_id
+    hexagons, counts = padded_outlines(tissue)
     midpoints = dmesh.compute_midpoints(model.mesh, 2, np.arange(n_owned, dtype=np.int32))
-    side = nearest_sides(hexagons[model.cell_id], midpoints[:, :2])
+    side = nearest_sides(hexagons[cells], counts[cells], midpoints[:, :2])
     Q0 = fem.FunctionSpace(model.mesh, ("DG", 0))
     areas = fem.petsc.assemble_vector(fem.form(ufl.TestFunction(Q0) * ufl.dx))
-    return WallsAround(layout, model.cell_id, side, model._owned_rows(areas.array, Q0), COMM)
+    return WallsAround(tissue, model.cell_id, side, model._owned_rows(areas.array, Q0), COMM)
 
 
 CUE_ROUND_OFF = 1e-11
@@ -199,7 +199,7 @@ def test_the_walls_around_a_cell_are_its_halves_and_its_neighbours_opposite_halv
             assert other < 0 or across[other, (k + 3) % 6] == cell
     assert np.all(across[layout.cut_cells, 3:5] == -1)
     per_side = 100.0 * np.repeat(np.arange(layout.n_cells), 6) + np.tile(np.arange(6), 18)
-    assert (around_map(across) @ per_side)[8] == 9830.0
+    assert (around_map(*side_pairs(layout)) @ per_side)[8] == 9830.0
 
 
 def test_a_turned_cell_under_a_stress_cue():

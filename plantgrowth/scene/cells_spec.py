@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 from plantgrowth.base.errors import SceneError
+from plantgrowth.meshes.cell_polygons import CellPolygons
 from plantgrowth.meshes.geometry_error import GeometryError
 from plantgrowth.meshes.voronoi_tissue import voronoi_nx
 from plantgrowth.scene.limits import MAX_LENGTH
@@ -95,7 +97,38 @@ def _imported(path: str, pixel_size: object) -> ImportedCells:
             f"tissue.pixel_size is required with a label image ({key}): the side of one pixel in "
             "the scene's length unit, a number > 0"
         )
-    return ImportedCells(path, size)
+    spec = ImportedCells(path, size)
+    imported_cells(spec)  # a bad file is refused when the scene is read
+    return spec
+
+
+def imported_cells(spec: ImportedCells) -> CellPolygons:
+    """The checked cells of an imported file, in the scene's length unit (docs/real_tissues.md);
+    a SceneError names the file and the fault. Cached on the file's path, size, modification
+    time and the pixel size: do not modify the result."""
+    stat = os.stat(spec.path)
+    try:
+        return _imported_cells(spec, stat.st_mtime_ns, stat.st_size)
+    except GeometryError as e:
+        raise SceneError(str(e)) from None
+
+
+@lru_cache(maxsize=4)
+def _imported_cells(spec: ImportedCells, mtime: int, size: int) -> CellPolygons:
+    name = f"tissue.cells = {spec.path!r}"
+    if not spec.is_image:
+        from plantgrowth.meshes.polygon_table import table_cells
+
+        return table_cells(spec.path, spec.pixel_size, name)
+    from plantgrowth.meshes.label_checks import as_labels, check_labels, read_labels
+    from plantgrowth.meshes.label_tracing import trace_cells
+
+    labels = as_labels(read_labels(spec.path, name), name)
+    check_labels(labels, name)
+    try:
+        return trace_cells(labels, spec.pixel_size)
+    except GeometryError as e:
+        raise GeometryError(f"{name}: {e}") from None
 
 
 def parse_cells(value: object, pixel_size: object = None) -> CellsSpec | None:

@@ -11,36 +11,33 @@ from plantgrowth.meshes.cell_polygons import CellPolygons
 from plantgrowth.meshes.geometry_error import GeometryError
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.meshes.voronoi_tissue import voronoi_tissue
-from plantgrowth.scene.cells_spec import CellsSpec, GeneratedCells
+from plantgrowth.scene.cells_spec import GeneratedCells, imported_cells
 
 if TYPE_CHECKING:
     from plantgrowth.scene.schema import Scene
 
 
 @lru_cache(maxsize=8)
-def _cells(spec: CellsSpec, cell: HoneycombCell | None) -> CellPolygons:
-    if isinstance(spec, GeneratedCells):
-        return voronoi_tissue(cell, spec.voronoi, spec.seed, spec.regularity)
-    raise SceneError(f"tissue.cells = {spec.path!r}: importing cells is not built yet")
+def _generated(spec: GeneratedCells, cell: HoneycombCell) -> CellPolygons:
+    return voronoi_tissue(cell, spec.voronoi, spec.seed, spec.regularity)
 
 
 def cell_polygons(scene: Scene) -> CellPolygons | None:
     """The scene's cells (None without ``tissue.cells``): a generated tissue of the scene's
     (constant) cell geometry, or an imported one; a SceneError names a bad geometry or file.
-    The same spec gives the same (cached) object: do not modify it."""
+    The same cells give the same (cached) object: do not modify it."""
     spec = scene.tissue.cells
     if spec is None:
         return None
-    cell = None
-    if isinstance(spec, GeneratedCells):
-        for key in ("l1", "l2", "theta", "w"):
-            if not getattr(scene.cell, key).is_constant:
-                raise SceneError(
-                    f"cell.{key} is a field, but tissue.cells.voronoi generates its tissue from "
-                    "one honeycomb cell: give constant cell.l1, cell.l2, cell.theta and cell.w"
-                )
-        cell = scene.cell.at(0.0, 0.0)
+    if not isinstance(spec, GeneratedCells):
+        return imported_cells(spec)
+    for key in ("l1", "l2", "theta", "w"):
+        if not getattr(scene.cell, key).is_constant:
+            raise SceneError(
+                f"cell.{key} is a field, but tissue.cells.voronoi generates its tissue from "
+                "one honeycomb cell: give constant cell.l1, cell.l2, cell.theta and cell.w"
+            )
     try:
-        return _cells(spec, cell)
+        return _generated(spec, scene.cell.at(0.0, 0.0))
     except GeometryError as e:
         raise SceneError(str(e)) from None

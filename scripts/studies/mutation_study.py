@@ -227,11 +227,11 @@ MUTANTS = (
     ),
     # --- micro model ------------------------------------------------------------------------------
     Mutant(
-        "micro_bottom_clamped", "plantgrowth/models/micro/model.py", "wrong boundary condition",
+        "micro_bottom_clamped", "plantgrowth/models/micro/supports.py", "wrong boundary condition",
         "micro bottom walls clamped (u = 0) instead of a symmetry plane (u2 = 0)",
-        (("fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),",
+        (("fem.dirichletbc(zero, fem.locate_dofs_topological(V.sub(1), 1, bottom), V.sub(1)),",
           "fem.dirichletbc(np.zeros(2, dtype=PETSc.ScalarType), "
-          "fem.locate_dofs_topological(self.V, 1, bottom), self.V),"),),
+          "fem.locate_dofs_topological(V, 1, bottom), V),"),),
     ),
     Mutant(
         "micro_average_over_hexagon", "plantgrowth/models/micro/model.py", "wrong average",
@@ -243,7 +243,7 @@ MUTANTS = (
     Mutant(
         "micro_cut_cell_shear_kept", "plantgrowth/models/micro/model.py", "wrong average",
         "cut bottom cells averaged as they are (shear kept) instead of as the mirrored full cell",
-        (("means[self.layout.cut_cells, 1:3] = 0.0", "means[self.layout.cut_cells, 1:3] *= 1.0"),),
+        (("means[self.tissue.cut_cells, 1:3] = 0.0", "means[self.tissue.cut_cells, 1:3] *= 1.0"),),
     ),
     # --- time loop --------------------------------------------------------------------------------
     Mutant(

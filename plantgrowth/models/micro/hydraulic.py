@@ -9,6 +9,7 @@ from dolfinx import fem
 
 from plantgrowth.forms import finite as finite_forms
 from plantgrowth.forms import micro as micro_forms
+from plantgrowth.meshes.cell_tissue import CellTissue, as_tissue
 from plantgrowth.meshes.cell_walls import wall_network
 from plantgrowth.meshes.honeycomb import polygon_area
 from plantgrowth.meshes.tissue import TissueLayout, clip_below
@@ -21,30 +22,30 @@ from plantgrowth.models.water_row import water_row
 from plantgrowth.scene import Scene
 
 
-def lumen_areas(layout: TissueLayout) -> np.ndarray:
-    """(n,) each cell's reference lumen area (its void; the bottom row's cut at x2 = 0)."""
-    cut = range(layout.cut_cells.start, layout.cut_cells.stop)
+def lumen_areas(source: CellTissue | TissueLayout) -> np.ndarray:
+    """(n,) each cell's reference lumen area (its void; a cut cell's above x2 = 0)."""
+    tissue = as_tissue(source)
     return np.array([
-        polygon_area(clip_below(layout.void(i)) if i in cut else layout.void(i))
-        for i in range(layout.n_cells)
+        polygon_area(clip_below(tissue.void(i)) if tissue.cut[i] else tissue.void(i))
+        for i in range(tissue.n_cells)
     ])  # fmt: skip
 
 
 def turgor_solve(
-    scene: Scene, layout: TissueLayout, hexagon_area: np.ndarray, parts: ElasticParts,
+    scene: Scene, tissue: CellTissue, hexagon_area: np.ndarray, parts: ElasticParts,
     test: ufl.Argument, normal, membrane: ufl.Measure,
     newton: tuple[NewtonSolver, fem.Function] | None = None,
 ) -> TurgorSolve | TurgorNewton:  # fmt: skip
     """The water step of a micro tissue (``scene`` over the tissue's extent, its cells'
-    reference hexagon areas ``hexagon_area``) from its walls' problem ``parts``, with ``test``
+    reference polygon areas ``hexagon_area``) from its walls' problem ``parts``, with ``test``
     the displacement test function and ``membrane`` the membranes' measure; finite kinematics:
     ``newton``, the walls' Newton solver and the turgor function its residual reads."""
     hydraulics = scene.hydraulics
-    centres = layout.centres.T
+    centres = tissue.centres.T
     water = CellWater(
-        hydraulics, wall_network(layout), hydraulics.osmotic(*centres),
+        hydraulics, wall_network(tissue), hydraulics.osmotic(*centres),
         hydraulics.conductivity(*centres),
-        {s.name: scene.regions[s.name].inside(layout.centres) for s in hydraulics.regions()},
+        {s.name: scene.regions[s.name].inside(tissue.centres) for s in hydraulics.regions()},
         hexagon_area,
     )  # fmt: skip
     mesh = parts.u.function_space.mesh
@@ -63,7 +64,7 @@ def turgor_solve(
     column = fem.form(
         micro_forms.membrane_pressure_rhs(test, parts.Fg, indicator, normal, membrane)
     )
-    return TurgorSolve(parts, column, columns, water, lumen_areas(layout), scene.time.dt)
+    return TurgorSolve(parts, column, columns, water, lumen_areas(tissue), scene.time.dt)
 
 
 def water_measures(turgor: TurgorSolve, weights: np.ndarray) -> dict[str, float]:

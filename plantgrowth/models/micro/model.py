@@ -15,7 +15,7 @@ from functools import cached_property
 
 import numpy as np
 import ufl
-from dolfinx import fem, mesh
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -27,6 +27,7 @@ from plantgrowth.forms import cell_measures
 from plantgrowth.forms import finite as finite_forms
 from plantgrowth.forms import micro as micro_forms
 from plantgrowth.forms.elasticity import wall_bilinear_form
+from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.meshes.honeycomb import HoneycombCell, polygon_area
 from plantgrowth.meshes.tissue import FACET_TAGS, TissueLayout, build_walls_mesh
 from plantgrowth.models import diagnostics, fibres, growth
@@ -37,6 +38,7 @@ from plantgrowth.models.micro.around import WallsAround
 from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
 from plantgrowth.models.micro.outlines import CellOutlines
+from plantgrowth.models.micro.supports import supports
 from plantgrowth.models.micro.turgor_solve import ElasticParts
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
@@ -53,24 +55,29 @@ def scene_cell(scene: Scene) -> HoneycombCell:
 
 
 class MicroModel:
-    """The walls problem of an ``Nx`` cellular tissue and its per-cell growth.
+    """The walls problem of a tissue of cells and its per-cell growth.
 
     Args:
         scene: the scene (cell geometry, material and growth fields, pressure).
         comm: communicator the walls mesh is distributed on.
-        nx: cells per row (default: the scene's ``micro.nx``).
+        nx: cells per row of the honeycomb (default: the scene's ``micro.nx``).
         resolution: P2 elements across one cell's wall (default: ``micro.resolution``).
+        tissue: the cells (default: the ``Nx`` honeycomb, :meth:`CellTissue.from_layout`).
     """
 
     def __init__(
-        self, scene: Scene, comm: MPI.Comm, nx: int | None = None, resolution: int | None = None
-    ) -> None:
-        layout = TissueLayout(scene_cell(scene), scene.micro_nx if nx is None else nx)
-        self.layout = layout
-        self.scene = scene = scene.over_extent(*layout.bounding_box)  # fields span this tissue
+        self, scene: Scene, comm: MPI.Comm, nx: int | None = None,
+        resolution: int | None = None, tissue: CellTissue | None = None,
+    ) -> None:  # fmt: skip
+        self.layout = None  # the honeycomb the cells are, if they are one
+        if tissue is None:
+            self.layout = TissueLayout(scene_cell(scene), scene.micro_nx if nx is None else nx)
+            tissue = CellTissue.from_layout(self.layout)
+        self.tissue = tissue
+        self.scene = scene = scene.over_extent(*tissue.bounding_box)  # fields span this tissue
         self.comm = comm
         msh, cell_tags, facet_tags = build_walls_mesh(
-            layout, scene.micro_resolution if resolution is None else resolution, comm
+            tissue, scene.micro_resolution if resolution is None else resolution, comm
         )
         self.mesh = msh
         self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 2))
@@ -82,13 +89,13 @@ class MicroModel:
         owned = cell_tags.indices < n_owned
         self.cell_id[cell_tags.indices[owned]] = cell_tags.values[owned] - 1
 
-        centres = layout.centres[:, 0], layout.centres[:, 1]  # P1 etc. at the cell centres
+        centres = tissue.centres[:, 0], tissue.centres[:, 1]  # P1 etc. at the cell centres
         self.eta, self.tau = scene.growth.eta(*centres), scene.growth.tau(*centres)
         self.pressure = scene.P1(*centres)
         self.u = fem.Function(self.V, name="u")
         self.Fg = fem.Function(T0, name="Fg")
         E, nu, P = (fem.Function(Q0) for _ in range(3))
-        E_cells = np.broadcast_to(scene.material.E(*centres), layout.n_cells)
+        E_cells = np.broadcast_to(scene.material.E(*centres), tissue.n_cells)
         self._set(E, E_cells)
         self._set(nu, scene.material.nu(*centres))
         self._set(P, self.pressure)
@@ -96,7 +103,7 @@ class MicroModel:
         wall_fibres = None
         if scene.has_director:
             self.director = MicroDirector(
-                scene.walls, scene.feedback, layout, msh, self.cell_id, E_cells, self._set
+                scene.walls, scene.feedback, tissue, msh, self.cell_id, E_cells, self._set
             )
             wall_fibres = self.director.fibres
         self._fibres = wall_fibres
@@ -106,7 +113,7 @@ class MicroModel:
         n = ufl.FacetNormal(msh)
         psi, tau_test = ufl.TestFunction(self.V), ufl.TestFunction(T0)
         membrane = ds(FACET_TAGS["membrane"])
-        self.bcs = self._boundary_conditions(facet_tags)
+        self.bcs = supports(self.V, facet_tags, tissue)
         self.finite = scene.kinematics == "finite"
         self.stability = WallStability(self.u, self.Fg, E, nu, self.finite, wall_fibres)
         self.forms = finite_forms if self.finite else micro_forms  # the growth-driving averages
@@ -133,13 +140,13 @@ class MicroModel:
                 load, self._newton_floor, self.stability.smallest, predictor=self._linear_solve,
             )  # fmt: skip
         self.hexagon_area = np.array(
-            [polygon_area(layout.hexagon(i)) for i in range(layout.n_cells)]
+            [polygon_area(tissue.polygon(i)) for i in range(tissue.n_cells)]
         )
         self.turgor = None
         if hydraulic:
             parts = ElasticParts(self._assemble, self.A, self.b, self.ksp, self.u, self.Fg,
                                  self.bcs, self._set, comm)  # fmt: skip
-            self.turgor = turgor_solve(scene, layout, self.hexagon_area, parts, psi, n, membrane,
+            self.turgor = turgor_solve(scene, tissue, self.hexagon_area, parts, psi, n, membrane,
                                        (self.newton, P) if self.finite else None)  # fmt: skip
         driving = (
             self.forms.wall_stress_average_form(self.u, tau_test, self.Fg, E, nu, dx, wall_fibres)
@@ -156,14 +163,14 @@ class MicroModel:
         if self.director is not None and self.director.feedback is not None:
             if self.director.feedback.walls == "around":
                 self._around = WallsAround(
-                    layout, self.cell_id, self.director.side,
+                    tissue, self.cell_id, self.director.side,
                     self._owned_rows(areas.array.reshape(-1, 1), Q0)[:, 0], comm,
                 )  # fmt: skip
 
         self._vector_dg0 = fem.VectorFunctionSpace(msh, ("DG", 0))
         self.G_out = fem.Function(T0, name="G")
         ids = fem.Function(Q0, name="cell_id")
-        self._set(ids, np.arange(layout.n_cells, dtype=float))
+        self._set(ids, np.arange(tissue.n_cells, dtype=float))
         self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
         self.growth_fields = GrowthFields(msh, scene.output.fields)
         self.strain_fields = StrainFields(msh, scene.output.fields)
@@ -178,7 +185,7 @@ class MicroModel:
         if "stability" in scene.output.fields:
             self.stability_out = fem.Function(Q0, name="stability")
             self.outputs.append(self.stability_out)
-        self.outlines = CellOutlines(layout, self.u)
+        self.outlines = CellOutlines(tissue, self.u)
         membrane = ds(FACET_TAGS["membrane"])
         self._measure_forms = [
             (fem.form(form(self.u, ufl.TestFunction(space), n, dx, membrane)), space)
@@ -186,9 +193,9 @@ class MicroModel:
                                 (cell_measures.deformed_moment_form, self._vector_dg0))
         ]  # fmt: skip
         self.regions = RegionStatistics(
-            scene.regions, layout.centres, self.hexagon_area, MPI.COMM_SELF
+            scene.regions, tissue.centres, self.hexagon_area, MPI.COMM_SELF
         )  # every rank holds every cell
-        self.strain_magnitudes = np.zeros(len(layout.centres))  # the last step's, per cell
+        self.strain_magnitudes = np.zeros(len(tissue.centres))  # the last step's, per cell
         self.side_output = self.outlines.side  # the cells' outlines (cells.xdmf)
         self.cell_table = self.outlines  # cells.csv
         self.outlines.fibred = self.director is not None
@@ -199,22 +206,20 @@ class MicroModel:
         )
         self.output_space = self.u_out.function_space
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
-        log.info(
-            "micro: Nx = %d, %d cells, %d dofs (P2), pressure %s",
-            layout.nx, layout.n_cells, self.ndofs, "on" if np.any(self.pressure) else "off",
-        )  # fmt: skip
+        turgid = "on" if np.any(self.pressure) else "off"
+        log.info("micro: %s, %d dofs (P2), pressure %s", tissue.name, self.ndofs, turgid)
 
     def _newton_floor(self) -> float:
         """Newton's absolute floor: NEWTON_ATOL times the stiffest wall's E times the square
         root of the walls' area."""
-        stiffest = float(np.max(self.scene.material.E(*self.layout.centres.T)))
+        stiffest = float(np.max(self.scene.material.E(*self.tissue.centres.T)))
         return NEWTON_ATOL * stiffest * np.sqrt(self.wall_area.sum())
 
     def _set(self, function: fem.Function, per_cell: np.ndarray) -> None:
         """DG0 function from values per biological cell (any trailing shape)."""
         dofmap = function.function_space.dofmap
         array = function.x.array.reshape(-1, dofmap.index_map_bs)
-        values = np.asarray(per_cell, dtype=float).reshape(self.layout.n_cells, -1)
+        values = np.asarray(per_cell, dtype=float).reshape(self.tissue.n_cells, -1)
         array[dofmap.list.array[: self.n_owned]] = values[self.cell_id]
         function.x.scatter_forward()
 
@@ -231,7 +236,7 @@ class MicroModel:
         """Collective: (n_cells, bs) per-owned-mesh-cell rows summed per biological cell."""
         sums = np.stack(
             [
-                np.bincount(self.cell_id, rows[:, k], self.layout.n_cells)
+                np.bincount(self.cell_id, rows[:, k], self.tissue.n_cells)
                 for k in range(rows.shape[1])
             ],
             axis=1,
@@ -246,22 +251,8 @@ class MicroModel:
         )
         return self._per_cell(integrals.array.reshape(-1, 2), V0) / self.wall_area[:, None]
 
-    def _boundary_conditions(self, facet_tags) -> list:
-        """u2 = 0 on the cut bottom walls (symmetry plane); u1 = 0 at the origin."""
-        bottom = facet_tags.indices[facet_tags.values == FACET_TAGS["bottom"]]
-        bottom_dofs = fem.locate_dofs_topological(self.V.sub(1), 1, bottom)
-        origin = mesh.locate_entities_boundary(
-            self.mesh, 0, lambda x: np.isclose(x[0], 0.0) & np.isclose(x[1], 0.0)
-        )
-        origin_dofs = fem.locate_dofs_topological(self.V.sub(0), 0, origin)
-        zero = PETSc.ScalarType(0.0)
-        return [
-            fem.dirichletbc(zero, bottom_dofs, self.V.sub(1)),
-            fem.dirichletbc(zero, origin_dofs, self.V.sub(0)),
-        ]
-
     def initial_growth(self) -> np.ndarray:
-        return self.scene.growth.initial(*self.layout.centres.T)
+        return self.scene.growth.initial(*self.tissue.centres.T)
 
     def step(self, Fg: np.ndarray) -> StepResult:
         t0 = time.perf_counter()
@@ -277,7 +268,7 @@ class MicroModel:
         diagnostics.check_solution(report, self.u, self.comm)
         driving = self._tensor_rows(self.driving)
         means = self._own_means(driving)
-        ones = np.ones(self.layout.n_cells)
+        ones = np.ones(self.tissue.n_cells)
         if self.scene.growth.law == "none":
             G = np.zeros_like(Fg)
         else:
@@ -286,7 +277,7 @@ class MicroModel:
             )
         det = self._deformation_det
         diagnostics.stop_if(
-            diagnostics.growth_problems(Fg, self.layout.centres, G)
+            diagnostics.growth_problems(Fg, self.tissue.centres, G)
             + diagnostics.inversion_problems(*det.cell_minima()),
             self.comm,
         )
@@ -361,7 +352,7 @@ class MicroModel:
     def _mirrored(self, means: np.ndarray) -> np.ndarray:
         """A cut bottom cell takes the full cell mirrored about x2 = 0: its half-cell mean for
         11 and 22, and no shear, which changes sign under the mirror (docs/model.md section 7)."""
-        means[self.layout.cut_cells, 1:3] = 0.0
+        means[self.tissue.cut_cells, 1:3] = 0.0
         return means
 
     @cached_property
@@ -403,7 +394,7 @@ class MicroModel:
         return (sums / self.wall_area[:, None]).reshape(-1, 2, 2)
 
     def check_growth(self, Fg: np.ndarray) -> None:
-        diagnostics.stop_if(diagnostics.growth_problems(Fg, self.layout.centres), self.comm)
+        diagnostics.stop_if(diagnostics.growth_problems(Fg, self.tissue.centres), self.comm)
 
     def _cue_means(self, driving: np.ndarray) -> np.ndarray:
         """(n_cells, 2, 2) the feedback's cue: the wall stress or elastic strain averaged over
@@ -452,16 +443,16 @@ class MicroModel:
         return cells | (root_blocks(newton, self.comm) if self.finite else {})
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        matches = state["Fg"].shape == (self.layout.n_cells, 2, 2)
+        matches = state["Fg"].shape == (self.tissue.n_cells, 2, 2)
         if self.finite:
-            tolerance = 1e-9 * max(self.layout.bounding_box)
+            tolerance = 1e-9 * max(self.tissue.bounding_box)
             matches = restore_dofs(self.newton.guess_functions, state, tolerance) and matches
         if self.director is not None:
             angle = state.get("fibre_angle")
-            matches = matches and angle is not None and angle.size == self.layout.n_cells
+            matches = matches and angle is not None and angle.size == self.tissue.n_cells
         if self.turgor is not None:
             water = state.get("water")
-            matches = matches and water is not None and water.size == self.layout.n_cells
+            matches = matches and water is not None and water.size == self.tissue.n_cells
         if not matches:
             raise RunError("the saved state does not match this tissue: was the scene changed?")
         if self.turgor is not None:

@@ -1,6 +1,6 @@
 """The micro tissue's biological cells as polygons: ``cells.xdmf`` and ``cells.csv``.
 
-A cell's polygon is its mid-line hexagon (docs/model.md sections 2, 7; the bottom row cut at
+A cell's polygon is its mid-line polygon (docs/model.md sections 2, 7; a cut cell's above
 x2 = 0), whose vertices are wall junctions (or, on the tissue's edge, points of its outer surface).
 ``cells.xdmf`` holds the polygons' edges as 2-node lines over the reference vertices, with the
 displacement u at the vertices and the cell id per line: ParaView's Warp By Vector draws the
@@ -9,7 +9,8 @@ junctions is not drawn).
 
 ``cells.csv`` has one row per cell and written step (:data:`CELL_COLUMNS`): the centroid and
 area of the cell (its own walls and void) at reference (the polygon's) and deformed (the exact
-integrals of forms/cell_measures.py, which sum to the tissue's area in summary.csv), and tr G,
+integrals of forms/cell_measures.py, which sum to the tissue's area in summary.csv), its
+reference walls' mid-line length and number of neighbours, and tr G,
 anisotropy and growth direction of the cell's growth rate (:mod:`plantgrowth.base.principal`).
 """
 
@@ -20,12 +21,13 @@ from dolfinx import fem, geometry
 from mpi4py import MPI
 
 from plantgrowth.base import principal
-from plantgrowth.meshes.tissue import TissueLayout
+from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.models.micro.water import WaterState
 from plantgrowth.models.step import SideMesh
 
 CELL_COLUMNS = [
-    "step", "t", "cell", "x1_ref", "x2_ref", "x1", "x2", "area_ref", "area",
+    "step", "t", "cell", "x1_ref", "x2_ref", "x1", "x2", "area_ref", "perimeter_ref",
+    "neighbours", "area",
     "trG", "growth_anisotropy", "growth_direction_1", "growth_direction_2",
 ]  # fmt: skip
 FIBRE_CELL_COLUMNS = ["fibre_angle"]
@@ -89,7 +91,7 @@ class CellOutlines:
     """The cells' polygons, their displacement after each step and the rows of cells.csv.
 
     Args:
-        layout: the micro tissue.
+        tissue: the micro tissue.
         u: the wall displacement (evaluated at the polygons' vertices by :meth:`update`).
     """
 
@@ -107,22 +109,17 @@ class CellOutlines:
         fibres = FIBRE_CELL_COLUMNS if self.fibred else []
         return CELL_COLUMNS + fibres + (WATER_CELL_COLUMNS if self.watered else [])
 
-    def __init__(self, layout: TissueLayout, u: fem.Function) -> None:
-        loops = [layout.hexagon(i) for i in range(layout.n_cells)]
-        stacked = np.vstack(loops)
-        # shared vertices of neighbouring cells are one point: merge them to round-off
-        key = np.round(stacked / (1e-9 * np.abs(stacked).max()))
-        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-        self.points = stacked[first]
-        ends = np.cumsum([len(loop) for loop in loops])
-        self.polygons = np.split(inverse.reshape(-1), ends[:-1])
+    def __init__(self, tissue: CellTissue, u: fem.Function) -> None:
+        # shared vertices of neighbouring cells are one point
+        self.points, self.polygons = tissue.cells.vertices, list(tissue.cells.cells)
         segments = np.vstack([np.column_stack([p, np.roll(p, -1)]) for p in self.polygons])
-        segment_cell = np.repeat(np.arange(layout.n_cells), [len(p) for p in self.polygons])
+        segment_cell = np.repeat(np.arange(tissue.n_cells), [len(p) for p in self.polygons])
         self.area_ref, self.centroid_ref = polygon_centroids(self.points, self.polygons)
+        self.perimeter_ref, self.neighbours = tissue.perimeters, tissue.cells.neighbour_counts
         self.u = u
         self._at_vertices = PointValues(u, self.points)
         self.displacement = np.zeros_like(self.points)
-        self.G = np.zeros((layout.n_cells, 2, 2))
+        self.G = np.zeros((tissue.n_cells, 2, 2))
         self.area, self.centroid = self.area_ref, self.centroid_ref
         self.side = SideMesh(
             "cells.xdmf", "Outlines", "outlines", self.points, segments,
@@ -146,7 +143,8 @@ class CellOutlines:
         water = np.column_stack([w.P, w.psi, w.water, w.inflow]) if self.watered else ()
         return [
             dict(zip(self.columns, (
-                step, t, i, *self.centroid_ref[i], *centroid[i], self.area_ref[i], area[i],
+                step, t, i, *self.centroid_ref[i], *centroid[i], self.area_ref[i],
+                self.perimeter_ref[i], self.neighbours[i], area[i],
                 trG[i], anisotropy[i], *direction[i], *angle[i : i + 1], *(water[i] if
                 self.watered else ()),
             ), strict=True))
