@@ -6,8 +6,10 @@ For each N (``--cells``, default 32 and 128: Nx = 8 and 16) and regularity r (``
 the macro model on those cells (their outline, each cell's shape Fs) against the micro model on
 the same cells (walls ``cell.w * 4 / Nx``, as a generated tissue's), at the first step (the
 errors of docs/model.md section 8: err_u1, err_u2, err_ubar, err_G) through
-:func:`plantgrowth.studies.compare.compare_one`. A second macro run with every Fs = I (the
-regular unit cell on the same outline) shows what the shapes change.
+:func:`plantgrowth.studies.compare.compare_one`. A run that stops (the micro walls of a random
+tissue can buckle under turgor: numerics.on_instability = "stop") is recorded with its error.
+A second macro run with every Fs = I (the regular unit cell on the same outline) shows what
+the shapes change.
 
 Raw runs go to ``--raw`` (default ``results/compare_cells``, git-ignored); ``--json`` (default
 ``benchmarks/results/compare_cells.json``) gets the rows, seconds and the machine description.
@@ -26,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from plantgrowth.base.errors import RunError
 from plantgrowth.base.machine import machine_description
 from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.meshes.voronoi_tissue import voronoi_nx
@@ -74,7 +77,11 @@ def one(n: int, r: float, seed: int, raw: Path, comm: MPI.Comm) -> dict:
         ("unshaped", dataclasses.replace(domain, cell_shape=None)),
     ):
         start = time.perf_counter()
-        row = compare_one(scene, dom, nx, raw / f"n{n}_r{r:g}_{label}", comm, None, 0, tissue)
+        try:
+            row = compare_one(scene, dom, nx, raw / f"n{n}_r{r:g}_{label}", comm, None, 0, tissue)
+        except RunError as err:  # e.g. the micro walls of a random tissue buckle
+            out[label] = {"error": str(err), "seconds": time.perf_counter() - start}
+            continue
         out[label] = {
             k: row[k]
             for k in (*ERRORS, "rate_macro_t0", "rate_micro_t0", "dofs_macro", "dofs_micro")
@@ -92,11 +99,10 @@ def main(argv: list[str] | None = None) -> None:
             rows.append(one(n, r, args.seed, args.raw, comm))
             if comm.rank == 0:
                 s, u = rows[-1]["shaped"], rows[-1]["unshaped"]
-                print(
-                    f"N = {n}, r = {r:g}: "
-                    + ", ".join(f"{k} {s[k]:.4g} (Fs = I: {u[k]:.4g})" for k in ERRORS),
-                    flush=True,
-                )
+                text = s.get("error") or ", ".join(
+                    f"{k} {s[k]:.4g} (Fs = I: {u[k]:.4g})" for k in ERRORS
+                )  # fmt: skip
+                print(f"N = {n}, r = {r:g}: {text}", flush=True)
     if comm.rank == 0:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(
