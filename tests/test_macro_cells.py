@@ -152,6 +152,9 @@ def test_bad_tissues_of_cells_are_refused():
     apart = CellPolygons.from_loops([honeycomb().polygon(0), honeycomb().polygon(0) + [9.0, 0.0]])
     with pytest.raises(GeometryError, match="tissue.cells: the cells form 2 separate regions"):
         cells_domain(scene(), apart, MPI.COMM_SELF)
+    both = parse_scene({"model": "both"} | BASE | {"tissue": {"cells": {"voronoi": 8}}})
+    with pytest.raises(SceneError, match="tissue.cells: a comparison with the micro model"):
+        macro_domain(both, MPI.COMM_SELF)
     with pytest.raises(SceneError, match="cell.w is a field"):
         cells_domain(scene(cell={"w": {"from": 0.05, "to": 0.06}}), honeycomb(), MPI.COMM_SELF)
 

@@ -62,9 +62,16 @@ def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroDo
     (docs/model.md section 7) and its ``micro.nx`` set to ``nx``: with water fluxes the macro
     model's cells are those cells (``cell_scale = 4 / nx``, docs/model.md "The cells' size"),
     and its edges are those of the cells' outer walls (:func:`outline_boundary`). A scene with
-    ``tissue.cells`` runs on those cells (:func:`cells_domain`), whatever ``nx``."""
+    ``tissue.cells`` and ``model = "macro"`` runs on those cells (:func:`cells_domain`); with
+    a micro side (``model = "both"``, ``plantgrowth compare``) it is refused until the micro
+    side reads the scene's cells (it would run on the honeycomb of micro.nx)."""
     cells = cell_polygons(scene)
     if cells is not None:
+        if nx is not None or scene.model == "both":
+            raise SceneError(
+                'tissue.cells: a comparison with the micro model (model = "both", plantgrowth '
+                'compare) does not read the scene\'s cells yet; run model = "macro" on them'
+            )
         return cells_domain(scene, cells, comm)
     if nx is None and scene.model != "both":
         if scene.tissue.shape is not None:
