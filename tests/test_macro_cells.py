@@ -3,8 +3,8 @@ cells"): the region the cells cover, meshed conforming to them, each fine cell's
 hexagon grown by ``Fg Fs`` with Fs its cell's shape.
 
 Built on cells made here (the regular honeycomb of TissueLayout, stretched or with perturbed
-vertices), not on the scene key, which i34-import owns. Meshes are built on COMM_WORLD, so under
-mpirun the models are distributed and every measure reduced.
+vertices) and on generated ones through the scene key ``[tissue] cells``. Meshes are built on
+COMM_WORLD, so under mpirun the models are distributed and every measure reduced.
 """
 
 from __future__ import annotations
