@@ -25,11 +25,11 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from plantgrowth.base.gather import MeshGather
-from plantgrowth.meshes.tissue import TissueLayout
+from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.models import fibres
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.model import model_on
-from plantgrowth.models.micro.model import MicroModel, scene_cell
+from plantgrowth.models.micro.model import MicroModel
 from plantgrowth.runner.output import prepare_directory
 from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import Scene
@@ -205,11 +205,11 @@ class CellSnapshot:
 
 def compare_one(
     scene: Scene, domain: MacroDomain, nx: int, outdir: Path, comm: MPI.Comm,
-    resolution: int | None, n_steps: int | None,
+    resolution: int | None, n_steps: int | None, tissue: CellTissue | None = None,
 ) -> dict[str, float | None]:  # fmt: skip
-    """Macro on the outline of the Nx tissue, then micro; errors at the first and the last step
-    (the t_max rates and errors are None when only the first step runs)."""
-    layout = TissueLayout(scene_cell(scene), nx)
+    """Macro on the outline of the Nx tissue (or of ``tissue``'s cells: ``domain`` is then
+    theirs), then micro; errors at the first and the last step (the t_max rates and errors are
+    None when only the first step runs)."""
     last = scene.time.n_steps if n_steps is None else n_steps
     measured = (0, last) if last > 0 else (0,)
     snapshot: dict[tuple[str, int], P1Snapshot | CellSnapshot] = {}
@@ -230,20 +230,21 @@ def compare_one(
 
     def measure_micro(step: int, model) -> None:
         if step in measured:
+            centres = model.tissue.centres
             A = macro_on_walls(model.u, snapshot["u", step])
             errors[step] = relative_errors(model.u, A) | {
                 "err_ubar": cell_mean_error(model, A),
                 "err_G": growth_rate_error(
-                    model.last_G, model.hexagon_area, layout.centres, snapshot["G", step]
+                    model.last_G, model.hexagon_area, centres, snapshot["G", step]
                 ),
             }
             if model.director is not None:
                 errors[step]["err_fibre_angle"] = director_error(
-                    model.director.angle, model.hexagon_area, layout.centres, snapshot["a", step]
+                    model.director.angle, model.hexagon_area, centres, snapshot["a", step]
                 )
             if model.turgor is not None:
                 errors[step]["err_P"] = turgor_error(
-                    model.turgor.last.P, model.hexagon_area, layout.centres, snapshot["P", step]
+                    model.turgor.last.P, model.hexagon_area, centres, snapshot["P", step]
                 )
 
     start = time.perf_counter()
@@ -255,7 +256,7 @@ def compare_one(
     seconds_macro = time.perf_counter() - start
     start = time.perf_counter()
     prepare_directory(outdir / "micro", comm)
-    micro = MicroModel(scene, comm, nx, resolution)
+    micro = MicroModel(scene, comm, nx, resolution, tissue)
     micro_rows = run_model(
         micro, scene, outdir / "micro", comm, n_steps, measure_micro, label=f"Nx = {nx}, micro"
     )

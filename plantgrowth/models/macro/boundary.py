@@ -13,6 +13,8 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 from plantgrowth.meshes import polygon
+from plantgrowth.meshes.cell_polygons import CellPolygons
+from plantgrowth.meshes.geometry_error import GeometryError
 from plantgrowth.meshes.msh_file import read_msh
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.scene import Scene
@@ -80,6 +82,32 @@ def outline_boundary(msh: mesh.Mesh, layout: TissueLayout) -> Boundary:
     order = np.argsort(facets)
     tagged = mesh.meshtags(msh, 1, facets[order].astype(np.int32), tags[order].astype(np.int32))
     return Boundary(tagged, (names["bottom"],), names, (0.0, 0.0))
+
+
+CELLS_EDGES = {"bottom": 1, "outer": 2}
+"""Facet tags of a tissue of cells' outline: the symmetry plane x2 = 0, every other edge."""
+
+
+def cells_boundary(msh: mesh.Mesh, cells: CellPolygons) -> Boundary:
+    """The boundary of the region a tissue of cells covers
+    (:func:`meshes.cell_outline.build_cells_outline_mesh`): its facets on x2 = 0 ``bottom``
+    (the symmetry plane), every other ``outer``; pinned at the left-most cell vertex on x2 = 0.
+    A GeometryError if no cell has a side on x2 = 0 (nothing would hold the tissue)."""
+    extent = float(np.ptp(cells.vertices, axis=0).max())
+    tol = 1e-9 * extent
+    on_plane = cells.vertices[np.abs(cells.vertices[:, 1]) <= tol]
+    facets = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+    low = np.abs(mesh.compute_midpoints(msh, 1, facets)[:, 1]) <= 1e-8 * extent
+    if len(on_plane) < 2 or not msh.comm.allreduce(int(low.sum()), op=MPI.SUM):
+        raise GeometryError(
+            "tissue.cells: the macro model needs cells with a side on x2 = 0 (the symmetry "
+            "plane, u2 = 0 there), and none has one"
+        )
+    tags = np.where(low, CELLS_EDGES["bottom"], CELLS_EDGES["outer"]).astype(np.int32)
+    order = np.argsort(facets)
+    tagged = mesh.meshtags(msh, 1, facets[order].astype(np.int32), tags[order])
+    pin = on_plane[np.argmin(on_plane[:, 0])]
+    return Boundary(tagged, (CELLS_EDGES["bottom"],), dict(CELLS_EDGES), (pin[0], 0.0))
 
 
 def shape_domain(scene: Scene, comm: MPI.Comm) -> tuple[mesh.Mesh, Boundary]:

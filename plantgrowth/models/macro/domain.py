@@ -11,21 +11,37 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
+from plantgrowth.base.errors import SceneError
+from plantgrowth.meshes.cell_outline import (
+    CellShapeField,
+    build_cells_outline_mesh,
+    tissue_outline,
+)
+from plantgrowth.meshes.cell_polygons import CellPolygons
+from plantgrowth.meshes.cell_shapes import cell_shapes
 from plantgrowth.meshes.tissue import TissueLayout, build_outline_mesh
-from plantgrowth.models.macro.boundary import Boundary, outline_boundary, shape_domain
+from plantgrowth.models.macro.boundary import (
+    Boundary,
+    cells_boundary,
+    outline_boundary,
+    shape_domain,
+)
 from plantgrowth.models.macro.coarse import coarse_grid_for
 from plantgrowth.models.macro.problem import mesh_bounding_box, rectangle_mesh
 from plantgrowth.scene import Scene
+from plantgrowth.scene.tissue_cells import cell_polygons
 
 
 @dataclass(frozen=True)
 class MacroDomain:
     """A macro run's scene (spanning the domain's extent), fine mesh and boundary (None: the
-    scene's rectangle)."""
+    scene's rectangle), and for a tissue given as cells each cell's shape (None: the unit
+    cell's everywhere)."""
 
     scene: Scene
     mesh: mesh.Mesh
     boundary: Boundary | None = None
+    cell_shape: CellShapeField | None = None
 
     def places(self) -> tuple[np.ndarray, np.ndarray]:
         """Collective: the coarse nodes whose cell problems the run solves (replicated; a
@@ -45,7 +61,18 @@ def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroDo
     its cells cover, with the scene's fields spanning that region's extent
     (docs/model.md section 7) and its ``micro.nx`` set to ``nx``: with water fluxes the macro
     model's cells are those cells (``cell_scale = 4 / nx``, docs/model.md "The cells' size"),
-    and its edges are those of the cells' outer walls (:func:`outline_boundary`)."""
+    and its edges are those of the cells' outer walls (:func:`outline_boundary`). A scene with
+    ``tissue.cells`` and ``model = "macro"`` runs on those cells (:func:`cells_domain`); with
+    a micro side (``model = "both"``, ``plantgrowth compare``) it is refused until the micro
+    side reads the scene's cells (it would run on the honeycomb of micro.nx)."""
+    cells = cell_polygons(scene)
+    if cells is not None:
+        if nx is not None or scene.model == "both":
+            raise SceneError(
+                'tissue.cells: a comparison with the micro model (model = "both", plantgrowth '
+                'compare) does not read the scene\'s cells yet; run model = "macro" on them'
+            )
+        return cells_domain(scene, cells, comm)
     if nx is None and scene.model != "both":
         if scene.tissue.shape is not None:
             return MacroDomain(scene, *shape_domain(scene, comm))
@@ -55,4 +82,28 @@ def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroDo
     tissue_scene = scene.over_extent(*layout.bounding_box)
     return MacroDomain(
         dataclasses.replace(tissue_scene, micro_nx=layout.nx), msh, outline_boundary(msh, layout)
+    )
+
+
+def cells_domain(scene: Scene, cells: CellPolygons, comm: MPI.Comm) -> MacroDomain:
+    """The macro model's domain of a tissue given as cells (docs/model.md "The macro model from
+    cells"): the region the cells cover, meshed conforming to their sides with edges about
+    ``tissue.h``, the scene's fields spanning its extent, and each cell's shape Fg0 against the
+    scene's unit cell scaled to the cells' mean area (:func:`meshes.cell_shapes.cell_shapes`).
+    The cell geometry must be constant (it is the hexagon the shapes are measured against)."""
+    varying = [key for key in ("l1", "l2", "theta", "w")
+               if not getattr(scene.cell, key).is_constant]  # fmt: skip
+    if varying:
+        raise SceneError(
+            f"cell.{varying[0]} is a field, but a tissue given as cells needs a constant cell "
+            "geometry (each cell's shape is measured against that hexagon)"
+        )
+    cells.check()
+    tissue_outline(cells)  # one connected tissue, else a named error
+    shapes = cell_shapes(cells, scene.cell.at(0.0, 0.0))
+    msh = build_cells_outline_mesh(cells, scene.tissue.h, comm)[0]
+    width, height = (float(x) for x in cells.vertices.max(axis=0))
+    boundary = cells_boundary(msh, cells)
+    return MacroDomain(
+        scene.over_extent(width, height), msh, boundary, CellShapeField(cells, shapes)
     )

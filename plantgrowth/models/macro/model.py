@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 
 import numpy as np
 from dolfinx import fem
@@ -119,11 +120,15 @@ class MacroModel:
         comm: communicator of the fine mesh; it also shares the cell problems.
         boundary: the fine mesh's boundary (default: the scene's rectangle).
         hydraulics: water fluxes (None: turgor is the scene's P1).
+        cell_shape: a tissue given as cells: each point's cell shape Fs (n, 2, 2) of points
+            (n, 2); the unit cell of a fine cell at growth Fg is then the hexagon grown by
+            ``Fg Fs`` (docs/model.md "The macro model from cells"). None: Fs = I.
     """
 
     def __init__(
         self, scene: Scene, mesh, comm: MPI.Comm, boundary: Boundary | None = None,
         hydraulics: MacroHydraulics | None = None,
+        cell_shape: Callable[[np.ndarray], np.ndarray] | None = None,
     ):  # fmt: skip
         self.scene = scene
         self.comm = comm
@@ -140,6 +145,7 @@ class MacroModel:
         self._time = 0.0  # the time the step of the next solve ends at (the supplies' potentials)
         self._remaining = 0.0  # the next solve ends this long before _time (a sub-step)
         self.mesh = problem.mesh
+        self.shape = None if cell_shape is None else cell_shape(problem.midpoints[:, :2])
         width, height = problem.bounding_box
         # the coarse nodes the fine cells see (the others weigh no fine cell)
         self.grid, self.W, self.active = coarse_grid_for(
@@ -285,8 +291,10 @@ class MacroModel:
 
     def cell_tensors(self, Fg: np.ndarray) -> NodeTensors:
         """The homogenized tensors of every fine cell of this rank (ghosts too) at the cells'
-        growth tensors Fg (n_cells, 2, 2)."""
+        growth tensors Fg (n_cells, 2, 2) (a tissue given as cells: at ``Fg Fs``)."""
         director = self.director
+        if self.shape is not None:
+            Fg = Fg @ self.shape
         if self.per_cell:
             points = self.problem.midpoints[:, :2]
             fibres = None if director is None else (director.stiffness, director.angle)
@@ -457,10 +465,12 @@ def macro_model(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroMod
 
 
 def model_on(domain: MacroDomain, comm: MPI.Comm) -> MacroModel:
-    """The MacroModel of a domain (its scene, mesh and boundary; the scene's ``[hydraulics]``
-    with the cells of its micro tissue, :func:`cell_scale`)."""
-    scene = domain.scene
+    """The MacroModel of a domain (its scene, mesh, boundary and cell shapes; the scene's
+    ``[hydraulics]`` with the cells of its micro tissue, :func:`cell_scale`, or those given,
+    at their mean size)."""
+    scene, shape = domain.scene, domain.cell_shape
     water = None
     if scene.hydraulics is not None:
-        water = from_scene(scene.hydraulics, scene.regions, cell_scale(scene.micro_nx))
-    return MacroModel(scene, domain.mesh, comm, domain.boundary, water)
+        scale = cell_scale(scene.micro_nx) if shape is None else shape.shapes.delta
+        water = from_scene(scene.hydraulics, scene.regions, scale)
+    return MacroModel(scene, domain.mesh, comm, domain.boundary, water, shape)
