@@ -481,6 +481,67 @@ MUTANTS = (
          ("return -0.5 * weight * ufl.inner(x, ufl.dot(cofactor(deformation_gradient(u)), n)) * ds",
           "return -0.5 * weight * ufl.inner(x, n) * ds")),
     ),
+    # --- issue 34: real tissues (docs/real_tissues.md) ----------------------------------------
+    # A tissue of cells reaches the models through its walls (the network of shared walls, the
+    # traced outlines), its measured shapes (the stretch Fs, applied before growth) and its units
+    # (the pixel size). The shape tensor J is symmetric, so is Fs: "Fg0 transposed" is no bug; its
+    # meaningful forms are the order Fg Fs and the power of J. The stretch from the raw second
+    # moment int (x - c)(x - c)^T instead of J = that / |P| is equivalent (Fg0 is rescaled to the
+    # cell's area, and F is homogeneous in J) and is not kept.
+    Mutant(
+        "shared_wall_one_cell_network", "meshes/cell_walls.py", "wrong index",
+        "the wall network gives each shared wall to one of its two cells only, as an outer wall "
+        "of that cell (the other loses it): no water crosses between cells, and outer walls "
+        "appear inside the tissue",
+        (("        if len(found) == 2:\n            pairs.append(",
+          "        if len(found) == 3:\n            pairs.append("),),
+    ),
+    Mutant(
+        "shared_wall_one_cell_tracing", "meshes/label_tracing.py", "wrong index",
+        "a traced wall between two labels is joined into the outline of the label on its left "
+        "only, not also (reversed) into its right neighbour's",
+        (("for label, run in ((a, p), (b, p[::-1])):", "for label, run in ((a, p),):"),),
+    ),
+    Mutant(
+        "cell_shape_after_growth", "plantgrowth/models/macro/model.py", "transposition",
+        "the unit cell of a tissue given as cells grown by Fs Fg (growth first, then the cell's "
+        "measured shape) instead of Fg Fs",
+        (("            Fg = Fg @ self.shape", "            Fg = self.shape @ Fg"),),
+    ),
+    Mutant(
+        "cell_stretch_inverse_root", "meshes/cell_shapes.py", "wrong law or integrator",
+        "the stretch F = J0^{-1/2} (J0^{1/2} J J0^{1/2})^{-1/2} J0^{-1/2}: the inverse square "
+        "root where the square root belongs (a cell's elongation turned across it)",
+        (("middle = _spd_power(root @ J @ root, 0.5)",
+          "middle = _spd_power(root @ J @ root, -0.5)"),),
+    ),
+    Mutant(
+        "pixel_size_ignored_image", "plantgrowth/scene/cells_spec.py", "wrong scale",
+        "a label image's cells left in pixels: tissue.pixel_size read and checked but not "
+        "passed to the tracing",
+        (("return trace_cells(labels, spec.pixel_size)", "return trace_cells(labels, 1.0)"),),
+    ),
+    Mutant(
+        "pixel_size_ignored_table", "meshes/polygon_table.py", "wrong scale",
+        "a polygon table's vertices left in pixels: its own or the scene's pixel_size ignored",
+        (("scale = own if own is not None else (pixel_size if pixel_size is not None else 1.0)",
+          "scale = 1.0"),),
+    ),
+    Mutant(
+        "neighbours_count_outer_walls", "meshes/cell_polygons.py", "wrong index",
+        "a cell's neighbour count with the outside (its outer walls) counted as one more "
+        "neighbour, as the background label of an image would be",
+        (("            if len(found) == 2:\n                neighbours[found[0]].add(found[1])",
+          "            neighbours[found[0]].add(found[1] if len(found) == 2 else -1)\n"
+          "            if len(found) == 2:"),),
+    ),
+    Mutant(
+        "cut_cell_centre_own_centroid", "meshes/cell_tissue.py", "wrong configuration",
+        "a cut cell's centre (where the scene's fields are read) at its own half's centroid, "
+        "above x2 = 0, instead of the mirrored whole cell's, on x2 = 0",
+        (("centres[i] = [((full[:, 0] + q[:, 0]) * cross).sum() / (3.0 * cross.sum()), 0.0]",
+          "centres[i] = self.cells.centroids[i]"),),
+    ),
 )  # fmt: skip
 
 
