@@ -110,6 +110,23 @@ def test_a_cut_cell_is_the_mirrored_cell_and_the_network_is_the_honeycombs():
     assert max(counted) == 4  # Nx = 4, two rows: 2 beside, 2 above (or below), none below a cut
 
 
+def test_every_wall_of_an_irregular_tissue_is_its_cells_and_only_theirs():
+    """The wall network of an irregular tissue (the honeycomb's vertices moved by 0.15 delta_s,
+    cut cells included): each shared wall joins two different cells, and each cell's water
+    crosses all its walls: its shared walls' and outer walls' mid-line lengths add up to its
+    perimeter (cells.csv's perimeter_ref; a cut cell's side on x2 = 0 is none). Sums of about
+    ten O(1) lengths: 1e-12 relative is round-off. (A shared wall given to one of its cells only
+    leaves the other short by that wall.)"""
+    tissue = perturbed_honeycomb(_scene("linear", False), 0.15)
+    network = wall_network(tissue)
+    assert len(network.pairs) > 0 and np.all(network.pairs[:, 0] != network.pairs[:, 1])
+    shared = np.linalg.norm(network.shared, axis=1)
+    lengths = np.bincount(network.pairs.ravel(), np.repeat(shared, 2), tissue.n_cells)
+    lengths += np.bincount(network.outer_cell, np.linalg.norm(network.outer, axis=1),
+                           tissue.n_cells)  # fmt: skip
+    np.testing.assert_allclose(lengths, tissue.perimeters, rtol=1e-12)
+
+
 def test_a_non_convex_cell_gets_its_mitred_void_and_a_thick_wall_a_named_error():
     """An L-shaped cell (three unit squares, w = 0.1): its void is the L offset inward with a
     mitred re-entrant corner, [0.1, 1.9] x [0.1, 0.9] and [0.1, 0.9] x [0.9, 1.9] (shifted up

@@ -516,6 +516,20 @@ MUTANTS = (
           "middle = _spd_power(root @ J @ root, -0.5)"),),
     ),
     Mutant(
+        "cut_cell_shape_unmirrored", "meshes/cell_shapes.py", "wrong configuration",
+        "a cut cell's shape tensor and area from its half above x2 = 0 instead of the cell "
+        "united with its mirror image (a half-height cell: Fg0 flattened across the plane)",
+        (("moments = [(mirrored_moment if c else second_moment)(cells.polygon(i))",
+          "moments = [second_moment(cells.polygon(i))"),),
+    ),
+    Mutant(
+        "mirrored_moment_mixed_kept", "meshes/cell_shapes.py", "wrong average",
+        "a cut cell's mixed moment int (x1 - c1) x2 dA kept from its half (doubled) instead of "
+        "cancelling between the half and its mirror image",
+        (("return 2.0 * area, np.array([centroid[0], 0.0]), 2.0 * np.diag(np.diag(S))",
+          "return 2.0 * area, np.array([centroid[0], 0.0]), 2.0 * S"),),
+    ),
+    Mutant(
         "pixel_size_ignored_image", "plantgrowth/scene/cells_spec.py", "wrong scale",
         "a label image's cells left in pixels: tissue.pixel_size read and checked but not "
         "passed to the tracing",
