@@ -85,6 +85,22 @@ def test_mirrored_moment_equals_the_whole_cell():
     assert np.allclose(S, whole_S, rtol=ROUND_OFF, atol=1e-14)
 
 
+def test_a_skewed_cut_cell_is_its_mirrored_whole():
+    """A cut cell whose half is skewed (its own mixed moment int (x1 - c1) x2 dA is not zero):
+    the mirrored moments are those of the half united with its mirror image, an x2-symmetric
+    hexagon whose mixed moment vanishes and whose stretch has no shear (F_12 = 0)."""
+    half = np.array([[0.0, 0.0], [2.0, 0.0], [1.7, 1.2], [0.2, 0.8]])
+    whole = np.array([[0.2, -0.8], [1.7, -1.2], [2.0, 0.0], [1.7, 1.2], [0.2, 0.8], [0.0, 0.0]])
+    assert abs(second_moment(half)[2][0, 1]) > 0.01  # the half alone is sheared
+    area, c, S = mirrored_moment(half)
+    whole_area, whole_c, whole_S = second_moment(whole)
+    assert area == pytest.approx(whole_area, rel=ROUND_OFF)
+    assert c[1] == 0.0 and c[0] == pytest.approx(whole_c[0], rel=ROUND_OFF)
+    assert np.allclose(S, whole_S, rtol=ROUND_OFF, atol=1e-14)
+    shapes = cell_shapes(CellPolygons.from_loops([half]), REGULAR)
+    assert abs(shapes.Fg0[0, 0, 1]) < 1e-14  # x2-symmetric cell: no shear to round-off
+
+
 @pytest.mark.parametrize("cell", [REGULAR, IRREGULAR], ids=["regular", "irregular"])
 def test_stretch_maps_the_reference_onto_the_cell_exactly(cell):
     rng = np.random.default_rng(2)
