@@ -181,13 +181,13 @@ def test_each_rank_refines_only_its_block_of_queries(monkeypatch):
     block of the queries (12 queries: 6 per rank on 2 ranks), and the answer it returns is
     still the whole one."""
     rows: list[int] = []
-    original = surrogate.LatticeSurrogate._deepest
+    original = surrogate.LatticeSurrogate._walk
 
-    def counting(self, ids, s):
+    def counting(self, ids, s, strict=False):
         rows.append(len(ids))
-        return original(self, ids, s)
+        return original(self, ids, s, strict)
 
-    monkeypatch.setattr(surrogate.LatticeSurrogate, "_deepest", counting)
+    monkeypatch.setattr(surrogate.LatticeSurrogate, "_walk", counting)
     Fg = random_growth(np.random.default_rng(7), 12, spread=0.15)
     args = (np.repeat(GEOMETRY, 12, 0), np.ones(12), np.full(12, 0.3), Fg)
     result = homogenizer(1e-3, MPI.COMM_WORLD).homogenize(*args)

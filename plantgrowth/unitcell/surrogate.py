@@ -279,31 +279,8 @@ class LatticeSurrogate:
 
     def _deepest(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per query: the level of the deepest built square S that holds it (-1: its level-0
-        square is not built yet) and S's key."""
-        if self._squares_index is None:
-            self._squares_index = np.array(sorted(self._built), dtype=np.int64)
-        n = len(ids)
-        level, key = np.full(n, -1), np.zeros(n, dtype=np.int64)
-        alive = np.arange(n)
-        for k in range(MAX_LEVEL + 1):
-            wanted = self._square_key(ids[alive], k, _cell(s[alive], k)[0])
-            hit = _find(self._squares_index, wanted)[1]
-            alive = alive[hit]
-            level[alive], key[alive] = k, wanted[hit]
-            if not len(alive):
-                break
-        return level, key
-
-    def _estimates(
-        self, ids: np.ndarray, s: np.ndarray, level: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per query (all in built squares S of ``level`` >= 1): the relative change that S's
-        new corners made there, ``|sum_c alpha_c phi_c(s)| / |I(s)|`` (per segment, the
-        largest): the surpluses weighted by their hats, the difference of the interpolants with
-        and without them (for a smooth f the error left is about a third of it). Returns the
-        estimates and, from the same pass, I(s) and which queries are interpolated."""
-        values, interpolated, change = self._sum_levels(ids, s, level)
-        return self.relative_difference(values - change, values), values, interpolated
+        square is not built yet) and S's key (:meth:`_walk`)."""
+        return self._walk(ids, s)[2:4]
 
     def refine(
         self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray,
@@ -329,24 +306,22 @@ class LatticeSurrogate:
         fresh = np.zeros(0, dtype=np.int64)  # squares built in this call
         solves = 0
         while True:
-            level, key = self._deepest(ids, s)
+            values, interpolated, level, key, change = self._walk(ids, s)
             error = np.full(n, np.inf)
             inside = level >= 1  # level 0 has no estimate: its children are built first,
             on_corner = (level == 0) & (_cell(s, 0)[1] % 1.0 == 0.0).all(axis=1)
             error[on_corner] = 0.0  # unless the query is a corner: answered exactly
-            values = interpolated = None
-            if inside.all():  # so error, values, interpolated are the whole pass's
-                error, values, interpolated = self._estimates(ids, s, level)
+            if inside.all():
+                error = self.relative_difference(values - change, values)
             elif inside.any():
-                error[inside] = self._estimates(ids[inside], s[inside], level[inside])[0]
+                part = values[inside]
+                error[inside] = self.relative_difference(part - change[inside], part)
             going = np.isin(key, fresh) & (error > KEEP * tol)
             grow = (level < 0) | ((level < MAX_LEVEL) & ((error > tol) | going))
             child = level[grow] + 1
             wanted = self._square_key(ids[grow], child, _cell(s[grow], child)[0])
             squares = np.unique(np.concatenate(self.comm.allgather(np.unique(wanted))))
             if not len(squares):  # nothing built anywhere: the interpolant is final
-                if values is None:  # some queries are level-0 corners
-                    values, interpolated = self.interpolate_ids(ids, s)
                 return Answer(values, error, interpolated, solves)
             solves += self._build_squares(squares)
             fresh = np.union1d(fresh, squares)
@@ -394,26 +369,38 @@ class LatticeSurrogate:
 
     def interpolate_ids(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`interpolate` for queries given by their tables' numbers ids (n,)."""
-        return self._sum_levels(ids, s, np.full(len(ids), -1))[:2]
+        return self._walk(ids, s, strict=True)[:2]
 
-    def _sum_levels(
-        self, ids: np.ndarray, s: np.ndarray, level: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """I(s) level by level (:meth:`interpolate`), which queries are not on a built point,
-        and each query's term of its own ``level`` (zero where it has none)."""
+    def _walk(
+        self, ids: np.ndarray, s: np.ndarray, strict: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """One walk down the levels for n queries: I(s) (:meth:`interpolate`; ``strict``: a
+        KeyError off the built lattice), which queries are not on a built point, the level and
+        key of the deepest built square S holding each (-1, 0: none), and S's term of I, the
+        change its new corners made there, ``sum_c alpha_c phi_c(s)`` (the error estimate is
+        ``|term| / |I(s)|`` per segment; for a smooth f the error left is about a third of it)."""
+        if self._squares_index is None:
+            self._squares_index = np.array(sorted(self._built), dtype=np.int64)
         n = len(ids)
         keys, surplus = self._points_table()
         values = np.zeros((n, surplus.shape[1] if len(keys) else 0))
         change = np.zeros_like(values)
         on_point = np.zeros(n, dtype=bool)
+        level, square = np.full(n, -1), np.zeros(n, dtype=np.int64)
+        chain = np.ones(n, dtype=bool)  # every square so far on the query's chain is built
         alive = np.arange(n)
         for k in range(MAX_LEVEL + 1):
             corner, t = _cell(s[alive], k)
+            asked = chain[alive]
+            wanted = self._square_key(ids[alive[asked]], k, corner[asked])
+            hit = _find(self._squares_index, wanted)[1]
+            level[alive[asked][hit]], square[alive[asked][hit]] = k, wanted[hit]
+            chain[alive[asked][~hit]] = False
             points = corner[:, None, :] + _OFFSETS[None] * (STEP >> k)
             weights = _hats(t)
             wanted = self._point_key(ids[alive, None], points[..., 0], points[..., 1])
             rows, built = _find(keys, wanted)
-            if k == 0 and not np.all(built | (weights == 0.0)):
+            if strict and k == 0 and not np.all(built | (weights == 0.0)):
                 raise KeyError("a query outside the refined lattice: refine() first")
             if k > 0:  # only the points new on this level carry its hats
                 built &= ((points // (STEP >> k)) % 2).any(axis=-1)
@@ -426,15 +413,15 @@ class LatticeSurrogate:
             on_point[alive] |= (built & (weights == 1.0)).any(axis=1)
             if not len(alive):
                 break
-        return values, ~on_point, change
+        return values, ~on_point, level, square, change
 
     def evaluate(
         self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray,
         tolerance: np.ndarray | None = None,
     ) -> Answer:  # fmt: skip
         """Collective: :meth:`refine` for this rank's n queries (0 too), then the frozen
-        interpolant's answers and their estimates (:meth:`_estimates`), taken from refine's
-        last pass (it ran on the frozen interpolant: recomputing them gave the same bits)."""
+        interpolant's answers and their estimates (:meth:`_walk`), taken from refine's last
+        pass (it ran on the frozen interpolant: recomputing them gave the same bits)."""
         return self._refine(tables, which, s, tolerance)
 
     def squares(self) -> np.ndarray:
