@@ -42,8 +42,9 @@ gradient_E_strain (as before the soft disc was added) and ``presets_<name>`` oth
 MEASURES = ("u1_max", "u2_max", "area")
 
 
-def timed_run(exe: str, scene_text: str) -> dict:
-    """CPU and wall seconds of one run of the scene text (cache off), and its final measures."""
+def run_rows(exe: str, scene_text: str) -> tuple[float, float, list[dict]]:
+    """CPU and wall seconds of one whole run of the scene text (cache off), and the rows of
+    its summary.csv."""
     with tempfile.TemporaryDirectory() as tmp:
         scene = Path(tmp) / "scene.toml"
         scene.write_text(scene_text)
@@ -55,9 +56,15 @@ def timed_run(exe: str, scene_text: str) -> dict:
         wall = time.perf_counter() - start
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         with open(Path(tmp) / "o/summary.csv", newline="") as f:
-            last = list(csv.DictReader(f))[-1]
+            rows = list(csv.DictReader(f))
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return {"cpu": cpu, "wall": wall} | {m: float(last[m]) for m in MEASURES}
+    return cpu, wall, rows
+
+
+def timed_run(exe: str, scene_text: str) -> dict:
+    """CPU and wall seconds of one run of the scene text (cache off), and its final measures."""
+    cpu, wall, rows = run_rows(exe, scene_text)
+    return {"cpu": cpu, "wall": wall} | {m: float(rows[-1][m]) for m in MEASURES}
 
 
 def preset_text(scene: str, preset: str, base: bool = False) -> str:
