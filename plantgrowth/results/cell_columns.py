@@ -43,7 +43,7 @@ def _header(series: ResultSeries) -> list[str]:
 def check_column(series: ResultSeries, name: str) -> None:
     """CellColumnError unless ``name`` (``cells.csv:<column>``) names a drawable column of the
     run's cells.csv; the message lists the valid ones."""
-    column = name[len(PREFIX):]
+    column = name[len(PREFIX) :]
     valid = [c for c in _header(series) if c not in NOT_DRAWN]
     if column not in valid:
         raise CellColumnError(
@@ -55,7 +55,7 @@ def check_column(series: ResultSeries, name: str) -> None:
 def column_values(series: ResultSeries, name: str, t: float) -> np.ndarray:
     """The column ``name`` at the written time t per wall triangle (``c[cell_id]``)."""
     check_column(series, name)
-    column = name[len(PREFIX):]
+    column = name[len(PREFIX) :]
     with (series.directory / "cells.csv").open(newline="", encoding="utf-8") as f:
         rows = [(int(r["cell"]), float(r[column])) for r in csv.DictReader(f)
                 if abs(float(r["t"]) - t) <= TIME_TOLERANCE * max(1.0, abs(t))]  # fmt: skip
