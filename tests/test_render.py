@@ -385,6 +385,7 @@ def test_cells_draws_a_cells_csv_column_one_colour_per_cell(runs, capsys, monkey
     assert np.array_equal(drawn[0].axes[0].collections[0].get_array(), area)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("model, column, text", [
     ("micro", "turgor", "--cells 'turgor': {dir}/cells.csv has no such column; valid: x1_ref, "
      "x2_ref, x1, x2, area_ref, perimeter_ref, neighbours, area, trG,"),
