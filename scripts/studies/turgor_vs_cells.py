@@ -49,15 +49,26 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add("--regularity", type=float, default=None, help="default: the scene's")
     add("--times", type=float, nargs="+", default=[1.0, 3.0, 6.0], help="written times")
     add("--on-instability", choices=["stop", "warn"], default=None, help="default: the scene's")
+    add(
+        "--conductivity",
+        type=float,
+        default=None,
+        help="hydraulics.conductivity L (default: " "the scene's)",
+    )
     add("--raw", type=Path, default=ROOT / "results" / "turgor_vs_cells")
     add("--json", type=Path, default=ROOT / "benchmarks" / "results" / "turgor_vs_cells.json")
     add("--figure", type=Path, default=ROOT / "docs" / "figures" / "turgor_vs_cells.png")
     return parser.parse_args(argv)
 
 
-def scene_data(seed: int, regularity: float | None, on_instability: str | None) -> dict:
-    """The scene's TOML data with the tissue's seed (and regularity, instability policy) set."""
+def scene_data(
+    seed: int, regularity: float | None, on_instability: str | None, conductivity: float | None
+) -> dict:
+    """The scene's TOML data with the tissue's seed (and regularity, instability policy, wall
+    conductivity) set."""
     data = tomllib.loads(SCENE.read_text())
+    if conductivity is not None:
+        data["hydraulics"]["conductivity"] = conductivity
     data["tissue"]["cells"]["seed"] = seed
     if regularity is not None:
         data["tissue"]["cells"]["regularity"] = regularity
@@ -111,7 +122,7 @@ def study(args: argparse.Namespace) -> dict:
     """Run (or read) every seed; the correlations per seed and time."""
     per_seed, raw_points = {}, {}
     for seed in args.seeds:
-        data = scene_data(seed, args.regularity, args.on_instability)
+        data = scene_data(seed, args.regularity, args.on_instability, args.conductivity)
         outdir = args.raw / f"seed{seed}"
         seconds = None  # a finished run read again
         if not (outdir / "cells.csv").is_file() or not _finished(outdir, data):
@@ -178,10 +189,11 @@ def draw(points: dict, path: Path) -> None:
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     result = study(args)
-    data = scene_data(args.seeds[0], args.regularity, args.on_instability)
+    data = scene_data(args.seeds[0], args.regularity, args.on_instability, args.conductivity)
     report = {
         "scene": str(SCENE.relative_to(ROOT)), "tissue": data["tissue"]["cells"] | {"seed": None},
-        "numerics": data.get("numerics", {}), "seeds": args.seeds,
+        "numerics": data.get("numerics", {}), "hydraulics": data["hydraulics"],
+        "seeds": args.seeds,
         "per_seed": {str(k): v for k, v in result["per_seed"].items()},
         "robust_signs_spearman": signs(result["per_seed"]),
         "machine": machine_description(),
