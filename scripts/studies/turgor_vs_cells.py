@@ -101,13 +101,31 @@ def read_cells(outdir: Path) -> dict[float, dict[str, np.ndarray]]:
     return out
 
 
+def detrended(values: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``values`` less their least-squares fit by a quadratic in the cells' reference centres
+    ``x`` (n, 2): the cell-to-cell part, without the tissue-scale pattern."""
+    x1, x2 = x.T
+    basis = np.column_stack([np.ones_like(x1), x1, x2, x1 * x1, x1 * x2, x2 * x2])
+    return values - basis @ np.linalg.lstsq(basis, values, rcond=None)[0]
+
+
 def correlations(columns: dict[str, np.ndarray], cells: np.ndarray) -> dict[str, dict]:
-    """Pearson and Spearman r (with p) of each pair of PAIRS over ``cells``."""
+    """Pearson and Spearman r (with p) of each pair of PAIRS over ``cells``, and (``y~x
+    detrended``) of y's :func:`detrended` part with x, with the share of y's variance that
+    the position explains."""
     out = {}
+    centres = np.column_stack([columns["x1_ref"], columns["x2_ref"]])[cells]
     for y, x in PAIRS:
         a, b = columns[x][cells], columns[y][cells]
         if np.isnan(b).any() or np.ptp(b) == 0.0:
             continue
+        rest = detrended(b, centres)
+        spearman = stats.spearmanr(a, rest)
+        out[f"{y}~{x} detrended"] = {
+            "spearman": float(spearman[0]),
+            "spearman_p": float(spearman[1]),
+            "position_share": float(1.0 - rest.var() / b.var()),
+        }
         pearson, spearman = stats.pearsonr(a, b), stats.spearmanr(a, b)
         out[f"{y}~{x}"] = {
             "pearson": float(pearson[0]),
