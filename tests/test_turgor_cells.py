@@ -7,8 +7,8 @@ cell's growth rate tr G with its current area at t = 1 is above MARGIN: the sign
 scripts/studies/turgor_vs_cells.py finds for 128 cells on seeds 1-3 at every time
 (benchmarks/results/turgor_vs_cells.json: 0.63-0.75 at t = 1). Not asserted: the sign of turgor
 against area. It is negative for 128 cells on every seed and time, as Long et al. found, but
-weak (-0.03 to -0.20), and on this draft's 12 interior cells it is not robust (seeds 1, 2, 3:
--0.17, +0.07, +0.61).
+weak (-0.03 to -0.20) and gone once the tissue-scale turgor pattern is taken out, and on this
+draft's 11-12 interior cells it is not robust (seeds 1, 2, 3: -0.17, +0.07, +0.61).
 """
 
 from __future__ import annotations
