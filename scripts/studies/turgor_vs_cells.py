@@ -8,7 +8,9 @@ and the observed relative areal growth rate ``d ln(area)/dt`` between consecutiv
 and gives the Pearson and Spearman correlations of P and of both rates with area and with
 neighbour number at a few times (``--times``), over the interior cells (every side a wall
 shared with another cell: the outer cells have free outer walls and the bottom row is cut by
-the symmetry plane, so their areas and neighbour counts are not those of whole cells).
+the symmetry plane, so their areas and neighbour counts are not those of whole cells); and
+again (``y~x detrended``) for y less its quadratic fit in the cells' reference centres, the
+cell-to-cell part without the tissue-scale pattern.
 
 Raw runs go to ``--raw`` (default ``results/turgor_vs_cells``, git-ignored; a finished run is
 read again, not rerun); ``--json`` (default ``benchmarks/results/turgor_vs_cells.json``) gets
