@@ -18,7 +18,7 @@ the correlations, the run's settings and the machine description; ``--figure`` (
 ``docs/figures/turgor_vs_cells.png``) the scatter plots at the last time.
 
     nice -n 19 python scripts/studies/turgor_vs_cells.py [--seeds 1 2 3] [--regularity 0.5]
-    python scripts/studies/turgor_vs_cells.py --seeds 1 2 --conductivity 5 \
+    python scripts/studies/turgor_vs_cells.py --conductivity 5 \
         --raw results/turgor_vs_cells_L5 --json benchmarks/results/turgor_vs_cells_L5.json \
         --figure /tmp/turgor_L5.png
 """
