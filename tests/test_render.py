@@ -359,3 +359,44 @@ def test_zero_vectors_draw_no_arrow_and_say_so():
     render_module._arrows(ax, "growth_direction", where, zero, render_module.Arrows(1.0, None))
     assert len(ax.collections[-1].get_offsets()) == 0
     assert ax.get_legend_handles_labels()[1] == ["growth_direction = 0 at every site"]
+
+
+def test_cells_draws_a_cells_csv_column_one_colour_per_cell(runs, capsys, monkeypatch):
+    """--cells area: each cell's polygon has the colour of its cells.csv area at the drawn time
+    (read back from the figure: the polygons' values, in cell id order, are the column's)."""
+    dirs, pictures = runs
+    drawn = []
+    monkeypatch.setattr(picture_module, "draw",
+                        lambda *a, **k: drawn.append(draw(*a, **k)) or drawn[-1])  # fmt: skip
+    picture = pictures / "cells_area.png"
+    code, out, err = call(["render", dirs["micro"], "--cells", "area", "-o", picture], capsys)
+    assert code == 0, err
+    if not RANK0:
+        return
+    assert f"wrote {picture}" in out and imread(picture).ndim == 3
+    t = read_series(dirs["micro"]).times[-1]
+    rows = [line.split(",") for line in (dirs["micro"] / "cells.csv").read_text().splitlines()]
+    header = rows[0]
+    at_t = [r for r in rows[1:] if float(r[header.index("t")]) == t]
+    area = np.array([float(r[header.index("area")]) for r in
+                     sorted(at_t, key=lambda r: int(r[header.index("cell")]))])  # fmt: skip
+    assert len(area) == 8  # Nx = 4: 8 cells, not all of one area (the bottom row is cut)
+    assert np.ptp(area) > 0.1 * area.max()
+    assert np.array_equal(drawn[0].axes[0].collections[0].get_array(), area)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("model, column, text", [
+    ("micro", "turgor", "--cells 'turgor': {dir}/cells.csv has no such column; valid: x1_ref, "
+     "x2_ref, x1, x2, area_ref, perimeter_ref, neighbours, area, trG,"),
+    ("micro", "step", "--cells 'step': {dir}/cells.csv has no such column; valid: x1_ref,"),
+    ("macro", "area", "--cells: {dir} has no cells.csv (a micro run writes it"),
+])  # fmt: skip
+def test_cells_with_a_wrong_column_is_a_named_error(runs, model, column, text, capsys):
+    dirs, pictures = runs
+    picture = pictures / f"cells_{model}_{column}.png"
+    code, _, err = call(["render", dirs[model], "--cells", column, "-o", picture], capsys)
+    assert code == 2
+    if RANK0:
+        assert text.format(dir=dirs[model]) in err
+        assert not picture.exists()

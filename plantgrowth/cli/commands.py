@@ -46,11 +46,13 @@ def render_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     """Rank 0 draws (:func:`_on_rank0`)."""
 
     def draw() -> str:
+        from plantgrowth.results.cell_columns import PREFIX as CELLS_PREFIX
         from plantgrowth.results.picture import render
 
         if args.dpi is not None and not 10 <= args.dpi <= 1200:
             raise InputError(f"--dpi = {args.dpi} is out of range: an integer in [10, 1200]")
-        written = render(args.directory, args.field, args.output, args.time, args.component,
+        name = args.field if args.cells is None else CELLS_PREFIX + args.cells
+        written = render(args.directory, name, args.output, args.time, args.component,
                          args.force, dpi=args.dpi, vmin=args.vmin, vmax=args.vmax,
                          regions=args.regions, fibres=args.fibres)  # fmt: skip
         return f"wrote {written}"

@@ -200,8 +200,14 @@ def _add_render_parser(sub) -> None:
         "rank 0 draws.",
     )
     render.add_argument("directory", type=Path, metavar="DIR", help="a run's output directory")
-    render.add_argument(
-        "--field", required=True, metavar="NAME",
+    what = render.add_mutually_exclusive_group(required=True)
+    what.add_argument(
+        "--cells", default=None, metavar="COLUMN",
+        help="micro runs: a column of cells.csv (P, area, trG, neighbours, ...) as one colour "
+        "per cell on the deformed cells (an unknown name lists the valid columns)",
+    )  # fmt: skip
+    what.add_argument(
+        "--field", metavar="NAME",
         help="a written field: u, Fg, G, sigma_hom, eps_hom, E1111 ..., trG, growth_anisotropy, "
         "growth_direction, stress_direction, elastic_strain, stability, cue_anisotropy, cell_id "
         "(an unknown name lists the run's fields and the one it may mean)",

@@ -1,5 +1,5 @@
-"""``plantgrowth render DIR --field NAME [--time T|all] [--component K] [--vmin A --vmax B]
--o FILE [--force] [--regions] [--fibres]``.
+"""``plantgrowth render DIR --field NAME | --cells COLUMN [--time T|all] [--component K]
+[--vmin A --vmax B] -o FILE [--force] [--regions] [--fibres]``.
 
 Draws one written field of a finished (or still running) run on the deformed tissue, x + u(t),
 with matplotlib's Agg canvas (no display needed): scalars and tensor components as colours per
@@ -29,7 +29,7 @@ from matplotlib.tri import Triangulation
 from plantgrowth.base.errors import InputError
 from plantgrowth.results.fibre_glyphs import draw_fibres
 from plantgrowth.results.field_hints import bad_component, missing_field
-from plantgrowth.results import output_file
+from plantgrowth.results import cell_columns, output_file
 from plantgrowth.results.reader import (
     COMPONENTS,
     NODE_FIELDS,
@@ -130,8 +130,10 @@ def pick_time(series: ResultSeries, time: float | None) -> float:
 
 def check_field(series: ResultSeries, name: str) -> None:
     """RenderError unless the run wrote the field ``name`` (with what it wrote, and the field
-    it may mean)."""
-    if name not in series.names:
+    it may mean) or, for ``cells.csv:<column>``, its cells.csv has the column."""
+    if cell_columns.is_column(name):
+        cell_columns.check_column(series, name)
+    elif name not in series.names:
         raise RenderError(missing_field(series, name))
 
 
@@ -140,6 +142,10 @@ def field_values(
 ) -> tuple[np.ndarray, bool]:
     """(values, on nodes): (n,) for a scalar or a component, (n, 2) for a vector."""
     check_field(series, name)
+    if cell_columns.is_column(name):
+        if component is not None:
+            raise RenderError(bad_component(name, "scalar", component, ()))
+        return cell_columns.column_values(series, name, t), False
     on_nodes = name in NODE_FIELDS
     data = series.field(name, t)
     if data.ndim == 2 and data.shape[1] == 9:

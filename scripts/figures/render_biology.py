@@ -38,9 +38,10 @@ def reached_t_max(scene: Path, run: Path) -> bool:
     return len(t) > 0 and t[-1] >= t_max - 1e-9 * max(1.0, t_max)
 
 
-def render(run: Path, picture: Path, field: str = "trG") -> None:
-    """``plantgrowth render RUN --field FIELD -o PICTURE --force``."""
-    subprocess.run([PLANTGROWTH, "render", str(run), "--field", field,
+def render(run: Path, picture: Path, field: str = "trG", cells: bool = False) -> None:
+    """``plantgrowth render RUN --field FIELD -o PICTURE --force`` (``cells``: ``--cells
+    FIELD``, a micro run's cells.csv column)."""
+    subprocess.run([PLANTGROWTH, "render", str(run), "--cells" if cells else "--field", field,
                     "-o", str(picture), "--force"], check=True)  # fmt: skip
 
 
@@ -89,13 +90,15 @@ def main(argv: list[str] | None = None) -> int:
     for scene in chosen:
         run, name = args.results / scene.stem, scene.stem
         render(run, args.out / f"biology_{name}.png")
-        water = pg.load_scene(scene).hydraulics
+        loaded = pg.load_scene(scene)
+        water = loaded.hydraulics
         if water is not None:
             varying = [s.potential for s in water.supplies if not s.potential.is_constant]
             if varying:
                 water_series(run, varying[0], args.out / f"biology_{name}_series.png")
             else:
-                render(run, args.out / f"biology_{name}_P.png", "P")
+                micro = loaded.model == "micro"  # its P is per cell, in cells.csv
+                render(run, args.out / f"biology_{name}_P.png", "P", cells=micro)
     return 0
 
 
