@@ -61,7 +61,7 @@ class TurgorNewton(WaterSteps):
         super().__init__(water, dt)
         self.newton, self.parts, self.P_function = newton, parts, P
         self.load_column, self.area_column, self.areas = load_column, area_column, areas
-        self.columns, self.predictor = columns, predictor
+        self.indicator, self.columns, self.predictor = indicator, columns, predictor
         self.bordered = BorderedSolve(newton.A, water.n, parts.comm, "plantgrowth_micro_water_")
         parts.set_cells(indicator, np.arange(water.n))  # each DG0 dof's cell
         self.area_vector = fem.petsc.create_vector(areas)
