@@ -92,7 +92,7 @@ class CellPolygons:
         """Undirected side (sorted vertex pair) -> the cells that have it (one or two)."""
         out: dict[tuple[int, int], list[int]] = {}
         for cell, loop in enumerate(self.cells):
-            for a, b in zip(loop, np.roll(loop, -1)):
+            for a, b in zip(loop, np.roll(loop, -1), strict=True):
                 out.setdefault((min(int(a), int(b)), max(int(a), int(b))), []).append(cell)
         return out
 

@@ -37,6 +37,9 @@ APT_PACKAGES=(
     python3-nbformat  # docs/tutorial.ipynb: tests/test_tutorial.py and
     python3-nbclient  # scripts/figures/render_tutorial.py run it in a kernel
     python3-ipykernel # of .venv's python (the kernelspec "plantgrowth", step 3c)
+    python3-skimage   # [tissue] cells = "labels.tif": imported label images (issue 34,
+    python3-tifffile  # docs/real_tissues.md) are read with tifffile (TIFF) or skimage.io (PNG),
+    python3-shapely   # checked with skimage.measure and their walls simplified with shapely
     python3-venv
     python3-pip
     git

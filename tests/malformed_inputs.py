@@ -22,6 +22,7 @@ time limit, never in-process.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import random
@@ -31,6 +32,8 @@ import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from plantgrowth.meshes.honeycomb import HoneycombCell
 
@@ -904,8 +907,8 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
     """``[hydraulics]`` (docs/model.md, water fluxes): wrong types, NaN/inf, a negative osmotic
     pressure or conductivity, a missing conductivity, pressure.P1 given as well, a supply on the
     symmetry plane, on an edge or region the scene does not have, twice, without or with a
-    non-positive conductance, a bad potential in time, a valid table in a scene whose
-    integrator cannot take it (every model, in either kinematics, takes it), the
+    non-positive conductance, a bad potential in time, a valid table with the adaptive
+    integrator at a tolerance out of range (every model and integrator takes water fluxes), the
     macro model's water fields asked of the micro model, and a bad micro.nx (the cells' size)
     in a macro water scene."""
     what = rng.choice(["wrong_type", "nonfinite", "negative", "missing", "P1", "bottom", "edge",
@@ -964,11 +967,171 @@ def _bad_hydraulics(rng: random.Random, scene: dict):
         scene["output"] = {"fields": ["u", rng.choice(["P", "psi", "water_flux"])]}
         expect = ("output.fields", "macro model's water fields")
     else:
-        scene["time"] = {"t_max": 2.0, "dt": 1.0, "integrator": "adaptive"}
-        expect = ("hydraulics: time.integrator = 'adaptive'",)
+        tolerance = rng.choice([0.0, -1e-3, 0.5])
+        scene["time"] = {"t_max": 2.0, "dt": 1.0, "integrator": "adaptive", "tolerance": tolerance}
+        expect = ("time.tolerance",)
     table.setdefault("supply", [supply])
     scene["hydraulics"] = table
     return scene, expect
+
+
+# --- [tissue] cells: the generator's key, label images and polygon tables (issue 34) ------------
+
+
+def label_grid(rows: int = 3, cols: int = 4, size: int = 8, margin: int = 2) -> np.ndarray:
+    """A valid label image: rows x cols square cells of size x size pixels, labels 1.. row by
+    row, background ``margin`` pixels wide around them."""
+    out = np.zeros((rows * size + 2 * margin, cols * size + 2 * margin), dtype=np.int32)
+    for r in range(rows):
+        for c in range(cols):
+            out[margin + r * size : margin + (r + 1) * size,
+                margin + c * size : margin + (c + 1) * size] = 1 + r * cols + c  # fmt: skip
+    return out
+
+
+def _with(image: np.ndarray, where: tuple, value: object) -> np.ndarray:
+    image = image.copy()
+    image[where] = value
+    return image
+
+
+BAD_IMAGES = {  # name -> (image, a fragment of the error); the grid's cell 1 is at rows 2-9
+    "3D": (np.stack([label_grid(), label_grid()]), "a 3D image of shape"),
+    "RGB": (np.stack([label_grid()] * 3, axis=-1).astype(np.uint8), "an RGB(A) image"),
+    "mask": (label_grid() > 0, "a binary mask"),
+    "fraction": (_with(label_grid().astype(np.float32), (5, 5), 2.5), "a non-integer label 2.5"),
+    "negative": (_with(label_grid(), (5, 5), -3), "a negative label -3 at column 5, row 5"),
+    "no_background": (label_grid(margin=0), "no background"),
+    "no_cells": (np.zeros((20, 20), np.uint8), "no cells"),
+    "split": (_with(label_grid(), (slice(18, 26), slice(18, 26)), 2), "label 2 is split into 2"),
+    "one_pixel": (_with(label_grid(), (1, 5), 99), "cell 99 has 1 pixels"),  # in the margin
+    "small": (_with(label_grid(), (slice(0, 3), slice(4, 7)), 99), "cell 99 has 9 pixels"),
+    "hole": (_with(label_grid(), (slice(4, 6), slice(4, 6)), 0), "cell 1 has a hole (background"),
+    "island": (_with(label_grid(), (slice(3, 8), slice(3, 8)), 99), "cell 1 has a hole (cell 99"),
+    "enclosed": (_with(label_grid(), (slice(9, 11), slice(9, 11)), 0), "enclosed by the tissue"),
+}
+SQUARE = [[0, 0], [1, 0], [1, 1], [0, 1]]
+AROUND = [(0, 0), (1, 0), (2, 0), (2, 1), (2, 2), (1, 2), (0, 2), (0, 1)]  # squares round (1, 1)
+BAD_TABLES = {  # name -> (JSON table, a fragment of the error)
+    "few": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, 0]]}]}, "cell 1: 2 vertices"),
+    "nan": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, math.nan], [0, 1]]}]},
+            "cell 1: a vertex is not finite"),
+    "text": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, "a"], [0, 1]]}]}, "pairs of numbers"),
+    "ids": ({"cells": [{"id": 1, "vertices": SQUARE}, {"id": 1, "vertices": SQUARE}]},
+            "cell id 1 is repeated"),
+    "id_type": ({"cells": [{"id": "a", "vertices": SQUARE}]}, "ids must be integers"),
+    "bow_tie": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, 1], [1, 0], [0, 1]]}]},
+                "cell 1: its polygon intersects itself"),
+    "repeat": ({"cells": [{"id": 1, "vertices": [[0, 0], [1, 0], [1, 0], [0, 1]]}]},
+               "cell 1: a vertex is repeated"),
+    "overlap": ({"cells": [{"id": 1, "vertices": SQUARE},
+                           {"id": 2, "vertices": [[0.5, 0], [1.5, 0], [1.5, 1], [0.5, 1]]}]},
+                "cells 1 and 2 overlap"),
+    "hole": ({"cells": [{"id": k, "vertices": [[x + i, y + j] for x, y in SQUARE]}
+                        for k, (i, j) in enumerate(AROUND)]}, "background enclosed by the tissue"),
+    "below": ({"cells": [{"id": 4, "vertices": [[0, -1], [1, 0], [0, 1]]}]},
+              "cell 4 reaches x2 = -1 < 0"),
+    "unknown_key": ({"cells": [], "units": "um"}, "unknown key 'units'"),
+    "empty": ({"cells": []}, "no cells"),
+    "pixel_size": ({"cells": [{"id": 1, "vertices": SQUARE}], "pixel_size": -1},
+                   "pixel_size = -1 must be a number > 0"),
+}  # fmt: skip
+BAD_CSV = {  # name -> (CSV text, a fragment of the error)
+    "header": ("id,x,y\n1,0,0\n", "expected the header cell_id,x,y"),
+    "row": ("cell_id,x,y\n1,0,0\n1,1,zero\n", "line 3: expected cell_id,x,y"),
+    "ids": ("cell_id,x,y\n1,0,0\n1,1,0\n1,1,1\n2,2,0\n2,3,0\n2,3,1\n1,0,1\n",
+            "cell id 1 is repeated"),
+}
+
+
+def _image_bytes(image: np.ndarray, suffix: str) -> bytes:
+    import io
+
+    buffer = io.BytesIO()
+    if suffix == ".png":
+        from skimage import io as skio
+
+        skio.imsave(buffer, image, format="png", check_contrast=False)
+    else:
+        import tifffile
+
+        tifffile.imwrite(buffer, image)
+    return buffer.getvalue()
+
+
+def _on_cells(scene: dict, cells: object, **keys: object) -> dict:
+    """The scene with ``tissue.cells`` (no width, height or micro.nx, no loads or supports)."""
+    tissue = scene.get("tissue") if isinstance(scene.get("tissue"), dict) else {}
+    scene["tissue"] = {k: v for k, v in tissue.items() if k in ("h", "H")} | {"cells": cells} | keys
+    if isinstance(scene.get("micro"), dict):
+        scene["micro"].pop("nx", None)
+    scene.pop("loads", None)
+    scene.pop("supports", None)
+    return scene
+
+
+def _bad_cells_key(rng: random.Random, scene: dict):
+    """``tissue.cells = {voronoi = N, seed = S, regularity = r}`` and its neighbours: N not
+    Nx^2/2, r outside [0, 1], a bad seed, an unknown key, another shape or size given too, a
+    micro.nx that is not the tissue's, a missing or foreign file, a bad or missing pixel_size."""
+    what = rng.choice(["voronoi", "regularity", "seed", "unknown", "type", "with", "nx",
+                       "missing", "suffix", "no_pixel_size", "pixel_size"])  # fmt: skip
+    good = {"voronoi": rng.choice([2, 8, 32, 72]), "seed": rng.randint(0, 99),
+            "regularity": rng.uniform(0.0, 1.0)}  # fmt: skip
+    if what in ("voronoi", "regularity", "seed"):
+        bad = {"voronoi": [0, 3, 33, 1000, -8, 2.5, True, "32", 2 * 258**2],
+               "regularity": [-0.1, 1.5, Raw("nan"), Raw("inf"), "half", True],
+               "seed": [-1, 1.5, "one", True, Raw("[1]")]}[what]  # fmt: skip
+        return _on_cells(scene, good | {what: rng.choice(bad)}), (f"tissue.cells.{what}",)
+    if what == "unknown":
+        key = rng.choice(["irregularity", "n", "cells", "Nx"])
+        return _on_cells(scene, good | {key: 1}), (f"unknown key 'tissue.cells.{key}'",)
+    if what == "type":
+        return _on_cells(scene, Raw(rng.choice(["3", "true", "[1, 2]"]))), ("tissue.cells:",)
+    if what == "with":
+        key = rng.choice(["width", "height", "outline", "mesh"])
+        value = {"outline": OUTLINE, "mesh": "tissue.msh"}.get(key, 4.0)
+        return _on_cells(scene, good, **{key: value}), (f"tissue.{key}: not with tissue.cells",)
+    if what == "nx":
+        scene = _on_cells(scene, good)
+        nx = math.isqrt(2 * good["voronoi"])
+        scene.setdefault("micro", {})["nx"] = rng.choice([n for n in (2, 4, 8, 12, 16) if n != nx])
+        return scene, ("micro.nx = ", f"Nx = {nx}")
+    if what == "missing":
+        name = rng.choice(["cells.tif", "labels.png", "cells.json", "sub/cells.csv"])
+        return _on_cells(scene, name, pixel_size=0.1), ("tissue.cells = ", "file not found")
+    if what == "suffix":
+        name = rng.choice(["cells.jpg", "cells.txt", "cells", "cells.npy"])
+        return _on_cells(scene, name), ("tissue.cells = ", "not a label image"), [(name, "x\n")]
+    valid = [("cells.tif", _image_bytes(label_grid().astype(np.uint16), ".tif"))]
+    if what == "no_pixel_size":
+        return _on_cells(scene, "cells.tif"), ("tissue.pixel_size is required",), valid
+    size = rng.choice([0, -0.5, Raw("nan"), "1 um", True])
+    return _on_cells(scene, "cells.tif", pixel_size=size), ("tissue.pixel_size",), valid
+
+
+def _bad_label_image(rng: random.Random, scene: dict):
+    """A label image (TIFF, or PNG where PNG can hold it) that cannot be a tissue of cells."""
+    kind = rng.choice(sorted(BAD_IMAGES))
+    image, fragment = BAD_IMAGES[kind]
+    integers = image.dtype in (np.uint8, np.uint16, np.int32)
+    pngable = image.ndim == 2 and integers and image.min() >= 0  # a grey 16-bit PNG holds it
+    suffix = ".png" if pngable and rng.random() < 0.5 else ".tif"
+    if suffix == ".png":
+        image = image.astype(np.uint16)
+    name = f"labels{suffix}"
+    scene = _on_cells(scene, name, pixel_size=rng.choice([0.01, 0.1, 0.5]))
+    return scene, ("tissue.cells = ", fragment), [(name, _image_bytes(image, suffix))]
+
+
+def _bad_polygon_table(rng: random.Random, scene: dict):
+    """A polygon table (JSON or CSV) that cannot be a tissue of cells."""
+    if rng.random() < 0.25:
+        text, fragment = BAD_CSV[rng.choice(sorted(BAD_CSV))]
+        return _on_cells(scene, "cells.csv"), ("tissue.cells = ", fragment), [("cells.csv", text)]
+    table, fragment = BAD_TABLES[rng.choice(sorted(BAD_TABLES))]
+    text = json.dumps(table)
+    return _on_cells(scene, "cells.json"), ("tissue.cells = ", fragment), [("cells.json", text)]
 
 
 SCENE_MAKERS = {
@@ -997,6 +1160,9 @@ SCENE_MAKERS = {
     "field_name": _field_name,
     "bad_feedback_walls": _bad_feedback_walls,
     "bad_hydraulics": _bad_hydraulics,
+    "bad_cells_key": _bad_cells_key,
+    "bad_label_image": _bad_label_image,
+    "bad_polygon_table": _bad_polygon_table,
 }
 
 TOML_ERRORS = [

@@ -134,7 +134,6 @@ def test_bad_hydraulics_is_a_named_error(table, fragments):
     "change, fragments",
     [
         ("[pressure]\nP1 = 0.001\n", ("pressure.P1: not with [hydraulics]",)),
-        ('[time]\nintegrator = "adaptive"\n', ("hydraulics: time.integrator = 'adaptive'",)),
     ],
 )
 def test_hydraulics_with_what_cannot_take_it_is_refused(change, fragments):
@@ -154,6 +153,13 @@ def test_every_model_takes_a_hydraulic_scene_in_either_kinematics(model, kinemat
                   "[hydraulics]\nconductivity = 1\n")  # fmt: skip
     assert scene.hydraulics is not None
     assert (scene.model, scene.kinematics) == (model, kinematics)
+
+
+@pytest.mark.parametrize("integrator", ["exp", "euler", "adaptive"])
+def test_every_integrator_takes_a_hydraulic_scene(integrator):
+    """The adaptive integrator's sub-steps advance the water too (issue 35: it was refused)."""
+    scene = parse(BASE + f'[time]\nintegrator = "{integrator}"\n[hydraulics]\nconductivity = 1\n')
+    assert scene.hydraulics is not None and scene.time.integrator == integrator
 
 
 @pytest.mark.parametrize(

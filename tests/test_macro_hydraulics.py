@@ -558,16 +558,6 @@ def test_supplies_only_on_the_tissues_edges(edge, message):
         MacroWater(strip(0.125), inputs)
 
 
-def test_the_adaptive_integrator_is_refused():
-    """The adaptive integrator re-solves inside a step (the water advances once per step): it
-    is refused with the reason (finite kinematics: tests/test_macro_water_finite.py)."""
-    tables = {"time": {"t_max": 1.0, "integrator": "adaptive"}}
-    scene = parse_scene(BASE | {"tissue": LO_TISSUE, "pressure": {"P1": PI}} | tables)
-    with pytest.raises(InputError, match="integrator"):
-        MacroModel(scene, rectangle_mesh(scene, MPI.COMM_WORLD), MPI.COMM_WORLD,
-                   hydraulics=MacroHydraulics(osmotic=PI))  # fmt: skip
-
-
 @pytest.mark.parametrize("dt", [1e-4, 1e-1])
 def test_iterative_path_matches_the_direct_one(reference, dt):
     """One step after the step change on the strip (h = 0.0625), solved by MINRES with the block

@@ -123,6 +123,15 @@ class GrowthModel(Protocol):
         """Advance the model's own state other than Fg over the step dt, from the step just
         solved (macro: the fibre director's feedback), before the step's state is saved."""
 
+    def substep(self, dt: float, remaining: float) -> None:
+        """The next solve advances the model's own state (the water) by dt from the state kept
+        last, ending ``remaining`` before the step's end (the adaptive integrator's sub-steps;
+        end_step makes the next solve's the whole step again)."""
+
+    def keep(self, kept: bool) -> None:
+        """After a sub-step's solve: its state is the one the next solve starts from (kept), or
+        the state before it is (a rejected sub-step)."""
+
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, Block]:
         """What --resume needs to continue after this step: this rank's blocks of the saved
         arrays (collective; the same keys on every rank)."""

@@ -104,8 +104,11 @@ def advance_adaptive(
     G re-evaluated at the midpoint state: a new solve); the halves are kept when the two results
     differ by at most ``tol`` relative (max over growth units), else h is halved. Re-evaluating
     G inside the step is what keeps the coupled growth-elasticity loop stable for large dt,
-    where the explicit schemes (``euler``, ``exp``) oscillate. Returns (Fg, sub-steps, cell
-    solves).
+    where the explicit schemes (``euler``, ``exp``) oscillate. The model's own state (the water)
+    follows the kept halves: the midpoint's solve advances it by h/2 from the last kept state
+    and the one at the sub-step's end by h/2 more (the step's last: the loop's next solve); a
+    rejected sub-step's midpoint is undone (:meth:`GrowthModel.keep`). Returns (Fg, sub-steps,
+    cell solves).
     """
     done, h, substeps, solves = 0.0, dt, 0, 0
     while done < dt * (1.0 - 1e-12):
@@ -113,18 +116,24 @@ def advance_adaptive(
         whole = growth.advance(Fg, G, h, "exp")
         half = growth.advance(Fg, G, 0.5 * h, "exp")
         model.check_growth(half)
+        model.substep(0.5 * h, dt - done - 0.5 * h)
         middle = model.step(half)
         two_halves = growth.advance(half, middle.G, 0.5 * h, "exp")
         solves += middle.n_cell_solves
         scale = np.maximum(np.linalg.norm(two_halves, axis=(1, 2)), 1e-300)
         local = np.linalg.norm(two_halves - whole, axis=(1, 2)) / scale
         error = comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX)
+        model.keep(error <= tol)
         if error <= tol:
             Fg, done, substeps = two_halves, done + h, substeps + 1
             if done < dt * (1.0 - 1e-12):
+                model.substep(0.5 * h, dt - done)
                 model.check_growth(Fg)
                 result = model.step(Fg)
+                model.keep(True)
                 G, solves = result.G, solves + result.n_cell_solves
+            else:  # the loop's next solve ends the step
+                model.substep(0.5 * h, 0.0)
             if error <= 0.25 * tol:
                 h *= 2.0
         elif h > MIN_SUBSTEP * dt:

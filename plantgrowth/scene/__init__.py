@@ -20,6 +20,12 @@ inclined wall length l2 = 1)::
     #   "symmetry" on x2 = 0, the point group "pinned" and named curve groups, loaded as
     #   loads.<name>
     # (docs/shapes.md; not with width or height: the shape's bounding box sets them)
+    # or cells = {voronoi = N, seed = 0, regularity = 0.0}: a generated tissue of N = Nx^2/2
+    #   cells (Nx even; micro.nx is then Nx), seed an integer >= 0, regularity r in [0, 1]
+    #   from the honeycomb (0) to a perturbed centroidal-Voronoi tissue (1)
+    # or cells = "file": a label image (.tif, .tiff, .png; needs pixel_size = the side of a
+    #   pixel in the scene's length unit) or a polygon table (.json, .csv) (relative to the
+    #   scene file; not with outline, mesh, width, height or micro.nx; docs/real_tissues.md)
     # model = "micro" | "both" and plantgrowth compare: width and height other than these
     #   defaults are an error (the cellular tissue is micro.nx cells per row, its own size)
     h = 0.1                    # (preset) fine-mesh edge: 0 < h <= min(width, height)/2,
@@ -123,7 +129,7 @@ inclined wall length l2 = 1)::
                                # "fibre_direction", micro cells.csv "fibre_angle": the director)
     [hydraulics]               # water fluxes (none by default: turgor is pressure.P1), micro
     osmotic = 0.001            # or macro (either kinematics; its cells are those of micro.nx),
-                               # exp or euler integrator (docs/model.md, water fluxes):
+                               # any integrator (docs/model.md, water fluxes):
     conductivity = 1.0         # Pi, a field >= 0, replaces pressure.P1 (not with it); L, a field
     initial_potential = 0.0    # >= 0, required; psi_0: every cell starts at P = Pi + psi_0
     [[hydraulics.supply]]      # any number: edge = "left" | "right" | "top" (an outline's or

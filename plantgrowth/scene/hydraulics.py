@@ -18,7 +18,8 @@ water entering the cells sets. The key reference is :mod:`plantgrowth.scene`::
 
 A potential in time is ``values[i]`` from ``times[i]`` on ("step": a drought lowered at once)
 or linear between the times ("linear"); before the first time, ``values[0]``; after the last,
-the last value. Backward Euler reads it at the end of each step.
+the last value. Backward Euler reads it at the end of each step (of each sub-step with the
+adaptive integrator).
 """
 
 from __future__ import annotations
@@ -117,12 +118,6 @@ class Hydraulics:
             self, osmotic=self.osmotic.over(width, height),
             conductivity=self.conductivity.over(width, height),
         )  # fmt: skip
-
-    def supported_by(self, scene: Any) -> AnyField:
-        """The turgor input of ``scene`` (a Scene), Pi; SceneError unless its run solves water
-        fluxes (:func:`check_supported`)."""
-        check_supported(scene.time.integrator)
-        return self.osmotic
 
     def regions(self) -> list[Supply]:
         return [s for s in self.supplies if s.kind == "region"]
@@ -269,20 +264,10 @@ def hydraulics_from(
     return Hydraulics(osmotic, conductivity, psi0, tuple(supplies))
 
 
-def check_supported(integrator: str) -> None:
-    """SceneError unless the run can solve water fluxes: every model (micro, macro, both) in
-    either kinematics does, with a fixed step (the water advances once per step)."""
-    if integrator == "adaptive":
-        raise SceneError(
-            "hydraulics: time.integrator = 'adaptive' re-solves steps at sub-step times, which "
-            "the water's backward Euler step does not follow yet: use 'exp' or 'euler'"
-        )
-
-
 def turgor_input(scene: Any) -> AnyField | None:
-    """The turgor input of ``scene`` (a Scene) with ``[hydraulics]``, Pi (SceneError unless its
-    model solves water fluxes); None without; SceneError for a water field it does not write."""
-    osmotic = None if scene.hydraulics is None else scene.hydraulics.supported_by(scene)
+    """The turgor input of ``scene`` (a Scene) with ``[hydraulics]``, Pi; None without;
+    SceneError for a water field it does not write."""
+    osmotic = None if scene.hydraulics is None else scene.hydraulics.osmotic
     check_water_fields(scene.output.fields, scene.hydraulics, scene.model)
     return osmotic
 

@@ -14,6 +14,7 @@ import numpy as np
 from plantgrowth.base.errors import InputError, SceneError, check_growth_tensor
 from plantgrowth.meshes.honeycomb import GeometryError, HoneycombCell
 from plantgrowth.scene import loads as edge_loads
+from plantgrowth.scene.cells_spec import CellsSpec, parse_cells
 from plantgrowth.scene.expression import Expression, parse_expression
 from plantgrowth.scene.field_names import close_fields
 from plantgrowth.scene.fields import AnyField, ExprField, Field
@@ -65,9 +66,12 @@ class Tissue:
     H: float = knob(DEFAULT_PRESET, "tissue", "H")
     outline: tuple[tuple[float, float], ...] | None = None
     mesh: str | None = None
+    cells: CellsSpec | None = None  # parsed from a table or a file name: scene/cells_spec.py
+    pixel_size: float | None = None
     shape: Shape | None = field(default=None, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
+        set_fields(self, cells=parse_cells(self.cells, self.pixel_size))
         if self.outline is not None and self.mesh is not None:
             raise SceneError("tissue.mesh: not with tissue.outline: give one tissue shape")
         try:
@@ -127,6 +131,9 @@ class Tissue:
             return {"outline": [list(p) for p in self.outline], "h": self.h, "H": self.H}
         if self.mesh is not None:
             return {"mesh": self.mesh, "h": self.h, "H": self.H}
+        if self.cells is not None:
+            size = {} if self.pixel_size is None else {"pixel_size": self.pixel_size}
+            return {"cells": self.cells.to_toml(), **size, "h": self.h, "H": self.H}
         return {"width": self.width, "height": self.height, "h": self.h, "H": self.H}
 
 

@@ -4,8 +4,6 @@
 from __future__ import annotations
 
 import copy
-
-# --- the scene ------------------------------------------------------------------------------------
 import os
 import tomllib
 from dataclasses import dataclass, field, fields, replace
@@ -19,6 +17,7 @@ from plantgrowth.meshes.unit_cell import mesh_size
 from plantgrowth.scene import hydraulics as water
 from plantgrowth.scene import loads as edge_loads
 from plantgrowth.scene import walls as fibre_walls
+from plantgrowth.scene.cells_spec import ImportedCells, cells_table
 from plantgrowth.scene.field_syntax import parse_field
 from plantgrowth.scene.fields import AnyField, Field
 from plantgrowth.scene.limits import (
@@ -276,7 +275,8 @@ class Scene:
         out["loads"] = {edge: edge_loads.to_toml(load) for edge, load in self.loads.items()}
         out["output"] = {f.name: getattr(self.output, f.name) for f in fields(self.output)}
         out["accuracy"] = {f.name: getattr(self.accuracy, f.name) for f in fields(self.accuracy)}
-        out["micro"] = {"nx": self.micro_nx, "resolution": self.micro_resolution}
+        nx = {} if isinstance(self.tissue.cells, ImportedCells) else {"nx": self.micro_nx}
+        out["micro"] = nx | {"resolution": self.micro_resolution}  # a file's cells: no Nx
         out["solver"] = {f.name: getattr(self.solver, f.name) for f in fields(self.solver)}
         out["numerics"] = {"on_instability": self.numerics.on_instability}
         if self.parameters:  # written only when given, so older runs' scene.toml compare equal
@@ -414,10 +414,10 @@ def _parse(data: dict, directory: Path) -> Scene:
     check_keys(data, "", ("model", *TABLES, "kinematics", "parameters", "regions"))
     constants = parse_parameters(data.get("parameters", {}))
     tables = {name: _table(data, name) for name in TABLES}
-    if "mesh" in tables["tissue"]:
-        tables["tissue"] = tables["tissue"] | {
-            "mesh": _mesh_path(tables["tissue"]["mesh"], directory)
-        }
+    tissue_table = cells_table(tables["tissue"], tables["micro"], directory)  # a file: absolute
+    if "mesh" in tissue_table:
+        tissue_table = tissue_table | {"mesh": _mesh_path(tissue_table["mesh"], directory)}
+    tables["tissue"] = tissue_table
     t = _with_preset(tables)
     tissue = Tissue(**t["tissue"])
     f = {
@@ -458,7 +458,7 @@ def _parse(data: dict, directory: Path) -> Scene:
         loads=dict(t["loads"]),
         output=Output(**output),
         accuracy=Accuracy(**t["accuracy"]),
-        micro_nx=t["micro"].get("nx", 16),
+        micro_nx=t["micro"].get("nx", getattr(tissue.cells, "nx", 16)),
         micro_resolution=t["micro"].get("resolution", 2),
         solver=Solver(**t["solver"]),
         numerics=Numerics(**t["numerics"]),

@@ -10,7 +10,7 @@ from plantgrowth.base.errors import InputError, SceneError, check_number
 from plantgrowth.scene.limits import EDGES
 
 TABLES = {
-    "tissue": ("width", "height", "h", "H", "outline", "mesh"),
+    "tissue": ("width", "height", "h", "H", "outline", "mesh", "cells", "pixel_size"),
     "cell": ("l1", "l2", "theta", "w"),
     "material": ("E", "nu"),
     "pressure": ("P1",),

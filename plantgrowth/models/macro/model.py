@@ -17,7 +17,8 @@ Water fluxes (``hydraulics``, docs/model.md "Water fluxes"): the step solves u a
 (:mod:`plantgrowth.models.macro.water`; finite kinematics: :mod:`~.water_finite`, by Newton)
 over the time step that ended with the previous step (the first step: the equilibrium at
 P = Pi + psi_0), and the growth law reads the solved P; the water held is a state variable like
-Fg.
+Fg. The adaptive integrator's sub-steps each advance it by their own dt (:meth:`MacroModel.substep`,
+a rejected one leaves it: :meth:`MacroModel.keep`).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from plantgrowth.base.blocks import Block, CanonicalBlocks, root_blocks
-from plantgrowth.base.errors import InputError, RunError
+from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import dof_state, restore_dofs
 from plantgrowth.base.tensors import VOIGT_NAMES, VOIGT_POSITIONS, det2
 from plantgrowth.meshes.honeycomb import lattice_area
@@ -126,10 +127,6 @@ class MacroModel:
     ):  # fmt: skip
         self.scene = scene
         self.comm = comm
-        if hydraulics is not None and scene.time.integrator == "adaptive":
-            # its sub-steps re-solve the step at other growth states; the water's state
-            # advances once per step
-            raise InputError("water fluxes: time.integrator must be 'euler' or 'exp'")
         self.problem = problem = MacroProblem(scene, mesh, boundary, water=hydraulics is not None)
         self.water = None
         if hydraulics is not None:
@@ -140,7 +137,8 @@ class MacroModel:
                 self.water, scene.hydraulics, scene.regions, scene.output.fields
             )
         self._water_dt: float | None = None  # the step the next solve advances the water by
-        self._time = 0.0  # the time the next solve reaches (the supplies' potentials)
+        self._time = 0.0  # the time the step of the next solve ends at (the supplies' potentials)
+        self._remaining = 0.0  # the next solve ends this long before _time (a sub-step)
         self.mesh = problem.mesh
         width, height = problem.bounding_box
         # the coarse nodes the fine cells see (the others weigh no fine cell)
@@ -261,10 +259,29 @@ class MacroModel:
         """The fibre director's feedback over dt from the step just solved (its cue at the
         step's start, docs/fibres.md); with water, dt is also the step the next solve advances
         the water by."""
-        self._water_dt = dt
+        self._water_dt, self._remaining = dt, 0.0
         self._time += dt
+        if self.water_out is not None:
+            self.water_out.ledger.close()
         if self._cue is not None:
             self.director.turn(self._cue, dt)
+
+    def substep(self, dt: float, remaining: float) -> None:
+        """The next solve advances the water (if any) by dt, ``remaining`` before the step's
+        end, from the water kept last (the adaptive integrator's sub-steps)."""
+        if self.water is not None:
+            self._water_dt, self._remaining = dt, remaining
+            self.water.mark()
+
+    def keep(self, kept: bool) -> None:
+        """Keep the last solve's water (a kept sub-step), or go back to the water before it (a
+        rejected one)."""
+        if self.water is None:
+            return
+        if not kept:
+            self.water.revert()
+        elif self.water_out is not None:
+            self.water_out.ledger.keep()
 
     def cell_tensors(self, Fg: np.ndarray) -> NodeTensors:
         """The homogenized tensors of every fine cell of this rank (ghosts too) at the cells'
@@ -388,9 +405,9 @@ class MacroModel:
         if self._water_dt is None:
             report = self.water.start()
         else:
-            report = self.water.step(self._water_dt, self._time)
+            report = self.water.step(self._water_dt, self._time - self._remaining)
         if self.water_out is not None:
-            self.water_out.update(self._water_dt, self._time)
+            self.water_out.update(self._water_dt, self._time - self._remaining)
         return report, self.problem.P1_cells  # set by the water solve
 
     def _ellipticity(self, grad_u: np.ndarray, Fg: np.ndarray) -> stability.Ellipticity:

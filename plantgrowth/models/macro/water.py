@@ -327,6 +327,15 @@ class MacroWater:
         self.m.interpolate(self._m_expr)
         self.problem.P1_cells = self.cell_pressure()
 
+    def mark(self) -> None:
+        """Remember the water's state, m and P (the stabilisation's P^n), for :meth:`revert`."""
+        self._marked = (self.m.x.array.copy(), self.P.x.array.copy())
+
+    def revert(self) -> None:
+        """Back to the state :meth:`mark` remembered (a rejected sub-step of the adaptive
+        integrator leaves the water as it was)."""
+        self.m.x.array[:], self.P.x.array[:] = self._marked
+
     def _cell_dofs(self, f: fem.Function, n: int) -> tuple[np.ndarray, np.ndarray]:
         """(n, 3) the dofs of f (DG1 or P1) on the first n fine cells and (n, 12) their keys:
         the cell's midpoint and the dof's point, three times."""

@@ -5,7 +5,8 @@
 Per step: turgor mean ``int P dx / int dx`` (reference area), min and max over the nodes; the
 water held ``int m dx``; the balance error ``dt sum_s inflow_s - (water - water_before)``; each
 supply's inflow ``int L_s |cof(Fg) N| (psi_s - psi) ds`` (an edge) or ``int Jg L_r (psi_r -
-psi) dx`` over the region's fine cells (a region), all at the step's solved state.
+psi) dx`` over the region's fine cells (a region), all at the step's solved state. A step taken
+in sub-steps (the adaptive integrator) sums its kept sub-steps' (:class:`WaterLedger`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from mpi4py import MPI
 
 from plantgrowth.forms.hydraulics import darcy_flux, region_supply_form
 from plantgrowth.models.macro.water import MacroWater
-from plantgrowth.models.water_row import water_row
+from plantgrowth.models.water_row import WaterLedger, water_row
 from plantgrowth.scene.hydraulics import Hydraulics
 from plantgrowth.scene.regions import Region
 
@@ -60,7 +61,7 @@ class MacroWaterOutputs:
             pr.set_cell_values(L_r, s.conductance * regions[s.name].inside(midpoints))
             form = region_supply_form(psi_r - (water.P - water.Pi), 1.0, pr.Fg, L_r, ufl.dx)
             self._regions[s.label] = (psi_r, fem.form(form))
-        self._held: float | None = None  # the water held after the previous step
+        self.ledger = WaterLedger()  # the step's water in, over its kept sub-steps
         self.row: dict[str, float] = {}
 
     def update(self, dt: float | None, t: float) -> None:
@@ -73,10 +74,7 @@ class MacroWaterOutputs:
         inflows = {s.label: self._inflow(s.kind, s.name, s.label, s.potential(t))
                    for s in self.supplies}  # fmt: skip
         held = water.water_content()
-        error = 0.0
-        if dt is not None and self._held is not None:
-            error = dt * sum(inflows.values()) - (held - self._held)
-        self._held = held
+        error, inflows, _ = self.ledger.record(dt, held, inflows)
         owned = water.P.x.array[: water.Q.dofmap.index_map.size_local]
         turgor = (
             comm.allreduce(fem.assemble_scalar(self._turgor), op=MPI.SUM) / self._area,
@@ -87,7 +85,7 @@ class MacroWaterOutputs:
 
     def restored(self) -> None:
         """Collective, after the water's state was restored: the water held it starts from."""
-        self._held = self.water.water_content()
+        self.ledger.close(self.water.water_content())
 
     def _inflow(self, kind: str, name: str, label: str, potential: float) -> float:
         if kind == "edge":

@@ -229,13 +229,8 @@ class MicroModel:
 
     def _sum_rows(self, rows: np.ndarray) -> np.ndarray:
         """Collective: (n_cells, bs) per-owned-mesh-cell rows summed per biological cell."""
-        sums = np.stack(
-            [
-                np.bincount(self.cell_id, rows[:, k], self.layout.n_cells)
-                for k in range(rows.shape[1])
-            ],
-            axis=1,
-        )
+        n = self.layout.n_cells
+        sums = np.stack([np.bincount(self.cell_id, r, n) for r in rows.T], axis=1)
         return self.comm.allreduce(sums, op=MPI.SUM)
 
     def cell_means(self, u: fem.Function) -> np.ndarray:
@@ -370,11 +365,8 @@ class MicroModel:
         strain law)."""
         tau = ufl.TestFunction(self.Fg.function_space)
         dx = ufl.dx(domain=self.mesh)
-        return fem.form(
-            micro_forms.wall_stress_average_form(
-                self.u, tau, self.Fg, self._E, self._nu, dx, self._fibres
-            )
-        )
+        stress = micro_forms.wall_stress_average_form
+        return fem.form(stress(self.u, tau, self.Fg, self._E, self._nu, dx, self._fibres))
 
     def _stress_means(self) -> np.ndarray:
         """(n_cells, 4) wall stress averaged over each cell's own walls."""
@@ -397,9 +389,7 @@ class MicroModel:
     def _cell_mean_strains(self) -> np.ndarray:
         """(n_cells, 2, 2) elastic strain averaged over each cell's own walls: the strain the
         strain law uses (pointwise values are singular at the walls' re-entrant corners)."""
-        integrals = fem.petsc.assemble_vector(self._wall_strain_form)
-        T0 = self.Fg.function_space
-        sums = self._per_cell(integrals.array.reshape(-1, 4), T0)
+        sums = self._sum_rows(self._tensor_rows(self._wall_strain_form))
         return (sums / self.wall_area[:, None]).reshape(-1, 2, 2)
 
     def check_growth(self, Fg: np.ndarray) -> None:
@@ -426,11 +416,8 @@ class MicroModel:
         another growth law (compiled on first use)."""
         tau = ufl.TestFunction(self.Fg.function_space)
         dx = ufl.dx(domain=self.mesh)
-        return fem.form(
-            self.forms.wall_stress_average_form(
-                self.u, tau, self.Fg, self._E, self._nu, dx, self._fibres
-            )
-        )
+        stress = self.forms.wall_stress_average_form
+        return fem.form(stress(self.u, tau, self.Fg, self._E, self._nu, dx, self._fibres))
 
     def end_step(self, dt: float) -> None:
         """The fibre director's feedback over dt from the step just solved (its cue at the
@@ -439,6 +426,17 @@ class MicroModel:
             self.director.turn(self._cue, dt)
         if self.turgor is not None:
             self.turgor.commit(dt)
+
+    def substep(self, dt: float, remaining: float) -> None:
+        """The next solve advances the water (if any) by dt, ``remaining`` before the step's
+        end, from the water kept last (the adaptive integrator's sub-steps)."""
+        if self.turgor is not None:
+            self.turgor.substep(dt, remaining)
+
+    def keep(self, kept: bool) -> None:
+        """Keep the last solve's water (a kept sub-step), or not (a rejected one)."""
+        if self.turgor is not None and kept:
+            self.turgor.keep()
 
     def state(self, Fg: np.ndarray, G: np.ndarray) -> dict[str, Block]:
         """Fg and G per biological cell (replicated on all ranks; rank 0 saves them); with

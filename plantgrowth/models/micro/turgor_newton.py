@@ -97,7 +97,7 @@ class TurgorNewton(WaterSteps):
         self._predict(P)
         tol_w = WATER_RTOL * np.abs(self.held).max()
         H, weights = water.conductance(Fg)
-        supplied = water.supply_terms(weights, self.t)
+        supplied = water.supply_terms(weights, self.reach)
         history, worst = [], 0.0
         for k in range(NEWTON_MAX_IT + 1):
             r_u = newton.residual_norm()  # newton.b holds R_u

@@ -16,7 +16,7 @@ solves K u = f + B P.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from dolfinx import fem
@@ -28,6 +28,7 @@ from plantgrowth.models.linear import SolveReport, relative_residual
 from plantgrowth.models.micro.bordered import BorderedSolve
 from plantgrowth.models.micro.cell_columns import CellColumns
 from plantgrowth.models.micro.water import CellWater, WaterState, lumen_offset
+from plantgrowth.models.water_row import WaterLedger
 
 
 @dataclass(frozen=True)
@@ -55,32 +56,56 @@ class ElasticParts:
 
 class WaterSteps:
     """The water held from step to step: :meth:`settle` records a solved step, :meth:`commit`
-    makes its water the next step's W^n, :meth:`restore` continues a saved run."""
+    makes its water the next step's W^n, :meth:`restore` continues a saved run. A step taken in
+    sub-steps (the adaptive integrator): :meth:`substep` sets the next solve's dt and time,
+    :meth:`keep` makes a kept sub-step's water the next solve's W^n (a rejected one is left)."""
 
     def __init__(self, water: CellWater, dt: float) -> None:
-        self.water, self.dt = water, dt
+        self.water, self.dt = water, dt  # dt: the step the next solve advances the water by
         self.held: np.ndarray | None = None  # the water W^n of the last committed step
         self.t = 0.0  # the time of the next step to solve
+        self.remaining = 0.0  # the next solve ends this long before t (a sub-step)
         self.last: WaterState | None = None
         self.P: np.ndarray | None = None  # the last step's turgor
         self.balance_error = 0.0
+        self.ledger = WaterLedger()  # the step's sub-steps' water in
+
+    @property
+    def reach(self) -> float:
+        """The time the next solve ends at."""
+        return self.t - self.remaining
 
     def settle(self, P: np.ndarray, held: np.ndarray, Fg: np.ndarray) -> None:
         """Record a solved step: turgor P, water held; what came in over the step minus the
-        change of the water held (0 at the initial state)."""
-        self.P, self.last = P, self.water.state(P, held, Fg, self.t)
-        if self.held is not None:
-            gained = self.dt * sum(self.last.supplied.values())
-            self.balance_error = gained - (held.sum() - self.held.sum())
+        change of the water held (0 at the initial state); the inflows over the step's kept
+        sub-steps and this solve."""
+        self.P, state = P, self.water.state(P, held, Fg, self.reach)
+        dt = None if self.held is None else self.dt
+        self.balance_error, supplied, inflow = self.ledger.record(
+            dt, held.sum(), state.supplied, state.inflow
+        )
+        self.last = replace(state, inflow=inflow, supplied=supplied)
+
+    def substep(self, dt: float, remaining: float) -> None:
+        """The next solve advances the water by dt, to ``remaining`` before the step's end."""
+        self.dt, self.remaining = dt, remaining
+
+    def keep(self) -> None:
+        """The last solve's water becomes the next solve's W^n (a kept sub-step)."""
+        self.held = self.last.water
+        self.ledger.keep()
 
     def commit(self, dt: float) -> None:
         """The step's water becomes the next step's W^n."""
         self.held = self.last.water
         self.t += dt
+        self.dt, self.remaining = dt, 0.0
+        self.ledger.close()
 
     def restore(self, held: np.ndarray, t: float, P: np.ndarray) -> None:
         """Continue from saved water at the time of the next step (P: the last turgor)."""
         self.held, self.t, self.P = held, t, P
+        self.ledger.close(held.sum())
 
 
 class TurgorSolve(WaterSteps):
@@ -119,7 +144,7 @@ class TurgorSolve(WaterSteps):
             P = water.Pi + water.hydraulics.initial_potential
             report = self._given(B, P)
         else:
-            H, h = water.step_terms(self.held, V0, Fg, self.t, self.dt)
+            H, h = water.step_terms(self.held, V0, Fg, self.reach, self.dt)
             P, report = self.bordered.solve(-B, -B, -self.dt * H, parts.b, -h, parts.u.vector)
         parts.u.x.scatter_forward()
         self.settle(P, V0 + self._lumen_terms(B), Fg)

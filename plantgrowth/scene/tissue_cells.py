@@ -1,0 +1,43 @@
+"""A scene's cells (issue 34): ``[tissue] cells`` generated or imported, as a checked
+:class:`~plantgrowth.meshes.cell_polygons.CellPolygons` in the scene's length unit."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import TYPE_CHECKING
+
+from plantgrowth.base.errors import SceneError
+from plantgrowth.meshes.cell_polygons import CellPolygons
+from plantgrowth.meshes.geometry_error import GeometryError
+from plantgrowth.meshes.honeycomb import HoneycombCell
+from plantgrowth.meshes.voronoi_tissue import voronoi_tissue
+from plantgrowth.scene.cells_spec import GeneratedCells, imported_cells
+
+if TYPE_CHECKING:
+    from plantgrowth.scene.schema import Scene
+
+
+@lru_cache(maxsize=8)
+def _generated(spec: GeneratedCells, cell: HoneycombCell) -> CellPolygons:
+    return voronoi_tissue(cell, spec.voronoi, spec.seed, spec.regularity)
+
+
+def cell_polygons(scene: Scene) -> CellPolygons | None:
+    """The scene's cells (None without ``tissue.cells``): a generated tissue of the scene's
+    (constant) cell geometry, or an imported one; a SceneError names a bad geometry or file.
+    The same cells give the same (cached) object: do not modify it."""
+    spec = scene.tissue.cells
+    if spec is None:
+        return None
+    if not isinstance(spec, GeneratedCells):
+        return imported_cells(spec)
+    for key in ("l1", "l2", "theta", "w"):
+        if not getattr(scene.cell, key).is_constant:
+            raise SceneError(
+                f"cell.{key} is a field, but tissue.cells.voronoi generates its tissue from "
+                "one honeycomb cell: give constant cell.l1, cell.l2, cell.theta and cell.w"
+            )
+    try:
+        return _generated(spec, scene.cell.at(0.0, 0.0))
+    except GeometryError as e:
+        raise SceneError(str(e)) from None
