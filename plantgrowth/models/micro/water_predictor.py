@@ -12,7 +12,8 @@ moves P along the exact tangent. After the step converges at P^{n+1}, the offset
 that turgor, ``u_lin(P^{n+1}) = u_lin(P^n) + K^{-1} B (P^{n+1} - P^n)`` (the factorization of K
 reused). Measured (Nx = 8, the benchmark's scene): 4, 4, 4 Newton iterations a step against
 7, 5, 5 from (u^n, P^n); the guess (u_lin(P^{n+1}) + e^n, P^{n+1}) with the solved turgor
-inverts elements, e being a turgor's.
+inverts elements, e being a turgor's. Sub-steps of the adaptive integrator predict from the last
+solve, kept or rejected, as the walls' Newton does: its u, P and e belong together.
 """
 
 from __future__ import annotations
