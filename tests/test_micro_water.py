@@ -5,7 +5,9 @@ reproduces serial, each with linear and finite kinematics; with linear kinematic
 supply's turgor falls away from it and a fast-growing patch draws water from its neighbours;
 a cell holds more water at a higher turgor (both kinematics), a uniformly stretched tissue's
 walls conduct through their grown lengths (the network alone, no run), and the finite lumen
-constraint is the area the deformed membrane encloses (computed from the membrane's nodes).
+constraint is the area the deformed membrane encloses (computed from the membrane's nodes); a
+finite water step's guess leaves Newton at most 4 iterations while the turgor falls fast, and
+a homogeneous tissue fed in every cell grows by the Lockhart-Ortega forms.
 
 Runs go through ``plantgrowth run`` in process (under mpirun the walls mesh is distributed), on
 small tissues (Nx = 4 or 8, one P2 element across a wall).
@@ -172,6 +174,61 @@ def test_the_water_balance_closes_to_round_off(kinematics, mpi_tmp_path):
     strand = last["x1_ref"] > 5  # the region's cells (by centre), weighted by reference area
     expected = np.average(last["P"][strand], weights=last["area_ref"][strand])
     assert rows[4]["strand.turgor_mean"] == pytest.approx(expected, rel=1e-12)
+
+
+def test_finite_water_steps_start_newton_in_its_quadratic_range(mpi_tmp_path):
+    """The finite step's guess (models/micro/water_predictor.py: the walls' predictor at the
+    last turgor, its offset renewed at each solved turgor) while the turgor falls by a third a
+    step, water-limited: walls in equilibrium at the last turgor, from which Newton's first
+    iteration moves P along the exact tangent to ~2e-2 relative, then converges quadratically
+    (measured at Nx = 8: P's errors 2e-2, 1e-3, 2e-6, then within WATER_RTOL): at most 4
+    iterations a step. From the last step's (u, P) it took 6, 5 here (7, 5, 5 at Nx = 8); with
+    the offset left at the initial turgor's, 4, 5, 5, 7 at Nx = 8. Not marked mpi: the
+    predictor on 2 ranks is what test_mpirun_reproduces_the_serial_water_run[finite] and the
+    resumed run's test run."""
+    supply = every_edge(1.0, -0.0002)
+    data = scene_data(
+        t_max=2.0, kinematics="finite", hydraulics=hydraulics(0.0012, 1.0, -0.0002, supply)
+    )
+    rows = summary(run(mpi_tmp_path, "falling", data))
+    turgor = [r["turgor_mean"] for r in rows]
+    assert turgor[1] < 0.7 * turgor[0] and turgor[2] < 0.7 * turgor[1]  # the fall it follows
+    iterations = [r["newton_iterations"] for r in rows[1:]]
+    assert max(iterations) <= 4, iterations
+
+
+@pytest.mark.parametrize("kinematics", KINEMATICS)
+def test_lockhart_ortega(kinematics, mpi_tmp_path):
+    """A small homogeneous tissue, every cell supplied through a region covering it (L_r = 50),
+    stress law with eta = 1, tau = 0 (docs/model.md, "Water fluxes",
+    consequence 3): once the transient has passed, turgor and the relative area growth rate are
+    ``P = L' (Pi + psi_s) / (L' + phi_L)`` and ``g = phi_L P``, with ``L' = L_r A_g / W`` (A_g
+    the cells' grown hexagon areas, W the water the lumens hold) and phi_L the tissue's g / P
+    at t = 0 (15.84 linear, 16.02 finite; the reference cell's closed form 2 (1 - phi_w) /
+    phi_w is 15.8). Measured (dt = 1): linear kinematics +6.3e-3 in both at t = 10 (the
+    transient's rest: P still falls, and the water held grows faster than g W by its storage;
+    2.3e-2 at t = 6, 5.0e-3 at t = 10 with dt = 0.5), finite +1.9e-3 and -5.7e-5 at t = 6 (its
+    stiffer lumens: a faster transient; 1.8e-3 and -1.9e-4 at t = 10), against the 1% the docs
+    state."""
+    dt, L_r, Pi = 1.0, 50.0, 0.001
+    data = scene_data(
+        t_max={"linear": 10.0, "finite": 6.0}[kinematics],
+        kinematics=kinematics,
+        hydraulics=hydraulics(Pi, 1.0, 0.0, [{"region": "all", "conductance": L_r}]),
+        regions={"all": {"expr": "x1 > -1"}},
+        growth={"eta": 1.0, "tau": 0.0},
+        time={"dt": dt},
+    )
+    outdir = run(mpi_tmp_path, "lockhart", data)
+    rows = summary(outdir)
+    phi_L = rows[0]["growth_rate_area"] / rows[0]["turgor_mean"]
+    last = len(rows) - 1
+    trG = sum(cells(outdir, k)["trG"] for k in range(last))  # the exp integrator's det Fg
+    A_g = cells(outdir, last)["area_ref"] @ np.exp(dt * trG)
+    L_prime = L_r * A_g / rows[last]["water"]
+    P = L_prime * Pi / (L_prime + phi_L)
+    assert rows[last]["turgor_mean"] == pytest.approx(P, rel=1e-2)
+    assert rows[last]["growth_rate_area"] == pytest.approx(phi_L * P, rel=1e-2)
 
 
 @pytest.mark.mpi

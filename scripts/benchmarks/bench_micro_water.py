@@ -4,14 +4,15 @@ most 2x the same scene with turgor given): the same micro scene (stress law, pre
 potential psi_0, every edge supplied at psi_0), side by side on one machine, at each Nx and
 kinematics.
 
-Runs ``plantgrowth run`` as whole processes, given then water, per case; records summary.csv's
-per-step seconds, seconds_solve and Newton iterations (step 0, the initial equilibrium, apart: it
-solves the given turgor either way), the medians of the seconds over the later steps and the
-ratio water / given of those medians (finite kinematics: also per Newton iteration), with the
-machine and the load average. Writes ``benchmarks/results/micro_water_cost.json``.
+Runs ``plantgrowth run`` as whole processes, given then water, ``repeats`` times interleaved per
+case; records summary.csv's per-step seconds, seconds_solve and Newton iterations (step 0, the
+initial equilibrium, apart: it solves the given turgor either way), the medians of the seconds
+over the later steps of all repeats and the ratio water / given of those medians (finite
+kinematics: also per Newton iteration), with the machine and the load average at the start and
+the end. Writes ``benchmarks/results/micro_water_cost.json``.
 
     python scripts/benchmarks/bench_micro_water.py [--nx 8 16] [--steps 3]
-        [--kinematics linear finite]
+        [--kinematics linear finite] [--repeats 3]
 """
 
 from __future__ import annotations
@@ -66,21 +67,34 @@ def step_rows(data: dict) -> dict[str, list[float]] | dict[str, int | str]:
     return {k: [float(row[k]) for row in rows] for k in keys}
 
 
-def case(nx: int, steps: int, kinematics: str) -> dict:
-    """Given and water runs of one case, their per-step columns and the ratio of the medians
-    of the seconds over steps 1.. (the water steps); with Newton, also the ratio of the medians
-    of the seconds per Newton iteration."""
+def case(nx: int, steps: int, kinematics: str, repeats: int) -> dict:
+    """Given and water runs of one case, interleaved (given, water, given, ...) ``repeats``
+    times: each run's per-step columns, the medians over the repeats' steps 1.. (the water
+    steps) of the seconds and the ratio water / given of those medians, and each repeat's
+    ratio; with Newton, also the ratio of the medians of the seconds per Newton iteration and
+    the Newton iterations of steps 1.. of every run."""
+    runs: dict[str, list] = {"given": [], "water": []}
+    for _ in range(repeats):
+        for name, water in (("given", False), ("water", True)):
+            rows = step_rows(scene(nx, steps, kinematics, water))
+            print(nx, kinematics, name, rows, flush=True)
+            if "failed" in rows:
+                return {name: rows}
+            runs[name].append(rows)
     out = {}
-    for name, water in (("given", False), ("water", True)):
-        rows = step_rows(scene(nx, steps, kinematics, water))
-        print(nx, kinematics, name, rows, flush=True)
-        if "failed" in rows:
-            return out | {name: rows}
-        out[name] = rows | {"median_seconds": statistics.median(rows["seconds"][1:])}
-        if "newton_iterations" in rows:
-            per = [t / k for t, k in zip(rows["seconds"], rows["newton_iterations"], strict=True)]
-            out[name]["median_seconds_per_iteration"] = statistics.median(per[1:])
+    for name, rows in runs.items():
+        later = [t for r in rows for t in r["seconds"][1:]]
+        out[name] = {"runs": rows, "median_seconds": statistics.median(later)}
+        if "newton_iterations" in rows[0]:
+            per = [t / k for r in rows for t, k in
+                   zip(r["seconds"][1:], r["newton_iterations"][1:], strict=True)]  # fmt: skip
+            out[name]["median_seconds_per_iteration"] = statistics.median(per)
+            out[name]["newton_iterations"] = [r["newton_iterations"][1:] for r in rows]
     out["ratio"] = out["water"]["median_seconds"] / out["given"]["median_seconds"]
+    out["ratios"] = [
+        statistics.median(w["seconds"][1:]) / statistics.median(g["seconds"][1:])
+        for g, w in zip(runs["given"], runs["water"], strict=True)
+    ]  # fmt: skip
     if "median_seconds_per_iteration" in out["water"]:
         out["ratio_per_iteration"] = (out["water"]["median_seconds_per_iteration"]
                                       / out["given"]["median_seconds_per_iteration"])  # fmt: skip
@@ -92,14 +106,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--nx", type=int, nargs="+", default=[8, 16])
     parser.add_argument("--steps", type=int, default=3)
     parser.add_argument("--kinematics", nargs="+", default=["linear", "finite"])
+    parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args(argv)
-    cases = {}
+    cases, load = {}, os.getloadavg()  # at the start and (below) at the end
     for kinematics in args.kinematics:
         for nx in args.nx:
-            cases[f"{kinematics}_nx{nx}"] = case(nx, args.steps, kinematics)
+            cases[f"{kinematics}_nx{nx}"] = case(nx, args.steps, kinematics, args.repeats)
             print(kinematics, nx, "ratio", cases[f"{kinematics}_nx{nx}"].get("ratio"))
-    result = {"machine": machine_description(), "load_average": os.getloadavg(),
-              "steps": args.steps, "cases": cases}  # fmt: skip
+    result = {"machine": machine_description(), "load_average": [load, os.getloadavg()],
+              "steps": args.steps, "repeats": args.repeats, "cases": cases}  # fmt: skip
     OUT.write_text(json.dumps(result, indent=1) + "\n")
     return 0
 

@@ -17,6 +17,7 @@ from plantgrowth.models.micro.cell_columns import CellColumns
 from plantgrowth.models.micro.turgor_newton import TurgorNewton
 from plantgrowth.models.micro.turgor_solve import ElasticParts, TurgorSolve
 from plantgrowth.models.micro.water import CellWater
+from plantgrowth.models.micro.water_predictor import WaterPredictor
 from plantgrowth.models.newton import NewtonSolver
 from plantgrowth.models.water_row import water_row
 from plantgrowth.scene import Scene
@@ -52,18 +53,20 @@ def turgor_solve(
     indicator = fem.Function(fem.FunctionSpace(mesh, ("DG", 0)))  # one cell's, per cell
     support = fem.form(ufl.inner(indicator * ufl.as_vector((1.0, 1.0)), test) * membrane)
     columns = CellColumns(support, indicator, parts.set_cells, water.n, parts.bcs)
-    if newton is not None:
-        u = parts.u
-        area = finite_forms.lumen_area(u, indicator, normal, membrane)
-        forms = [finite_forms.follower_pressure(u, test, indicator, normal, membrane),
-                 ufl.derivative(area, u, test), area]  # fmt: skip
-        return TurgorNewton(
-            newton[0], parts, newton[1], *(fem.form(f) for f in forms), indicator, columns,
-            water, scene.time.dt,
-        )  # fmt: skip
     column = fem.form(
         micro_forms.membrane_pressure_rhs(test, parts.Fg, indicator, normal, membrane)
     )
+    if newton is not None:
+        u = parts.u
+        area = finite_forms.lumen_area(u, indicator, normal, membrane)
+        share = ufl.TestFunction(indicator.function_space)  # each mesh cell's share of V_c
+        forms = [finite_forms.follower_pressure(u, test, indicator, normal, membrane),
+                 ufl.derivative(area, u, test),
+                 finite_forms.lumen_area(u, share, normal, membrane)]  # fmt: skip
+        return TurgorNewton(
+            newton[0], parts, newton[1], *(fem.form(f) for f in forms), indicator, columns,
+            water, scene.time.dt, WaterPredictor(parts, column, columns, newton[0].offset),
+        )  # fmt: skip
     return TurgorSolve(parts, column, columns, water, lumen_areas(tissue), scene.time.dt)
 
 

@@ -12,8 +12,8 @@ with V_c the exact area the deformed membrane of cell c encloses (forms/finite.p
 
 (J = dR_u/du, F_c = dR_u/dP_c, D_c = dV_c/du; J is not symmetric: follower loads) by one LU
 factorization of the bordered matrix (plantgrowth/models/micro/bordered.py).
-Full Newton steps from the previous step's state, which growth moves by a strain of order
-dt G; an inverted element or no convergence in NEWTON_MAX_IT iterations stops the run.
+Full Newton steps from the walls' predictor at the last step's turgor (water_predictor.py);
+an inverted element or no convergence in NEWTON_MAX_IT iterations stops the run.
 """
 
 from __future__ import annotations
@@ -21,13 +21,16 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.models import diagnostics
+from plantgrowth.models.linear import SolveReport
 from plantgrowth.models.micro.bordered import BorderedSolve
 from plantgrowth.models.micro.cell_columns import CellColumns
 from plantgrowth.models.micro.turgor_solve import ElasticParts, WaterSteps
 from plantgrowth.models.micro.water import CellWater
+from plantgrowth.models.micro.water_predictor import WaterPredictor
 from plantgrowth.models.newton import NEWTON_MAX_IT, NEWTON_RTOL, NewtonReport, NewtonSolver
 
 WATER_RTOL = 1e-12
@@ -44,30 +47,36 @@ class TurgorNewton(WaterSteps):
         parts: the walls' problem (u, Dirichlet conditions, per-cell setter, communicator).
         P: the turgor per cell (DG0) the residual reads.
         load_column, area_column: one cell's ``F_c`` and ``D_c`` (cell given by ``indicator``);
-        area: one cell's enclosed area V_c (a scalar form, same indicator).
+        areas: each mesh cell's share of its cell's enclosed area V_c (a form in a DG0 test
+            function of ``indicator``'s space).
         columns: splits a form in ``indicator`` into one column per cell.
-        water: the water network; dt: the step.
+        water: the water network; dt: the step; predictor: the steps' initial guess.
     """
 
     def __init__(
         self, newton: NewtonSolver, parts: ElasticParts, P: fem.Function, load_column: fem.Form,
-        area_column: fem.Form, area: fem.Form, indicator: fem.Function, columns: CellColumns,
-        water: CellWater, dt: float,
+        area_column: fem.Form, areas: fem.Form, indicator: fem.Function, columns: CellColumns,
+        water: CellWater, dt: float, predictor: WaterPredictor,
     ) -> None:  # fmt: skip
         super().__init__(water, dt)
         self.newton, self.parts, self.P_function = newton, parts, P
-        self.load_column, self.area_column, self.area = load_column, area_column, area
-        self.indicator, self.columns = indicator, columns
+        self.load_column, self.area_column, self.areas = load_column, area_column, areas
+        self.indicator, self.columns, self.predictor = indicator, columns, predictor
         self.bordered = BorderedSolve(newton.A, water.n, parts.comm, "plantgrowth_micro_water_")
+        parts.set_cells(indicator, np.arange(water.n))  # each DG0 dof's cell
+        self.area_vector = fem.petsc.create_vector(areas)
+        self.dof_cells = indicator.x.array[: self.area_vector.getLocalSize()].astype(np.intp)
 
     def _areas(self) -> np.ndarray:
-        """(n,) V_c(u), the areas the deformed membranes enclose (collective)."""
-        n, comm = self.water.n, self.parts.comm
-        local = np.empty(n)
-        for c in range(n):
-            self.parts.set_cells(self.indicator, np.eye(1, n, c)[0])
-            local[c] = fem.assemble_scalar(self.area)
-        return comm.allreduce(local, op=MPI.SUM)
+        """(n,) V_c(u), the areas the deformed membranes enclose: the membranes' integrals per
+        mesh cell (one assembly), summed per biological cell (collective)."""
+        vector = self.area_vector
+        with vector.localForm() as local:
+            local.set(0.0)
+        fem.petsc.assemble_vector(vector, self.areas)
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        local = np.bincount(self.dof_cells, vector.array, self.water.n)
+        return self.parts.comm.allreduce(local, op=MPI.SUM)
 
     def _set_turgor(self, P: np.ndarray) -> None:
         self.parts.set_cells(self.P_function, P)
@@ -85,6 +94,7 @@ class TurgorNewton(WaterSteps):
         P = self.P.copy()
         self._set_turgor(P)
         tol_u = newton.tolerance()
+        self._predict(P)
         tol_w = WATER_RTOL * np.abs(self.held).max()
         H, weights = water.conductance(Fg)
         supplied = water.supply_terms(weights, self.reach)
@@ -96,6 +106,7 @@ class TurgorNewton(WaterSteps):
             r_w = float(np.abs(R_w).max())
             history.append(r_u)
             if r_u <= tol_u and r_w <= tol_w:
+                self._check(self.predictor.settle(P))
                 self.settle(P, V, Fg)
                 return NewtonReport(1, r_u / tol_u * NEWTON_RTOL, k, tuple(history), worst)
             if k == NEWTON_MAX_IT or not np.isfinite(r_u + r_w):
@@ -108,6 +119,19 @@ class TurgorNewton(WaterSteps):
             f"growth too fast for the water to follow, {diagnostics.RATE_HINT}"
         )
 
+    def _predict(self, P: np.ndarray) -> None:
+        """u from the predictor (plantgrowth/models/micro/water_predictor.py) at the last turgor
+        P, unless it inverts an element: then the last step's u."""
+        previous = self.parts.u.x.array.copy()
+        self._check(self.predictor.predict(P))
+        if self.newton.min_det()[0] <= 0.0:
+            self.parts.u.x.array[:] = previous
+
+    def _check(self, report: SolveReport) -> None:
+        """A failed or inaccurate linear solve stops the run (collectively)."""
+        problems = diagnostics.solve_problems(report.reason, report.residual)
+        diagnostics.stop_if(problems, self.parts.comm)
+
     def _newton_step(self, P: np.ndarray, R_w: np.ndarray, H: np.ndarray) -> float:
         """One Newton update of u and P (in place) from the residuals (``newton.b``: R_u) and
         the conductance matrix H; returns the true relative residual of its linear solve (a failed
@@ -119,7 +143,7 @@ class TurgorNewton(WaterSteps):
         F, D = self.columns(self.load_column), self.columns(self.area_column)
         du = newton.du
         dP, report = self.bordered.solve(F, D, self.dt * H, newton.b, R_w, du)
-        diagnostics.stop_if(diagnostics.solve_problems(report.reason, report.residual), parts.comm)
+        self._check(report)
         parts.u.vector.axpy(-1.0, du)
         parts.u.x.scatter_forward()
         P -= dP
