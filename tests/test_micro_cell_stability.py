@@ -22,6 +22,8 @@ from plantgrowth.scene.micro_tissue import micro_tissue
 
 COMM = MPI.COMM_WORLD
 STUDY = Path(__file__).resolve().parents[1] / "scripts" / "studies" / "micro_stability.py"
+PLANE = 1e-3  # of w: a foot on x2 = 0 (gmsh moved one by 2e-7 = 1.6e-5 w; the next wall
+# above the plane is at least w away)
 LENGTH = 1e-9  # relative: straight sides are meshed exactly, so facet lengths sum to the sides'
 # lengths to round-off (measured 2e-15)
 
@@ -129,3 +131,21 @@ def test_the_spots_are_linear_kinematics_rotations_and_finite_kinematics_is_elli
     assert not finite["stops"] and finite["smallest"] > 0.0
     assert finite["rotation_max"] < linear["rotation_median_nonelliptic"]
     assert finite["max_u"] < linear["max_u"]
+
+
+def test_every_wall_foot_on_the_symmetry_plane_is_held():
+    """Nx = 16, r = 1, seed 3: the rightmost cut cell's outer side is 1e-5 off vertical, so its
+    mirrored void has a mitred corner 4e-7 below x2 = 0, and gmsh's fragment moved that foot's
+    end there: the foot was tagged "outer", not "bottom", and swung free (1.5 rad at 5 % of P1).
+    Every boundary facet whose two ends lie within PLANE of x2 = 0 is a "bottom" facet."""
+    tissue = _tissue(16, 1.0, 3)
+    msh, _, facet_tags = build_walls_mesh(tissue, 1, MPI.COMM_SELF)
+    top = msh.topology
+    top.create_connectivity(1, 2)
+    top.create_connectivity(1, 0)
+    x = _vertex_x(msh)
+    f2v = top.connectivity(1, 0)
+    exterior = dmesh.exterior_facet_indices(top)
+    on_plane = [f for f in exterior if np.all(np.abs(x[f2v.links(f), 1]) < PLANE * tissue.w)]
+    bottom = facet_tags.indices[facet_tags.values == FACET_TAGS["bottom"]]
+    assert on_plane and np.all(np.isin(on_plane, bottom))
