@@ -9,6 +9,9 @@ COMM_WORLD, so under mpirun the models are distributed and every measure reduced
 
 from __future__ import annotations
 
+import csv
+from pathlib import Path
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -18,14 +21,15 @@ from plantgrowth.base.errors import SceneError
 from plantgrowth.base.gather import MeshGather
 from plantgrowth.meshes.cell_outline import cell_of_points, tissue_outline
 from plantgrowth.meshes.cell_polygons import CellPolygons
-from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.meshes.honeycomb import GeometryError, polygon_area
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models.macro.domain import cells_domain, macro_domain
 from plantgrowth.models.macro.model import MacroModel, model_on
+from plantgrowth.runner.scene_run import run_scene
 from plantgrowth.scene import parse_scene
-from plantgrowth.scene.tissue_cells import cell_polygons
-from plantgrowth.studies.compare import compare_one
+from plantgrowth.scene.cells_spec import GeneratedCells
+from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx
+from plantgrowth.studies.compare import compare_one, run_compare
 
 NX = 4
 BASE = {"tissue": {"h": 0.35}, "growth": {"law": "stress"}, "micro": {"nx": NX},
@@ -63,6 +67,11 @@ def run(model, steps: int) -> list[dict[str, float]]:
         rows.append(model.measures(Fg, G))
         Fg = np.array([expm(g) @ f for g, f in zip(G, Fg, strict=True)])
     return rows
+
+
+def read_summary(directory) -> list[dict[str, float]]:
+    with open(directory / "summary.csv", newline="") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
 def assert_same(rows, expected, rtol):
@@ -152,9 +161,10 @@ def test_bad_tissues_of_cells_are_refused():
     apart = CellPolygons.from_loops([honeycomb().polygon(0), honeycomb().polygon(0) + [9.0, 0.0]])
     with pytest.raises(GeometryError, match="tissue.cells: the cells form 2 separate regions"):
         cells_domain(scene(), apart, MPI.COMM_SELF)
-    both = parse_scene({"model": "both"} | BASE | {"tissue": {"cells": {"voronoi": 8}}})
-    with pytest.raises(SceneError, match="tissue.cells: a comparison with the micro model"):
-        macro_domain(both, MPI.COMM_SELF)
+    image = Path(__file__).parents[1] / "scenes" / "real_tissues" / "synthetic_r05.tif"
+    imported = scene(tissue={"cells": str(image), "pixel_size": 0.02}, micro={})
+    with pytest.raises(SceneError, match="--nx 8: tissue.cells = '.*synthetic_r05.tif' is an"):
+        macro_domain(imported, MPI.COMM_SELF, 8)
     with pytest.raises(SceneError, match="cell.w is a field"):
         cells_domain(scene(cell={"w": {"from": 0.05, "to": 0.06}}), honeycomb(), MPI.COMM_SELF)
 
@@ -173,17 +183,50 @@ def test_the_unit_cell_is_the_hexagon_grown_by_the_cells_shape_then_growth():
 
 
 def test_the_comparison_on_a_regular_generated_tissue_is_todays(tmp_path):
-    """compare_one with the micro tissue and macro domain of ``cells = {voronoi = 8}`` (r = 0)
-    gives the errors of today's comparison at Nx = 4."""
-    sc = scene(tissue={"h": 0.35, "cells": {"voronoi": NX * NX // 2}})
-    tissue = CellTissue.from_cells(cell_polygons(sc), sc.cell.at(0.0, 0.0).w * 4.0 / NX)
+    """run_compare on ``cells = {voronoi = 2}`` (r = 0, Nx = 2) at ``--nx 4``: both sides on
+    the tissue regenerated at Nx = 4, today's honeycomb given as cells, so the errors of today's
+    comparison at Nx = 4."""
+    sc = scene(tissue={"h": 0.35, "cells": {"voronoi": 2}}, micro={"nx": 2})
     world = MPI.COMM_SELF
-    cells = compare_one(sc, macro_domain(sc, world), NX, tmp_path / "c", world, 1, 0, tissue)
+    cells = run_compare(sc, [NX], tmp_path / "c", world, 1, first_step_only=True)[0]
     today_scene = parse_scene({"model": "both"} | BASE)
     today = compare_one(
         today_scene, macro_domain(today_scene, world, NX), NX, tmp_path / "t", world, 1, 0
     )
-    for key in ("err_u1", "err_u2", "err_ubar", "err_G", "rate_micro_t0"):
+    for key in ("err_u1", "err_u2", "err_ubar", "err_G", "rate_micro_t0", "rate_macro_t0"):
         # the micro model on the honeycomb given as polygons: equal to its own honeycomb to 1e-8
-        # (tests/test_micro_cells.py's bound; measured here 9e-11)
+        # (tests/test_micro_cells.py's bound; measured here 9e-11); the macro side: LU round-off
         assert cells[key] == pytest.approx(today[key], rel=1e-8), key
+
+
+def test_a_generated_tissue_at_another_nx_keeps_its_seed_and_regularity():
+    sc = scene(tissue={"cells": {"voronoi": 8, "seed": 3, "regularity": 0.5}})
+    at8 = cells_at_nx(sc, 8)
+    assert at8.tissue.cells == GeneratedCells(32, 3, 0.5) and at8.micro_nx == 8
+    fresh = scene(tissue={"cells": {"voronoi": 32, "seed": 3, "regularity": 0.5}}, micro={})
+    assert np.array_equal(cell_polygons(at8).vertices, cell_polygons(fresh).vertices)
+    assert cells_at_nx(scene(), 8) == scene()
+
+
+@pytest.mark.mpi
+def test_both_runs_each_model_on_the_scenes_cells(mpi_tmp_path):
+    """``model = "both"`` on generated cells at r = 0.5: its micro side is the micro run of the
+    same scene (the same code on the same cells: equal up to the LU's round-off, 1e-12 relative
+    on the summaries; measured 0), and its macro side's first step is that of ``model = "macro"`` on
+    the same cells."""
+    cells = {"tissue": {"h": 0.35, "cells": {"voronoi": 8, "seed": 1, "regularity": 0.5}},
+             "time": {"t_max": 1.0}, "micro": {"resolution": 1}}  # fmt: skip
+    world = MPI.COMM_WORLD
+    for model in ("both", "micro"):
+        run_scene(parse_scene({"model": model} | BASE | cells), mpi_tmp_path / model, world, model)
+    mine = read_summary(mpi_tmp_path / "both" / "micro")
+    alone = read_summary(mpi_tmp_path / "micro")
+    assert len(mine) == len(alone) == 2  # t = 0 and t = 1
+    for row, want in zip(mine, alone, strict=True):
+        for key in ("area", "growth_rate_area", "growth_rate_11"):
+            assert row[key] == pytest.approx(want[key], rel=1e-12), key
+    macro = read_summary(mpi_tmp_path / "both" / "macro")[0]
+    alone = run(model_on(macro_domain(parse_scene({"model": "macro"} | BASE | cells), world),
+                         world), 1)[0]  # fmt: skip
+    for key in MEASURES:  # the first step of model = "macro" on the same cells
+        assert macro[key] == pytest.approx(alone[key], rel=LU_ROUND_OFF), key

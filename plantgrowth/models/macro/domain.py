@@ -29,7 +29,7 @@ from plantgrowth.models.macro.boundary import (
 from plantgrowth.models.macro.coarse import coarse_grid_for
 from plantgrowth.models.macro.problem import mesh_bounding_box, rectangle_mesh
 from plantgrowth.scene import Scene
-from plantgrowth.scene.tissue_cells import cell_polygons
+from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx
 
 
 @dataclass(frozen=True)
@@ -62,16 +62,13 @@ def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroDo
     (docs/model.md section 7) and its ``micro.nx`` set to ``nx``: with water fluxes the macro
     model's cells are those cells (``cell_scale = 4 / nx``, docs/model.md "The cells' size"),
     and its edges are those of the cells' outer walls (:func:`outline_boundary`). A scene with
-    ``tissue.cells`` and ``model = "macro"`` runs on those cells (:func:`cells_domain`); with
-    a micro side (``model = "both"``, ``plantgrowth compare``) it is refused until the micro
-    side reads the scene's cells (it would run on the honeycomb of micro.nx)."""
+    ``tissue.cells`` runs on those cells (:func:`cells_domain`), alone or beside the micro
+    model on the same cells; with ``nx``, a generated tissue is regenerated at nx cells per row
+    (:func:`plantgrowth.scene.tissue_cells.cells_at_nx`), as the micro side is."""
+    if nx is not None:
+        scene = cells_at_nx(scene, nx)
     cells = cell_polygons(scene)
     if cells is not None:
-        if nx is not None or scene.model == "both":
-            raise SceneError(
-                'tissue.cells: a comparison with the micro model (model = "both", plantgrowth '
-                'compare) does not read the scene\'s cells yet; run model = "macro" on them'
-            )
         return cells_domain(scene, cells, comm)
     if nx is None and scene.model != "both":
         if scene.tissue.shape is not None:
