@@ -230,3 +230,25 @@ def test_both_runs_each_model_on_the_scenes_cells(mpi_tmp_path):
                          world), 1)[0]  # fmt: skip
     for key in MEASURES:  # the first step of model = "macro" on the same cells
         assert macro[key] == pytest.approx(alone[key], rel=LU_ROUND_OFF), key
+
+
+@pytest.mark.mpi
+def test_the_water_conductivity_is_the_unit_cells_grown_by_the_cells_shape():
+    """With ``[hydraulics]``: cells stretched by M against ``growth.Fg0 = M`` on the honeycomb,
+    the same unit cells in the grown frame, so the same wall conductivity kappa on every fine
+    cell if kappa is the hexagon's grown by ``Fg Fs`` (``kappa(s F) = s kappa(F)`` and the
+    cells' size ``delta = sqrt(det M) 4 / Nx`` make the two equal); kappa of Fg alone, as
+    before, is the regular hexagon's, off by the stretch's anisotropy (1.3 / 0.8). Closed-form
+    sums of a few terms: 1e-12. (The runs themselves differ by 1e-6: the water step's
+    stabilisation scales with the reference mesh's edge lengths, which M does not keep.)"""
+    world, M = MPI.COMM_WORLD, np.diag([1.3, 0.8])
+    water = {"hydraulics": {"osmotic": 2e-4, "conductivity": 50.0}}
+    a = model_on(cells_domain(scene(**water), honeycomb(M), world), world)
+    grown = {"growth": {"law": "stress", "Fg0": M.tolist()}}
+    b = model_on(macro_domain(parse_scene({"model": "both"} | BASE | water | grown), world, NX),
+                 world)  # fmt: skip
+    run(a, 1), run(b, 1)  # the first step sets the coefficients
+    kappa_a, kappa_b = (m.water.kappa.x.array.reshape(-1, 2, 2) for m in (a, b))
+    tol = 1e-12 * np.abs(kappa_b[0]).max()
+    assert np.allclose(kappa_b, kappa_b[0], rtol=0, atol=tol)  # uniform
+    assert np.allclose(kappa_a, kappa_b[0], rtol=0, atol=tol)
