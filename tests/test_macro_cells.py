@@ -10,6 +10,7 @@ COMM_WORLD, so under mpirun the models are distributed and every measure reduced
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -252,3 +253,29 @@ def test_the_water_conductivity_is_the_unit_cells_grown_by_the_cells_shape():
     tol = 1e-12 * np.abs(kappa_b[0]).max()
     assert np.allclose(kappa_b, kappa_b[0], rtol=0, atol=tol)  # uniform
     assert np.allclose(kappa_a, kappa_b[0], rtol=0, atol=tol)
+
+
+def test_an_imported_tissues_walls_are_its_wall_thickness_in_scene_units(tmp_path):
+    """The honeycomb of Nx = 4 imported as a polygon table at pixel size 2 (delta = 2) with
+    ``cell.w = 2 w`` (scene units) against the generated one (delta = 1) with ``cell.w = w``
+    (relative to the unit cell): the same tissue twice as large, with the same unit cells only if
+    the imported w becomes w / delta. Meshed at h twice as large: the same mesh scaled, so equal
+    growth rates and areas in the ratio 4, to round-off (the solves scale; 1e-10 allows for
+    gmsh's and LU's). Without w / delta the unit cell's walls are twice as thick and the rates
+    about halve (0.0036 against 0.0079)."""
+    layout = TissueLayout(scene().cell.at(0.0, 0.0), NX)
+    table = {"pixel_size": 2.0, "cells": [{"id": i, "vertices": layout.hexagon(i).tolist()}
+                                          for i in range(layout.n_cells)]}  # fmt: skip
+    (tmp_path / "cells.json").write_text(json.dumps(table))
+    w = scene().cell.at(0.0, 0.0).w
+    imported = parse_scene(
+        {"model": "macro"} | BASE | {"tissue": {"h": 0.7, "cells": "cells.json"}, "micro": {},
+                                     "cell": {"w": 2.0 * w}},
+        directory=tmp_path,
+    )  # fmt: skip
+    generated = scene(tissue={"h": 0.35, "cells": {"voronoi": NX * NX // 2}})
+    world = MPI.COMM_SELF
+    a, b = (run(model_on(macro_domain(sc, world), world), 1)[0] for sc in (imported, generated))
+    for key in ("growth_rate_11", "growth_rate_22", "growth_rate_area"):
+        assert a[key] == pytest.approx(b[key], rel=1e-10), key
+    assert a["area"] == pytest.approx(4.0 * b["area"], rel=1e-10)
