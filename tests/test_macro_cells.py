@@ -209,12 +209,13 @@ def test_a_generated_tissue_at_another_nx_keeps_its_seed_and_regularity():
     assert cells_at_nx(scene(), 8) == scene()
 
 
-@pytest.mark.mpi
 def test_both_runs_each_model_on_the_scenes_cells(mpi_tmp_path):
     """``model = "both"`` on generated cells at r = 0.5: its micro side is the micro run of the
     same scene (the same code on the same cells: equal up to the LU's round-off, 1e-12 relative
-    on the summaries; measured 0), and its macro side's first step is that of ``model = "macro"`` on
-    the same cells."""
+    on the summaries; measured 0), and its macro side's first step is that of
+    ``model = "macro"`` on the same cells. Not marked mpi: it checks how ``run_scene`` wires
+    two models whose distributed runs the mpi tests here and in test_micro_cells.py check
+    (15 s under mpirun, 2 s serial)."""
     cells = {"tissue": {"h": 0.35, "cells": {"voronoi": 8, "seed": 1, "regularity": 0.5}},
              "time": {"t_max": 1.0}, "micro": {"resolution": 1}}  # fmt: skip
     world = MPI.COMM_WORLD

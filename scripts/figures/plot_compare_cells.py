@@ -5,8 +5,8 @@ be trusted on irregular cells").
 ``compare_cells_r.png``: err_ubar and err_G at the first step (t = 0, solid) and at t_max of the
 short run (dashed) versus r, one colour per Nx, the mean over the seeds that ran (each seed's
 value a dot); a case whose micro run stopped (walls buckling at step 0) is marked by a cross at
-the bottom of its panel (shifted a little by Nx to stay apart). Reads only the JSON files
-given (``--json``); nothing is solved here.
+the bottom of its panel (shifted a little by Nx to stay apart). Prints the table of
+docs/real_tissues.md. Reads only the JSON files given (``--json``); nothing is solved here.
 
     python scripts/figures/plot_compare_cells.py [--json FILE ...] [--variant shaped]
         [--out docs/figures]
@@ -52,9 +52,24 @@ def collect(paths: list[Path], variant: str) -> dict[tuple[int, float], list[dic
     return found
 
 
+def table(found: dict[tuple[int, float], list[dict | None]]) -> str:
+    """The markdown table of docs/real_tissues.md: per (Nx, r) the seeds run / stopped and the
+    mean (over the seeds that ran) of each error at t = 0 and t_max."""
+    keys = ("err_u2", "err_ubar", "err_G", "err_ubar_tmax", "err_G_tmax")
+    lines = ["| Nx | r | seeds ran / stopped | " + " | ".join(keys) + " |",
+             "|---:|---:|---|" + "---:|" * len(keys)]  # fmt: skip
+    for nx, r in sorted(found):
+        rows = [row for row in found[nx, r] if row is not None]
+        means = [f"{np.mean([row[k] for row in rows]):.3g}" if rows else "-" for k in keys]
+        ran = f"{len(rows)} / {len(found[nx, r]) - len(rows)}"
+        lines.append(f"| {nx} | {r:g} | {ran} | " + " | ".join(means) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     found = collect(args.json, args.variant)
+    print(table(found))
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), constrained_layout=True)
     for ax, key in zip(axes, ERRORS, strict=True):
         for k, nx in enumerate(sorted({nx for nx, _ in found})):
