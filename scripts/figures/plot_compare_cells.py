@@ -26,7 +26,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 RESULTS = Path("benchmarks/results")
-DEFAULT = [RESULTS / "compare_cells_tmax_s1.json", RESULTS / "compare_cells_tmax_s23.json"]
+RUNS = ("s1", "s23", "mid_s1", "mid_s23")  # seed 1, seeds 2-3; r = 0.125, 0.375: "mid"
+DEFAULT = [RESULTS / f"compare_cells_tmax_{name}.json" for name in RUNS]
 COLOURS = {4: "tab:red", 8: "tab:purple", 16: "tab:blue", 32: "tab:green"}
 ERRORS = ("err_ubar", "err_G")
 
@@ -54,13 +55,16 @@ def collect(paths: list[Path], variant: str) -> dict[tuple[int, float], list[dic
 
 def table(found: dict[tuple[int, float], list[dict | None]]) -> str:
     """The markdown table of docs/real_tissues.md: per (Nx, r) the seeds run / stopped and the
-    mean (over the seeds that ran) of each error at t = 0 and t_max."""
+    mean (over the seeds that ran) of each error at t = 0 and t_max, and of the tissue's mean
+    area growth rate, macro over micro, at t = 0."""
     keys = ("err_u2", "err_ubar", "err_G", "err_ubar_tmax", "err_G_tmax")
-    lines = ["| Nx | r | seeds ran / stopped | " + " | ".join(keys) + " |",
-             "|---:|---:|---|" + "---:|" * len(keys)]  # fmt: skip
+    head = ["seeds ran / stopped", *keys, "mean rate: macro / micro - 1"]
+    lines = ["| Nx | r | " + " | ".join(head) + " |", "|---:|---:|---|" + "---:|" * (len(head) - 1)]
     for nx, r in sorted(found):
         rows = [row for row in found[nx, r] if row is not None]
         means = [f"{np.mean([row[k] for row in rows]):.3g}" if rows else "-" for k in keys]
+        rate = [row["rate_macro_t0"] / row["rate_micro_t0"] - 1.0 for row in rows]
+        means.append(f"{100 * np.mean(rate):.2f} %" if rows else "-")
         ran = f"{len(rows)} / {len(found[nx, r]) - len(rows)}"
         lines.append(f"| {nx} | {r:g} | {ran} | " + " | ".join(means) + " |")
     return "\n".join(lines)
