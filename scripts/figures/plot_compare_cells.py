@@ -26,7 +26,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 RESULTS = Path("benchmarks/results")
-RUNS = ("s1", "s23", "mid_s1", "mid_s23")  # seed 1, seeds 2-3; r = 0.125, 0.375: "mid"
+RUNS = ("s1", "s23", "s3", "s2_r1", "mid_s1", "mid_s23")  # "mid": r = 0.125, 0.375
 DEFAULT = [RESULTS / f"compare_cells_tmax_{name}.json" for name in RUNS]
 COLOURS = {4: "tab:red", 8: "tab:purple", 16: "tab:blue", 32: "tab:green"}
 ERRORS = ("err_ubar", "err_G")

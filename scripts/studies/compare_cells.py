@@ -8,7 +8,8 @@ the same cells (walls ``cell.w * 4 / Nx``, as a generated tissue's), at the firs
 with ``--steps n``, at t_max = n dt of a short run (the errors of docs/model.md section 8:
 err_u1, err_u2, err_ubar, err_G) through :func:`plantgrowth.studies.compare.compare_one`, for
 each seed of ``--seed``. A run that stops (the micro walls of a random
-tissue can buckle under turgor: numerics.on_instability = "stop") is recorded with its error.
+tissue can buckle under turgor: numerics.on_instability = "stop"; a cell too thin for its
+walls has no void) is recorded with its error.
 Other macro sides (``--variants``): every Fs = I (the regular unit cell on the same outline),
 which shows what the shapes change, the shapes smoothed over each cell's neighbours, and the
 tissue's mean shape everywhere.
@@ -35,6 +36,7 @@ from plantgrowth.base.errors import RunError
 from plantgrowth.base.machine import machine_description
 from plantgrowth.meshes.cell_outline import CellShapeField
 from plantgrowth.meshes.cell_tissue import CellTissue
+from plantgrowth.meshes.geometry_error import GeometryError
 from plantgrowth.meshes.voronoi_tissue import voronoi_nx
 from plantgrowth.models.macro.domain import macro_domain
 from plantgrowth.scene import parse_scene
@@ -132,7 +134,7 @@ def one(
             row = compare_one(
                 scene, dom, nx, raw / f"n{n}_r{r:g}_s{seed}_{label}", comm, None, steps, tissue
             )
-        except RunError as err:  # e.g. the micro walls of a random tissue buckle
+        except (RunError, GeometryError) as err:  # walls buckle; a cell too thin for its walls
             out[label] = {"error": str(err), "seconds": time.perf_counter() - start}
             continue
         out[label] = {
