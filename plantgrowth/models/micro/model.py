@@ -39,6 +39,7 @@ from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
 from plantgrowth.models.micro.outlines import CellOutlines
 from plantgrowth.models.micro.supports import supports
+from plantgrowth.models.micro.turgor_ramp import solve_ramped
 from plantgrowth.models.micro.turgor_solve import ElasticParts
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
@@ -94,6 +95,7 @@ class MicroModel:
         self.u = fem.Function(self.V, name="u")
         self.Fg = fem.Function(T0, name="Fg")
         E, nu, P = (fem.Function(Q0) for _ in range(3))
+        self._P = P  # the turgor per wall triangle (ramped by turgor_ramp.solve_ramped)
         E_cells = np.broadcast_to(scene.material.E(*centres), tissue.n_cells)
         self._set(E, E_cells)
         self._set(nu, scene.material.nu(*centres))
@@ -253,7 +255,10 @@ class MicroModel:
         self._set(self.Fg, Fg)
         newton = None
         if self.finite:
-            newton = self.newton.solve() if self.turgor is None else self.turgor.solve(Fg)
+            newton = (
+                solve_ramped(self.newton, lambda f: self._set(self._P, f * self.pressure))
+                if self.turgor is None else self.turgor.solve(Fg)
+            )  # fmt: skip
             log_report("micro", newton)
             report = SolveReport(newton.reason, newton.linear_residual)
         else:
