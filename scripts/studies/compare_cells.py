@@ -35,11 +35,11 @@ from mpi4py import MPI
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.machine import machine_description
 from plantgrowth.meshes.cell_outline import CellShapeField
-from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.meshes.geometry_error import GeometryError
 from plantgrowth.meshes.voronoi_tissue import voronoi_nx
 from plantgrowth.models.macro.domain import macro_domain
 from plantgrowth.scene import parse_scene
+from plantgrowth.scene.micro_tissue import micro_tissue
 from plantgrowth.scene.tissue_cells import cell_polygons
 from plantgrowth.studies.compare import compare_one
 
@@ -54,6 +54,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add("--r", type=float, nargs="+", default=[0.0, 0.25, 0.5, 1.0], help="regularity r")
     add("--seed", type=int, nargs="+", default=[1])
     add("--steps", type=int, default=0, help="steps of the short run (0: the first step only)")
+    add("--kinematics", default="linear", choices=["linear", "finite"])
     variants = ["shaped", "unshaped", "smoothed", "mean"]
     add("--variants", nargs="+", default=variants[:2], choices=variants, help="macro sides")
     add("--raw", type=Path, default=ROOT / "results" / "compare_cells")
@@ -98,18 +99,20 @@ def tissue_mean(field: CellShapeField) -> CellShapeField:
 
 
 def one(
-    n: int, r: float, seed: int, raw: Path, comm: MPI.Comm, variants: list[str], steps: int
-) -> dict:
+    n: int, r: float, seed: int, raw: Path, comm: MPI.Comm, variants: list[str], steps: int,
+    kinematics: str = "linear",
+) -> dict:  # fmt: skip
     """The compare row of N cells at regularity r for each variant of the macro side: the
     cells' shapes, none (Fs = I), the shapes smoothed over neighbours (:func:`smoothed`), the
     tissue's mean shape (:func:`tissue_mean`)."""
     nx = voronoi_nx(n)
     scene = parse_scene({
-        "model": "macro", "tissue": {"cells": {"voronoi": n, "seed": seed, "regularity": r}},
+        "model": "macro", "kinematics": kinematics,
+        "tissue": {"cells": {"voronoi": n, "seed": seed, "regularity": r}},
         "growth": {"law": "stress"}, "micro": {"resolution": 2},
     })  # fmt: skip
     cells = cell_polygons(scene)
-    tissue = CellTissue.from_cells(cells, scene.cell.at(0.0, 0.0).w * 4.0 / nx)
+    tissue = micro_tissue(scene)  # walls cell.w * 4 / Nx, the bottom row cut
     domain = macro_domain(scene, comm)
     shapes = domain.cell_shape.shapes
     out = {
@@ -131,9 +134,8 @@ def one(
         dom = domains[label]
         start = time.perf_counter()
         try:
-            row = compare_one(
-                scene, dom, nx, raw / f"n{n}_r{r:g}_s{seed}_{label}", comm, None, steps, tissue
-            )
+            name = f"n{n}_r{r:g}_s{seed}_{label}_{kinematics}"
+            row = compare_one(scene, dom, nx, raw / name, comm, None, steps, tissue)
         except (RunError, GeometryError) as err:  # walls buckle; a cell too thin for its walls
             out[label] = {"error": str(err), "seconds": time.perf_counter() - start}
             continue
@@ -154,7 +156,9 @@ def main(argv: list[str] | None = None) -> None:
     for seed in args.seed:
         for n in args.cells:
             for r in args.r:
-                rows.append(one(n, r, seed, args.raw, comm, args.variants, args.steps))
+                rows.append(
+                    one(n, r, seed, args.raw, comm, args.variants, args.steps, args.kinematics)
+                )
                 if comm.rank == 0:
                     for label in args.variants:
                         row = rows[-1][label]
@@ -166,7 +170,8 @@ def main(argv: list[str] | None = None) -> None:
                     args.json.write_text(  # after every row: a long study keeps what it ran
                         json.dumps(
                             {"machine": machine_description(), "ranks": comm.size,
-                             "steps": args.steps, "rows": rows}, indent=1,
+                             "steps": args.steps, "kinematics": args.kinematics, "rows": rows},
+                            indent=1,
                         )  # fmt: skip
                     )
 
