@@ -9,6 +9,10 @@ COMM_WORLD, so under mpirun the models are distributed and every measure reduced
 
 from __future__ import annotations
 
+import csv
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -18,14 +22,15 @@ from plantgrowth.base.errors import SceneError
 from plantgrowth.base.gather import MeshGather
 from plantgrowth.meshes.cell_outline import cell_of_points, tissue_outline
 from plantgrowth.meshes.cell_polygons import CellPolygons
-from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.meshes.honeycomb import GeometryError, polygon_area
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models.macro.domain import cells_domain, macro_domain
 from plantgrowth.models.macro.model import MacroModel, model_on
+from plantgrowth.runner.scene_run import run_scene
 from plantgrowth.scene import parse_scene
-from plantgrowth.scene.tissue_cells import cell_polygons
-from plantgrowth.studies.compare import compare_one
+from plantgrowth.scene.cells_spec import GeneratedCells
+from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx
+from plantgrowth.studies.compare import compare_one, run_compare
 
 NX = 4
 BASE = {"tissue": {"h": 0.35}, "growth": {"law": "stress"}, "micro": {"nx": NX},
@@ -63,6 +68,11 @@ def run(model, steps: int) -> list[dict[str, float]]:
         rows.append(model.measures(Fg, G))
         Fg = np.array([expm(g) @ f for g, f in zip(G, Fg, strict=True)])
     return rows
+
+
+def read_summary(directory) -> list[dict[str, float]]:
+    with open(directory / "summary.csv", newline="") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
 def assert_same(rows, expected, rtol):
@@ -152,9 +162,10 @@ def test_bad_tissues_of_cells_are_refused():
     apart = CellPolygons.from_loops([honeycomb().polygon(0), honeycomb().polygon(0) + [9.0, 0.0]])
     with pytest.raises(GeometryError, match="tissue.cells: the cells form 2 separate regions"):
         cells_domain(scene(), apart, MPI.COMM_SELF)
-    both = parse_scene({"model": "both"} | BASE | {"tissue": {"cells": {"voronoi": 8}}})
-    with pytest.raises(SceneError, match="tissue.cells: a comparison with the micro model"):
-        macro_domain(both, MPI.COMM_SELF)
+    image = Path(__file__).parents[1] / "scenes" / "real_tissues" / "synthetic_r05.tif"
+    imported = scene(tissue={"cells": str(image), "pixel_size": 0.02}, micro={})
+    with pytest.raises(SceneError, match="--nx 8: tissue.cells = '.*synthetic_r05.tif' is an"):
+        macro_domain(imported, MPI.COMM_SELF, 8)
     with pytest.raises(SceneError, match="cell.w is a field"):
         cells_domain(scene(cell={"w": {"from": 0.05, "to": 0.06}}), honeycomb(), MPI.COMM_SELF)
 
@@ -173,17 +184,99 @@ def test_the_unit_cell_is_the_hexagon_grown_by_the_cells_shape_then_growth():
 
 
 def test_the_comparison_on_a_regular_generated_tissue_is_todays(tmp_path):
-    """compare_one with the micro tissue and macro domain of ``cells = {voronoi = 8}`` (r = 0)
-    gives the errors of today's comparison at Nx = 4."""
-    sc = scene(tissue={"h": 0.35, "cells": {"voronoi": NX * NX // 2}})
-    tissue = CellTissue.from_cells(cell_polygons(sc), sc.cell.at(0.0, 0.0).w * 4.0 / NX)
+    """run_compare on ``cells = {voronoi = 2}`` (r = 0, Nx = 2) at ``--nx 4``: both sides on
+    the tissue regenerated at Nx = 4, today's honeycomb given as cells, so the errors of today's
+    comparison at Nx = 4."""
+    sc = scene(tissue={"h": 0.35, "cells": {"voronoi": 2}}, micro={"nx": 2})
     world = MPI.COMM_SELF
-    cells = compare_one(sc, macro_domain(sc, world), NX, tmp_path / "c", world, 1, 0, tissue)
+    cells = run_compare(sc, [NX], tmp_path / "c", world, 1, first_step_only=True)[0]
     today_scene = parse_scene({"model": "both"} | BASE)
     today = compare_one(
         today_scene, macro_domain(today_scene, world, NX), NX, tmp_path / "t", world, 1, 0
     )
-    for key in ("err_u1", "err_u2", "err_ubar", "err_G", "rate_micro_t0"):
+    for key in ("err_u1", "err_u2", "err_ubar", "err_G", "rate_micro_t0", "rate_macro_t0"):
         # the micro model on the honeycomb given as polygons: equal to its own honeycomb to 1e-8
-        # (tests/test_micro_cells.py's bound; measured here 9e-11)
+        # (tests/test_micro_cells.py's bound; measured here 9e-11); the macro side: LU round-off
         assert cells[key] == pytest.approx(today[key], rel=1e-8), key
+
+
+def test_a_generated_tissue_at_another_nx_keeps_its_seed_and_regularity():
+    sc = scene(tissue={"cells": {"voronoi": 8, "seed": 3, "regularity": 0.5}})
+    at8 = cells_at_nx(sc, 8)
+    assert at8.tissue.cells == GeneratedCells(32, 3, 0.5) and at8.micro_nx == 8
+    fresh = scene(tissue={"cells": {"voronoi": 32, "seed": 3, "regularity": 0.5}}, micro={})
+    assert np.array_equal(cell_polygons(at8).vertices, cell_polygons(fresh).vertices)
+    assert cells_at_nx(scene(), 8) == scene()
+
+
+def test_both_runs_each_model_on_the_scenes_cells(mpi_tmp_path):
+    """``model = "both"`` on generated cells at r = 0.5: its micro side is the micro run of the
+    same scene (the same code on the same cells: equal up to the LU's round-off, 1e-12 relative
+    on the summaries; measured 0), and its macro side's first step is that of
+    ``model = "macro"`` on the same cells. Not marked mpi: it checks how ``run_scene`` wires
+    two models whose distributed runs the mpi tests here and in test_micro_cells.py check
+    (15 s under mpirun, 2 s serial)."""
+    cells = {"tissue": {"h": 0.35, "cells": {"voronoi": 8, "seed": 1, "regularity": 0.5}},
+             "time": {"t_max": 1.0}, "micro": {"resolution": 1}}  # fmt: skip
+    world = MPI.COMM_WORLD
+    for model in ("both", "micro"):
+        run_scene(parse_scene({"model": model} | BASE | cells), mpi_tmp_path / model, world, model)
+    mine = read_summary(mpi_tmp_path / "both" / "micro")
+    alone = read_summary(mpi_tmp_path / "micro")
+    assert len(mine) == len(alone) == 2  # t = 0 and t = 1
+    for row, want in zip(mine, alone, strict=True):
+        for key in ("area", "growth_rate_area", "growth_rate_11"):
+            assert row[key] == pytest.approx(want[key], rel=1e-12), key
+    macro = read_summary(mpi_tmp_path / "both" / "macro")[0]
+    alone = run(model_on(macro_domain(parse_scene({"model": "macro"} | BASE | cells), world),
+                         world), 1)[0]  # fmt: skip
+    for key in MEASURES:  # the first step of model = "macro" on the same cells
+        assert macro[key] == pytest.approx(alone[key], rel=LU_ROUND_OFF), key
+
+
+@pytest.mark.mpi
+def test_the_water_conductivity_is_the_unit_cells_grown_by_the_cells_shape():
+    """With ``[hydraulics]``: cells stretched by M against ``growth.Fg0 = M`` on the honeycomb,
+    the same unit cells in the grown frame, so the same wall conductivity kappa on every fine
+    cell if kappa is the hexagon's grown by ``Fg Fs`` (``kappa(s F) = s kappa(F)`` and the
+    cells' size ``delta = sqrt(det M) 4 / Nx`` make the two equal); kappa of Fg alone, as
+    before, is the regular hexagon's, off by the stretch's anisotropy (1.3 / 0.8). Closed-form
+    sums of a few terms: 1e-12. (The runs themselves differ by 1e-6: the water step's
+    stabilisation scales with the reference mesh's edge lengths, which M does not keep.)"""
+    world, M = MPI.COMM_WORLD, np.diag([1.3, 0.8])
+    water = {"hydraulics": {"osmotic": 2e-4, "conductivity": 50.0}}
+    a = model_on(cells_domain(scene(**water), honeycomb(M), world), world)
+    grown = {"growth": {"law": "stress", "Fg0": M.tolist()}}
+    b = model_on(macro_domain(parse_scene({"model": "both"} | BASE | water | grown), world, NX),
+                 world)  # fmt: skip
+    run(a, 1), run(b, 1)  # the first step sets the coefficients
+    kappa_a, kappa_b = (m.water.kappa.x.array.reshape(-1, 2, 2) for m in (a, b))
+    tol = 1e-12 * np.abs(kappa_b[0]).max()
+    assert np.allclose(kappa_b, kappa_b[0], rtol=0, atol=tol)  # uniform
+    assert np.allclose(kappa_a, kappa_b[0], rtol=0, atol=tol)
+
+
+def test_an_imported_tissues_walls_are_its_wall_thickness_in_scene_units(tmp_path):
+    """The honeycomb of Nx = 4 imported as a polygon table at pixel size 2 (delta = 2) with
+    ``cell.w = 2 w`` (scene units) against the generated one (delta = 1) with ``cell.w = w``
+    (relative to the unit cell): the same tissue twice as large, with the same unit cells only if
+    the imported w becomes w / delta. Meshed at h twice as large: the same mesh scaled, so equal
+    growth rates and areas in the ratio 4, to round-off (the solves scale; 1e-10 allows for
+    gmsh's and LU's). Without w / delta the unit cell's walls are twice as thick and the rates
+    about halve (0.0036 against 0.0079)."""
+    layout = TissueLayout(scene().cell.at(0.0, 0.0), NX)
+    table = {"pixel_size": 2.0, "cells": [{"id": i, "vertices": layout.hexagon(i).tolist()}
+                                          for i in range(layout.n_cells)]}  # fmt: skip
+    (tmp_path / "cells.json").write_text(json.dumps(table))
+    w = scene().cell.at(0.0, 0.0).w
+    imported = parse_scene(
+        {"model": "macro"} | BASE | {"tissue": {"h": 0.7, "cells": "cells.json"}, "micro": {},
+                                     "cell": {"w": 2.0 * w}},
+        directory=tmp_path,
+    )  # fmt: skip
+    generated = scene(tissue={"h": 0.35, "cells": {"voronoi": NX * NX // 2}})
+    world = MPI.COMM_SELF
+    a, b = (run(model_on(macro_domain(sc, world), world), 1)[0] for sc in (imported, generated))
+    for key in ("growth_rate_11", "growth_rate_22", "growth_rate_area"):
+        assert a[key] == pytest.approx(b[key], rel=1e-10), key
+    assert a["area"] == pytest.approx(4.0 * b["area"], rel=1e-10)

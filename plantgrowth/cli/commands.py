@@ -120,7 +120,9 @@ def compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from plantgrowth.models.micro.model import scene_cell
     from plantgrowth.runner.scene_run import checked_domain, run_directory
     from plantgrowth.scene import load_scene
+    from plantgrowth.scene.places import check_micro_tissue
     from plantgrowth.scene.plausibility import warn_about
+    from plantgrowth.scene.tissue_cells import cells_at_nx
     from plantgrowth.studies.compare import run_compare
 
     scene = load_scene(args.scene)
@@ -129,6 +131,7 @@ def compare_command(args: argparse.Namespace, comm: MPI.Comm) -> int:
         layout = TissueLayout(scene_cell(scene), check_nx("--nx", nx))
         if args.resolution is not None:
             wall_mesh_size(layout, args.resolution, "--resolution")
+        check_micro_tissue(cells_at_nx(scene, nx))  # generated cells: regenerated at each Nx
     domains = {nx: checked_domain(scene, comm, nx) for nx in args.nx}  # before anything is written
     scene.check_cellular_extent("plantgrowth compare", args.nx[0])
     outdir = args.output or Path("results") / f"compare_{args.scene.stem}"

@@ -138,7 +138,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Runs, for each Nx, the macro model on the region the micro tissue covers "
         "and the micro model; writes DIR/compare.csv (nx, delta, the relative errors err_u1, "
         "err_u2, err_G at the first step, mean growth rates at t = 0 and t_max, run times) and "
-        "DIR/nx<N>/{macro,micro}.",
+        "DIR/nx<N>/{macro,micro}. A scene with generated cells (tissue.cells = {voronoi = N, "
+        "seed = S, regularity = r}) is regenerated at each Nx with the same seed and r, both "
+        "models on those cells.",
     )
     compare.add_argument("scene", type=Path, help="scene TOML file")
     compare.add_argument("--nx", type=int, nargs="+", required=True, help="even cell counts")

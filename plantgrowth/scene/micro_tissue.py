@@ -16,7 +16,7 @@ from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.meshes.geometry_error import GeometryError
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.scene.cells_spec import GeneratedCells
-from plantgrowth.scene.tissue_cells import cell_polygons
+from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx
 
 if TYPE_CHECKING:
     from plantgrowth.scene.schema import Scene
@@ -24,8 +24,11 @@ if TYPE_CHECKING:
 
 def micro_tissue(scene: Scene, nx: int | None = None) -> CellTissue:
     """The scene's cells with their wall thickness (module docstring); ``nx`` (a command's own
-    ``--nx``) or a scene without cells: the honeycomb of nx (default ``micro.nx``)."""
-    cells = cell_polygons(scene) if nx is None else None
+    ``--nx``): a generated tissue regenerated at nx cells per row (:func:`cells_at_nx`), no
+    cells: the honeycomb of nx (default ``micro.nx``)."""
+    if nx is not None:
+        scene = cells_at_nx(scene, nx)
+    cells = cell_polygons(scene)
     if cells is None:
         return CellTissue.from_layout(
             TissueLayout(scene.cell.at(0.0, 0.0), scene.micro_nx if nx is None else nx)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
@@ -11,7 +12,7 @@ from plantgrowth.meshes.cell_polygons import CellPolygons
 from plantgrowth.meshes.geometry_error import GeometryError
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.meshes.voronoi_tissue import voronoi_tissue
-from plantgrowth.scene.cells_spec import GeneratedCells, imported_cells
+from plantgrowth.scene.cells_spec import GeneratedCells, ImportedCells, imported_cells
 
 if TYPE_CHECKING:
     from plantgrowth.scene.schema import Scene
@@ -41,3 +42,21 @@ def cell_polygons(scene: Scene) -> CellPolygons | None:
         return _generated(spec, scene.cell.at(0.0, 0.0))
     except GeometryError as e:
         raise SceneError(str(e)) from None
+
+
+def cells_at_nx(scene: Scene, nx: int) -> Scene:
+    """The scene at ``nx`` cells per row (a command's own ``--nx``, ``plantgrowth compare``): a
+    generated tissue regenerated with ``Nx^2 / 2`` cells, its seed and regularity kept (the same
+    r at every Nx; the seeds' draws differ with the count), and ``micro.nx = nx``; a scene
+    without cells unchanged. An imported tissue has its own cells: SceneError."""
+    spec = scene.tissue.cells
+    if spec is None:
+        return scene
+    if isinstance(spec, ImportedCells):
+        raise SceneError(
+            f"--nx {nx}: tissue.cells = '{spec.path}' is an imported tissue with its own cells; "
+            "a comparison at chosen Nx needs no cells or generated ones "
+            "(tissue.cells = {voronoi = N, seed = S, regularity = r}); run model = \"both\" on it"
+        )
+    cells = replace(spec, voronoi=nx * nx // 2)
+    return replace(scene, tissue=replace(scene.tissue, cells=cells), micro_nx=nx)

@@ -29,7 +29,9 @@ from plantgrowth.models.macro.boundary import (
 from plantgrowth.models.macro.coarse import coarse_grid_for
 from plantgrowth.models.macro.problem import mesh_bounding_box, rectangle_mesh
 from plantgrowth.scene import Scene
-from plantgrowth.scene.tissue_cells import cell_polygons
+from plantgrowth.scene.cells_spec import ImportedCells
+from plantgrowth.scene.fields import Field
+from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx
 
 
 @dataclass(frozen=True)
@@ -62,16 +64,13 @@ def macro_domain(scene: Scene, comm: MPI.Comm, nx: int | None = None) -> MacroDo
     (docs/model.md section 7) and its ``micro.nx`` set to ``nx``: with water fluxes the macro
     model's cells are those cells (``cell_scale = 4 / nx``, docs/model.md "The cells' size"),
     and its edges are those of the cells' outer walls (:func:`outline_boundary`). A scene with
-    ``tissue.cells`` and ``model = "macro"`` runs on those cells (:func:`cells_domain`); with
-    a micro side (``model = "both"``, ``plantgrowth compare``) it is refused until the micro
-    side reads the scene's cells (it would run on the honeycomb of micro.nx)."""
+    ``tissue.cells`` runs on those cells (:func:`cells_domain`), alone or beside the micro
+    model on the same cells; with ``nx``, a generated tissue is regenerated at nx cells per row
+    (:func:`plantgrowth.scene.tissue_cells.cells_at_nx`), as the micro side is."""
+    if nx is not None:
+        scene = cells_at_nx(scene, nx)
     cells = cell_polygons(scene)
     if cells is not None:
-        if nx is not None or scene.model == "both":
-            raise SceneError(
-                'tissue.cells: a comparison with the micro model (model = "both", plantgrowth '
-                'compare) does not read the scene\'s cells yet; run model = "macro" on them'
-            )
         return cells_domain(scene, cells, comm)
     if nx is None and scene.model != "both":
         if scene.tissue.shape is not None:
@@ -90,7 +89,9 @@ def cells_domain(scene: Scene, cells: CellPolygons, comm: MPI.Comm) -> MacroDoma
     cells"): the region the cells cover, meshed conforming to their sides with edges about
     ``tissue.h``, the scene's fields spanning its extent, and each cell's shape Fg0 against the
     scene's unit cell scaled to the cells' mean area (:func:`meshes.cell_shapes.cell_shapes`).
-    The cell geometry must be constant (it is the hexagon the shapes are measured against)."""
+    The cell geometry must be constant (it is the hexagon the shapes are measured against);
+    an imported tissue's ``cell.w``, in the scene's length unit, becomes ``w / delta`` in the
+    unit cell (:func:`unit_cell_walls`)."""
     varying = [key for key in ("l1", "l2", "theta", "w")
                if not getattr(scene.cell, key).is_constant]  # fmt: skip
     if varying:
@@ -101,9 +102,28 @@ def cells_domain(scene: Scene, cells: CellPolygons, comm: MPI.Comm) -> MacroDoma
     cells.check()
     tissue_outline(cells)  # one connected tissue, else a named error
     shapes = cell_shapes(cells, scene.cell.at(0.0, 0.0))
+    if isinstance(scene.tissue.cells, ImportedCells):
+        scene = unit_cell_walls(scene, shapes.delta)
     msh = build_cells_outline_mesh(cells, scene.tissue.h, comm)[0]
     width, height = (float(x) for x in cells.vertices.max(axis=0))
     boundary = cells_boundary(msh, cells)
     return MacroDomain(
         scene.over_extent(width, height), msh, boundary, CellShapeField(cells, shapes)
     )
+
+
+def unit_cell_walls(scene: Scene, delta: float) -> Scene:
+    """An imported tissue's scene with ``cell.w`` made relative to the unit cell: ``w / delta``,
+    so that the unit cell scaled by the cells' mean size delta has the walls ``w`` thick in the
+    scene's length unit, as the micro model's (docs/real_tissues.md)."""
+    w = float(scene.cell.w(0.0, 0.0)) / delta
+    try:
+        cell = dataclasses.replace(
+            scene.cell, w=Field(w, w, scene.tissue.width, scene.tissue.height)
+        )
+    except SceneError as e:
+        raise SceneError(
+            f"tissue.cells: cell.w over the cells' mean size delta = {delta:.4g} is the unit "
+            f"cell's wall thickness: {e}"
+        ) from None
+    return dataclasses.replace(scene, cell=cell)

@@ -409,7 +409,7 @@ class MacroModel:
         if self.water is None:
             return self.problem.solve(), self.P1
         self.problem.loads.update_forces()
-        self.water.set_coefficients(Fg, nt, self.cells)
+        self.water.set_coefficients(Fg, nt, self.cells, self.shape)
         if self._water_dt is None:
             report = self.water.start()
         else:

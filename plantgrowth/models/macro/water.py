@@ -237,10 +237,14 @@ class MacroWater:
         self._L_u = fem.form(rhs_u + turgor)
 
     def set_coefficients(
-        self, Fg: np.ndarray, tensors: NodeTensors, cells: Sequence[HoneycombCell]
-    ) -> None:
+        self, Fg: np.ndarray, tensors: NodeTensors, cells: Sequence[HoneycombCell],
+        shape: np.ndarray | None = None,
+    ) -> None:  # fmt: skip
         """Fg, E_hom, phi_w, K_hom, 1/M = -tr dbar[v], kappa and beta per fine cell (n_cells,
-        ...); ``cells``: each fine cell's unit cell, for kappa."""
+        ...); ``cells``: each fine cell's unit cell, for kappa; ``shape``: a tissue given as
+        cells, each fine cell's Fs, kappa then that of the hexagon grown by ``Fg Fs`` (the
+        grown frame's unit cell; Darcy's pull-back stays by Fg, the measured cells being the
+        reference)."""
         if tensors.K is None or tensors.dbar_v is None:
             raise ValueError("water fluxes need K_hom and dbar[v] (pressure and strain averages)")
         pr = self.problem
@@ -249,7 +253,8 @@ class MacroWater:
             pr.set_cell_values(function, values)
         pr.set_cell_values(self.inv_M, -np.trace(tensors.dbar_v, axis1=1, axis2=2))
         kappa = self.inputs.cell_scale * self.L_cells[:, None, None]
-        pr.set_cell_values(self.kappa, kappa * unit_conductivities(cells, Fg))
+        grown = Fg if shape is None else Fg @ shape
+        pr.set_cell_values(self.kappa, kappa * unit_conductivities(cells, grown))
         b = (1.0 - tensors.phi_w)[:, None, None] * np.eye(2) - tensors.K
         b_max = np.abs(np.linalg.eigvalsh(b)).max(axis=1)
         E_min = np.minimum(tensors.C[:, 0, 0], tensors.C[:, 1, 1])
