@@ -195,6 +195,7 @@ def test_a_query_builds_only_its_own_chain_of_squares():
     np.testing.assert_array_equal(answer.estimates, 0.0)
 
 
+@pytest.mark.mpi
 def test_ranks_build_the_same_tables():
     """Under mpirun each rank asks its own half of the queries, of two tables named in an order
     of its own (a rank numbers the tables it meets; the squares' keys must not depend on that):
