@@ -184,17 +184,22 @@ class StopSquares:
             self._index = (keys, *(np.array([e[i] for e in rows]) for i in range(5)))
         return self._index
 
-    def lookup(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per query: its entry's row (-1: no known stop square holds it), the entry's level,
-        and the query's coordinates t (n, 2) in that square."""
-        keys = self._table()[0]
-        n, levels = len(ids), np.arange(self.depth + 1)
-        corner, t = cell(np.repeat(s, len(levels), axis=0), np.tile(levels, n))
-        pos, hit = find(keys, square_key(np.repeat(ids, len(levels)), np.tile(levels, n), corner))
-        hit, pos, t = hit.reshape(n, -1), pos.reshape(n, -1), t.reshape(n, -1, 2)
-        first = np.argmax(hit, axis=1)  # the coarsest holding square: they do not nest
-        found = hit[np.arange(n), first]
-        return np.where(found, pos[np.arange(n), first], -1), first, t[np.arange(n), first]
+    def lookup(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per query: its entry's row (-1: no known stop square holds it) and its coordinates t
+        (n, 2) in that square; over chunks of :data:`CHUNK` queries (each asks every level)."""
+        keys, rows, t = self._table()[0], np.empty(len(ids), dtype=np.int64), np.empty(s.shape)
+        levels = np.arange(self.depth + 1)
+        for start in range(0, len(ids), CHUNK):
+            part = slice(start, start + CHUNK)
+            n = len(ids[part])
+            corner, place = cell(np.repeat(s[part], len(levels), axis=0), np.tile(levels, n))
+            key = square_key(np.repeat(ids[part], len(levels)), np.tile(levels, n), corner)
+            pos, hit = (a.reshape(n, -1) for a in find(keys, key))
+            first = np.argmax(hit, axis=1)  # the coarsest holding square: they do not nest
+            every = np.arange(n)
+            rows[part] = np.where(hit[every, first], pos[every, first], -1)
+            t[part] = place.reshape(n, -1, 2)[every, first]
+        return rows, t
 
     def answer(
         self, rows: np.ndarray, t: np.ndarray, s: np.ndarray, strict: bool

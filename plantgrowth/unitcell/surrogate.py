@@ -331,11 +331,11 @@ class LatticeSurrogate:
         ``|term| / |I(s)|`` per segment; for a smooth f the error left is about a third of it).
         One lookup of each query's stop square (:class:`~plantgrowth.unitcell.lattice.
         StopSquares`); the stop squares not met before are found by walks first."""
-        rows, _, t = self._stops.lookup(ids, s)
+        rows, t = self._stops.lookup(ids, s)
         miss = rows < 0
         if miss.any():  # new entries renumber the rows: look up again
             self._learn(ids[miss], s[miss], strict)
-            rows, _, t = self._stops.lookup(ids, s)
+            rows, t = self._stops.lookup(ids, s)
         found = self._stops.answer(rows, t, s, strict)
         return (found["values"], ~found["on_point"], found["level"], found["square"],
                 found["change"])  # fmt: skip
