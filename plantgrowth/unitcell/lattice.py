@@ -13,10 +13,11 @@ j <= k is bilinear on Q_j, which holds Q_k, so on this *stop square* Q_k
 and so is the estimate's term (the hats of the deepest built square's level). :class:`StopSquares`
 keeps, per stop square met, I and that term at its corners (found by one walk of the square's
 centre evaluated at its corners); a query in a known stop square is answered by one bilinear
-combination instead of a walk over every level. Entries of a table are dropped when a
-refinement builds squares of it (its I and its stop squares change). The answer is the walk's to
-round-off (the corners' values recombined: tests/test_surrogate_continuity.py compares them to
-1e-14) and depends only on the square and the interpolant, so it is the same on every rank.
+combination instead of a walk over every level. A refinement drops the entries that meet the
+hat supports of the points it adds (elsewhere I and the stop squares stay as they were). The
+answer is the walk's to 1e-10 relative (the walk rounds a query's place in each level's square
+to 9 digits, the corners' combination does not; tests/test_surrogate_continuity.py) and
+depends only on the square and the interpolant, so it is the same on every rank.
 """
 
 from __future__ import annotations
@@ -152,17 +153,33 @@ def walk(
 
 class StopSquares:
     """I and the estimate's term at the corners of the stop squares met so far (module
-    docstring), per table; the owner drops a table's entries when it builds squares of it."""
+    docstring); the owner drops the entries a refinement may change (:meth:`drop`)."""
 
     def __init__(self) -> None:
         self._entries: dict[int, tuple] = {}  # stop square key -> its corner data
         self._index: tuple[np.ndarray, ...] | None = None
         self.depth = 0  # deepest stop square's level
 
-    def drop(self, tables: np.ndarray) -> None:
-        """Forget the entries of these table numbers."""
-        gone = set(np.asarray(tables).tolist())
-        self._entries = {k: v for k, v in self._entries.items() if (k >> 46) not in gone}
+    def drop(self, built: np.ndarray) -> None:
+        """Forget the entries that squares just built (keys) may change: those of their table
+        whose closed square meets a new point's hat support, the built square's parent (the
+        square itself at level 0) widened by its spacing h on every side."""
+        if not self._entries:
+            return
+        keys = np.array(list(self._entries), dtype=np.int64)
+        table, level, corner = square_corners(keys)
+        width = (STEP >> level)[:, None]
+        b_table, b_level, b_corner = square_corners(np.asarray(built, dtype=np.int64))
+        h = (STEP >> b_level)[:, None]
+        span = np.where(b_level[:, None] > 0, 2 * h, h)  # the parent's side (level 0: its own)
+        low = b_corner // span * span - h
+        high = low + span + 2 * h
+        meets = (table[:, None] == b_table[None]) & np.all(
+            (corner[:, None, :] <= high[None]) & (corner[:, None, :] + width[:, None] >= low[None]),
+            axis=-1,
+        )  # (entries, built)
+        for key in keys[meets.any(axis=1)].tolist():
+            del self._entries[key]
         self._index = None
 
     def add(self, found: dict[str, np.ndarray], keys: np.ndarray) -> None:

@@ -302,7 +302,7 @@ class LatticeSurrogate:
                     self._surplus.setdefault(k, value - below)
             self._built.add(int(squares[q]))
         self._points_index = self._squares_index = None
-        self._stops.drop(np.unique(ids))
+        self._stops.drop(squares)
         return solves
 
     def interpolate(
@@ -334,19 +334,20 @@ class LatticeSurrogate:
         rows, t = self._stops.lookup(ids, s)
         miss = rows < 0
         if miss.any():  # new entries renumber the rows: look up again
-            self._learn(ids[miss], s[miss], strict)
+            self._learn(ids[miss], s[miss])
             rows, t = self._stops.lookup(ids, s)
         found = self._stops.answer(rows, t, s, strict)
         return (found["values"], ~found["on_point"], found["level"], found["square"],
                 found["change"])  # fmt: skip
 
-    def _learn(self, ids: np.ndarray, s: np.ndarray, strict: bool) -> None:
+    def _learn(self, ids: np.ndarray, s: np.ndarray) -> None:
         """Walk the queries to their stop squares, then each new stop square's centre to I and
         S's term at its corners (:func:`~plantgrowth.unitcell.lattice.walk`)."""
         if self._squares_index is None:
             self._squares_index = np.array(sorted(self._built), dtype=np.int64)
         keys, surplus = self._points_table()
-        stop = walk(self._squares_index, keys, surplus, ids, s, s[:, None, :], strict)["stop"]
+        nowhere = np.empty((len(s), 0, 2))  # no targets: the stop levels only (no products)
+        stop = walk(self._squares_index, keys, surplus, ids, s, nowhere)["stop"]
         stops, pick = np.unique(square_key(ids, stop, cell(s, stop)[0]), return_index=True)
         _, level, corner = square_corners(stops)
         step = (STEP >> level)[:, None]
