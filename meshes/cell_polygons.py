@@ -23,6 +23,14 @@ def _signed_areas(loops: list[np.ndarray]) -> np.ndarray:
     )  # fmt: skip
 
 
+def polygon_centroid(p: np.ndarray) -> np.ndarray:
+    """(2,) area centroid of a polygon (k, 2): ``sum (p_i + p_j) a_i / (3 sum a_i)``,
+    ``a_i = x_i y_j - x_j y_i``, j = i + 1 (not the vertices' mean)."""
+    q = np.roll(p, -1, axis=0)
+    cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
+    return ((p + q) * cross[:, None]).sum(axis=0) / (3.0 * cross.sum())
+
+
 @dataclass(frozen=True)
 class CellPolygons:
     """Attributes:
@@ -80,13 +88,7 @@ class CellPolygons:
     @property
     def centroids(self) -> np.ndarray:
         """(n_cells, 2) each polygon's centroid (area-weighted, not the vertices' mean)."""
-        out = np.empty((self.n_cells, 2))
-        for i in range(self.n_cells):
-            p = self.polygon(i)
-            q = np.roll(p, -1, axis=0)
-            cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
-            out[i] = ((p + q) * cross[:, None]).sum(axis=0) / (3.0 * cross.sum())
-        return out
+        return np.array([polygon_centroid(self.polygon(i)) for i in range(self.n_cells)])
 
     def sides(self) -> dict[tuple[int, int], list[int]]:
         """Undirected side (sorted vertex pair) -> the cells that have it (one or two)."""

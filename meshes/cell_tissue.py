@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .cell_polygons import CellPolygons
+from .cell_polygons import CellPolygons, polygon_centroid
 from .geometry_error import GeometryError
 from .honeycomb import offset_convex_polygon, polygon_area
 
@@ -191,10 +191,7 @@ class CellTissue:
             return self.honeycomb.centres
         centres = self.cells.centroids
         for i in self.cut_cells:
-            full = self.outline(i)
-            q = np.roll(full, -1, axis=0)
-            cross = full[:, 0] * q[:, 1] - q[:, 0] * full[:, 1]
-            centres[i] = [((full[:, 0] + q[:, 0]) * cross).sum() / (3.0 * cross.sum()), 0.0]
+            centres[i] = [polygon_centroid(self.outline(i))[0], 0.0]
         return centres
 
     @cached_property
