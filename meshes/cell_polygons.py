@@ -14,13 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry_error import GeometryError
-
-
-def _signed_areas(loops: list[np.ndarray]) -> np.ndarray:
-    return np.array(
-        [0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
-         for p in loops]
-    )  # fmt: skip
+from .honeycomb import polygon_area
 
 
 def polygon_centroid(p: np.ndarray) -> np.ndarray:
@@ -75,7 +69,7 @@ class CellPolygons:
     @property
     def areas(self) -> np.ndarray:
         """Each cell's mid-line polygon area (shoelace)."""
-        return _signed_areas([self.polygon(i) for i in range(self.n_cells)])
+        return np.array([polygon_area(self.polygon(i)) for i in range(self.n_cells)])
 
     @property
     def perimeters(self) -> np.ndarray:

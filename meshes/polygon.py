@@ -21,12 +21,6 @@ def edge_tag(i: int) -> int:
     return i + 1
 
 
-def signed_area(points: np.ndarray) -> float:
-    """Shoelace area: > 0 for a counter-clockwise polygon, < 0 for a clockwise one."""
-    x, y = points[:, 0], points[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
 def edge_lengths(points: np.ndarray) -> np.ndarray:
     """Length of each edge i (point i to point i + 1)."""
     return np.linalg.norm(np.roll(points, -1, axis=0) - points, axis=1)

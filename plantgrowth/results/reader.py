@@ -37,6 +37,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from plantgrowth.meshes.honeycomb import polygon_area
+
 COMPONENTS = ("11", "12", "21", "22", "tr", "det")
 """Reductions of a 2D tensor field accepted by :meth:`ResultSeries.cell_field`."""
 _INDEX = {"11": 0, "12": 1, "21": 3, "22": 4}  # row-major positions in the padded 3 x 3
@@ -277,10 +279,5 @@ def boundary_outline(points: np.ndarray, triangles: np.ndarray) -> list[np.ndarr
         del previous
         loops.append(np.array(loop, dtype=np.int64))
     pts = np.asarray(points)[:, :2]
-
-    def signed_area(loop: np.ndarray) -> float:
-        x, y = pts[loop, 0], pts[loop, 1]
-        return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
-    oriented = [loop if signed_area(loop) >= 0 else loop[::-1] for loop in loops]
-    return sorted(oriented, key=lambda loop: -abs(signed_area(loop)))
+    oriented = [loop if polygon_area(pts[loop]) >= 0 else loop[::-1] for loop in loops]
+    return sorted(oriented, key=lambda loop: -abs(polygon_area(pts[loop])))
