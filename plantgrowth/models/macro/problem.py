@@ -66,10 +66,13 @@ measured in docs/large_tissues.md, "Macro solve sized by accuracy")."""
 HISTORY = 5
 """CG starts from the energy-norm projection onto the last 5 solutions (plantgrowth.models.
 solution_history): on the organ scene (2 ranks, 1e-8) 2-5 iterations a step at steps 4-15,
-against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is; 12-18 from
-step 16 on (two 60-step runs), where the surrogate's per-cell answers stopped changing smoothly
-before issue 33's continuous surrogate (docs/large_tissues.md, "Macro solve sized by accuracy";
-not measured again)."""
+against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is. With issue 33's
+continuous surrogate 15-16 at the steps that refine it (16, 22, 24), 8 after them, and 8-10 at
+every step from 27 on: the projection predicts what moves smoothly in time, and the cells'
+tensors jump where a refinement adds points and turn wherever a cell crosses a line of the
+piecewise-bilinear interpolant. On gradient_E_strain forced onto CG, a cubic fit in s of the same
+lattice values needs 2-4 at every step from 16 on, against 7-15 (docs/large_tissues.md, "Macro
+solve sized by accuracy"; scripts/benchmarks/bench_cg_steps.py)."""
 SERIAL_LU = "petsc"
 """The linear macro problem's LU on one rank: PETSc's own (nested-dissection ordering; the matrix
 is symmetric positive definite, so no pivoting is needed), MUMPS on several. On the reference
