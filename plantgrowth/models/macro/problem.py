@@ -67,8 +67,8 @@ HISTORY = 5
 """CG starts from the energy-norm projection onto the last 5 solutions (plantgrowth.models.
 solution_history): on the organ scene (2 ranks, 1e-8) 2-5 iterations a step at steps 4-15,
 against 6 with 3 solutions, 19-20 with 1 and 26-27 from the previous u as it is. With issue 33's
-continuous surrogate 15-16 at the steps that refine it (16, 22, 24), 8 after them, and 8-10 at
-every step from 27 on: the projection predicts what moves smoothly in time, and the cells'
+continuous surrogate 15-17 at steps that refine it (16, 22, 24, 34), 8 after them, and 8-12 at
+every other step from 27 on: the projection predicts what moves smoothly in time, and the cells'
 tensors jump where a refinement adds points and turn wherever a cell crosses a line of the
 piecewise-bilinear interpolant. On gradient_E_strain forced onto CG, a cubic fit in s of the same
 lattice values needs 2-4 at every step from 16 on, against 7-15 (docs/large_tissues.md, "Macro
