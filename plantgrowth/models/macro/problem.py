@@ -71,8 +71,9 @@ continuous surrogate 15-17 at steps that refine it (16, 22, 24, 34), 8 after the
 every other step from 27 on: the projection predicts what moves smoothly in time, and the cells'
 tensors jump where a refinement adds points and turn wherever a cell crosses a line of the
 piecewise-bilinear interpolant. On gradient_E_strain forced onto CG, a cubic fit in s of the same
-lattice values needs 2-4 at every step from 16 on, against 7-15 (docs/large_tissues.md, "Macro
-solve sized by accuracy"; scripts/benchmarks/bench_cg_steps.py)."""
+lattice values needs 2-4 at every step from 16 on, against 7-15, and on the organ 2-5 at steps
+16-36 against 4-17 (docs/large_tissues.md, "Macro solve sized by accuracy";
+scripts/benchmarks/bench_cg_steps.py)."""
 SERIAL_LU = "petsc"
 """The linear macro problem's LU on one rank: PETSc's own (nested-dissection ordering; the matrix
 is symmetric positive definite, so no pivoting is needed), MUMPS on several. On the reference
