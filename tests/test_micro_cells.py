@@ -24,7 +24,7 @@ NX = 4
 ROUND_OFF = 1e-8  # the micro model's documented round-off (tests/test_micro.py: LU solves of
 # the thin walls' ill-conditioned stiffness); measured 1.2e-10 relative in u between the
 # honeycomb and its perturbed copy, and the same against main's code (42b6a2a)
-SERIAL_MPI = 1e-8  # serial against mpirun -n 2 (PETSc LU against MUMPS), as tests/test_micro.py
+SERIAL_MPI = 1e-8  # serial against mpirun -n 2 (MUMPS on both), as tests/test_micro.py
 BALANCE = 1e-12  # the water balance error relative to the water held, linear kinematics
 # (tests/test_micro_water.py: sums of lumen areas and an LU solve; measured 2e-16 to 1.2e-15)
 PERTURBATION = 1e-15  # relative: vertices moved by a few ulps, so the cells are another object
