@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from plantgrowth.unitcell import lattice as lattice_walk
 from plantgrowth.unitcell import surrogate
 
 TOLERANCE = 1e-3
@@ -123,6 +124,43 @@ def test_interpolant_is_a_non_negative_combination_of_exact_values():
                                rtol=1e-13)  # fmt: skip
 
 
+def walked(lat: surrogate.LatticeSurrogate, s: np.ndarray) -> dict[str, np.ndarray]:
+    """The walk down every level at the queries s themselves (no stop squares)."""
+    keys, surplus = lat._points_table()
+    squares = np.array(sorted(lat._built), dtype=np.int64)
+    ids = np.zeros(len(s), dtype=np.int64)
+    return lattice_walk.walk(squares, keys, surplus, ids, s, s[:, None, :])
+
+
+def test_stop_squares_answer_as_the_walk_and_forget_what_a_refinement_changes():
+    """A step's answers come from the stop squares' corners (one lookup); they are the walk's
+    answers: values to 1e-9 relative (the walk rounds a query's place in each level's square to
+    9 digits, lattice.cell, so its answer is quantised at 1e-9 of a square's side; the corners'
+    bilinear combination is not: measured 1e-10 here), estimates' terms likewise, and the
+    deepest built squares and on-point flags identical. Then queries elsewhere refine the
+    lattice: the first queries' answers follow the new interpolant (the table's entries were
+    dropped), again the walk's."""
+    lat = lattice()
+    rng = np.random.default_rng(5)
+    first = np.vstack([rng.uniform(-0.3, 0.3, (300, 2)), [[0.0, 0.0], [0.1, -0.2]]])
+    ask(lat, first)
+    for refined in (False, True):
+        if refined:  # queries next to the first refine the squares they share
+            count = len(lat._built)
+            ask(lat, rng.uniform(-0.02, 0.02, (50, 2)) + first[:50])
+            assert len(lat._built) > count
+        ids = np.zeros(len(first), dtype=np.int64)
+        values, interpolated, level, square, change = lat._walk(ids, first)
+        walk = walked(lat, first)
+        scale = np.abs(walk["values"][:, 0]).max(axis=1)
+        assert (np.abs(values - walk["values"][:, 0]).max(axis=1) <= 1e-9 * scale).all()
+        assert (np.abs(change - walk["change"][:, 0]).max(axis=1) <= 1e-9 * scale).all()
+        np.testing.assert_array_equal(level, walk["level"])
+        np.testing.assert_array_equal(square, walk["square"])
+        np.testing.assert_array_equal(interpolated, ~walk["on_point"][:, 0])
+        assert not interpolated[-2:].any()
+
+
 def test_lattice_points_are_answered_exactly_and_refining_is_a_phase_of_its_own():
     """A query on a built point gets its exact value to the bit; ``interpolate`` (the frozen
     interpolant a solve uses) solves nothing and refuses a query off the built lattice."""
@@ -157,6 +195,7 @@ def test_a_query_builds_only_its_own_chain_of_squares():
     np.testing.assert_array_equal(answer.estimates, 0.0)
 
 
+@pytest.mark.mpi
 def test_ranks_build_the_same_tables():
     """Under mpirun each rank asks its own half of the queries, of two tables named in an order
     of its own (a rank numbers the tables it meets; the squares' keys must not depend on that):
