@@ -15,9 +15,9 @@ keeps, per stop square met, I and that term at its corners (found by one walk of
 centre evaluated at its corners); a query in a known stop square is answered by one bilinear
 combination instead of a walk over every level. A refinement drops the entries that meet the
 hat supports of the points it adds (elsewhere I and the stop squares stay as they were). The
-answer is the walk's to 1e-10 relative (the walk rounds a query's place in each level's square
-to 9 digits, the corners' combination does not; tests/test_surrogate_continuity.py) and
-depends only on the square and the interpolant, so it is the same on every rank.
+answer is the walk's to rounding (5e-16 relative measured: both place a query by the same
+exact arithmetic, :func:`place`; tests/test_surrogate_continuity.py) and depends only on the
+square and the interpolant, so it is the same on every rank.
 """
 
 from __future__ import annotations
@@ -39,14 +39,24 @@ x m, about 10 MB for the 38 packed values of the strain law) stay in cache; the 
 gather of a fine mesh's 500,000 queries took 11 times as long (3.3 s against 0.3 s) and 600 MB."""
 
 
+def place(s: np.ndarray) -> np.ndarray:
+    """Stretches s in units of the coarsest spacing, rounded to 9 digits: round-off of Fg
+    (s / H0 = 1e-17, or 0.9999999999) is on the lattice line, one exact point. One rounding
+    for every level (a level's place is this times 2^level, exactly), so the squares holding a
+    query nest: rounded per level, s = (6.4e-10, -3.9e-11) sat in the level-0 square at the
+    origin but in the level-1 square below it, and a stop square's walk (from its centre) was
+    not its queries' walk (scenes/gradient_nu_stress.toml at draft refined forever)."""
+    return np.round(s / H0, 9)
+
+
 def cell(s: np.ndarray, level: int | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The lower-left corner (finest integers, (n, 2)) of the square of ``level`` (one, or
-    one per query) that holds each query s (n, 2), and its coordinates t (n, 2) in [0, 1]."""
+    one per query) that holds each query s (n, 2), and its coordinates t (n, 2) in [0, 1)
+    (:func:`place`: a square of level k + 1 lies in the one of level k)."""
     level = np.reshape(np.asarray(level, dtype=np.int64), (-1, 1))
-    x = s / (H0 / 2.0**level)
-    base = np.floor(np.round(x, 9))  # round-off of Fg (x = 1e-17, or 0.9999999999) is on the
-    t = np.clip(np.round(x - base, 9), 0.0, 1.0)  # lattice line: one exact point
-    return base.astype(np.int64) * (STEP >> level), t
+    x = place(s) * 2.0**level  # exact: a power of 2
+    base = np.floor(x)
+    return base.astype(np.int64) * (STEP >> level), x - base
 
 
 def hats(t: np.ndarray) -> np.ndarray:
@@ -100,7 +110,8 @@ def walk(
 ) -> dict[str, np.ndarray]:  # fmt: skip
     """One walk down the levels for n queries (sorted built squares' keys ``squares``, sorted
     point keys ``keys`` and their surpluses): the squares are those holding s (n, 2), the
-    interpolant is evaluated at ``targets`` (n, r, 2) in them. Returns ``values`` I (n, r, m)
+    interpolant is evaluated at ``targets`` (n, r, 2) in them, given as places (:func:`place`;
+    a lattice point's is exact, its finest integers / STEP). Returns ``values`` I (n, r, m)
     (``strict``: a KeyError off the built lattice), ``change`` the deepest built square S's term
     there, ``sum_c alpha_c phi_c`` over S's new corners, ``on_point`` (n, r) whether a target is
     a built point, ``level`` and ``square`` S's level and key (-1, 0: none), ``stop`` the level
@@ -122,9 +133,7 @@ def walk(
         level[alive[asked][hit]], square[alive[asked][hit]] = k, wanted[hit]
         chain[alive[asked][~hit]] = False
         points = corner[:, None, :] + OFFSETS[None] * (STEP >> k)
-        spacing = H0 / 2.0**k
-        t = np.clip(np.round(targets[alive] / spacing - (corner / (STEP >> k))[:, None, :], 9),
-                    0.0, 1.0)  # fmt: skip
+        t = np.clip(targets[alive] * 2.0**k - (corner // (STEP >> k))[:, None, :], 0.0, 1.0)
         weights = hats(t.reshape(-1, 2)).reshape(len(alive), r, 4)
         wanted = point_key(ids[alive, None], points[..., 0], points[..., 1])
         rows, built = find(keys, wanted)

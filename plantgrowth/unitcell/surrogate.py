@@ -58,6 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from plantgrowth.base.errors import RunError
 from plantgrowth.base.tensors import det2
 from plantgrowth.unitcell.lattice import (
     CHUNK,
@@ -126,6 +127,14 @@ need. Measured on tests/test_surrogate_continuity.py's drifting queries, KEEP 0.
 (no gap): 28 / 33 / 44 refining calls, 321 / 293 / 275 points, largest jump beyond the exact
 change 0.055 / 0.029 / 0.054 tolerance; on gradient_E_strain at ``balanced`` 101 / 73 / 67
 lattice points (0.5 overshot a level in most squares: the estimates there sit at 0.5-0.7)."""
+MAX_GROWTHS = MAX_LEVEL + 1
+"""Most passes of one refinement in which a query asks for a square (a bound no correct table
+reaches). A query grows when its deepest built square S has level -1 (none) or is below
+MAX_LEVEL, and then asks for S's child holding it (the level-0 square for -1), which is not
+built (S is the deepest) and which the next pass's lookup sees: its level rises by at least one
+each pass it grows, from -1 to at most MAX_LEVEL, so at most MAX_LEVEL + 1 times. A query that
+asks more often sees a stale level (stop squares that a refinement did not drop, squares that
+do not nest): it would ask for the same built square forever."""
 SQUARE_TABLE = 7
 """Most entries of a table (a fibred table's angle node: geometry, nu, fibre_stiffness, node)."""
 
@@ -255,6 +264,7 @@ class LatticeSurrogate:
         s = np.asarray(s, dtype=float).reshape(n, 2)
         fresh = np.zeros(0, dtype=np.int64)  # squares built in this call
         solves = 0
+        grown = np.zeros(n, dtype=np.int64)  # passes in which each query asked for a square
         while True:
             values, interpolated, level, key, change = self._walk(ids, s)
             error = np.full(n, np.inf)
@@ -270,11 +280,30 @@ class LatticeSurrogate:
             grow = (level < 0) | ((level < MAX_LEVEL) & ((error > tol) | going))
             child = level[grow] + 1
             wanted = square_key(ids[grow], child, cell(s[grow], child)[0])
-            squares = np.unique(np.concatenate(self.comm.allgather(np.unique(wanted))))
+            grown += grow
+            stuck = np.flatnonzero(grown > MAX_GROWTHS)[:1]
+            every = self.comm.allgather((np.unique(wanted), ids[stuck], s[stuck]))
+            self._check_growths(every)
+            squares = np.unique(np.concatenate([w for w, _, _ in every]))
             if not len(squares):  # nothing built anywhere: the interpolant is final
                 return Answer(values, error, interpolated, solves)
             solves += self._build_squares(squares)
             fresh = np.union1d(fresh, squares)
+
+    def _check_growths(self, every: list[tuple[np.ndarray, ...]]) -> None:
+        """Raise RunError on every rank if a query on any rank (its table numbers and
+        stretches, gathered in ``every``) asked for a square in more than :data:`MAX_GROWTHS`
+        passes of one refinement."""
+        for _, ids, s in every:
+            if len(ids):
+                names = {v: k for k, v in self._table_ids.items()}
+                raise RunError(
+                    f"the surrogate's refinement did not end: a query (table {names[ids[0]]}, "
+                    f"stretch s = ({s[0, 0]:.6g}, {s[0, 1]:.6g})) asked for a finer square in "
+                    f"more than {MAX_GROWTHS} passes, but its deepest square can deepen only "
+                    f"{MAX_GROWTHS} times (levels -1 to {MAX_LEVEL}): the lattice lookup does not "
+                    "see the squares it builds (a bug, please report it)"
+                )
 
     def _build_squares(self, squares: np.ndarray) -> int:
         """Build the squares (sorted keys, the same on every rank): their corners and those
@@ -353,7 +382,7 @@ class LatticeSurrogate:
         step = (STEP >> level)[:, None]
         corners = corner[:, None, :] + OFFSETS[None] * step[:, None, :]
         centre = (corner + 0.5 * step) * (H0 / STEP)
-        found = walk(self._squares_index, keys, surplus, ids[pick], centre, corners * (H0 / STEP))
+        found = walk(self._squares_index, keys, surplus, ids[pick], centre, corners / STEP)
         self._stops.add(found, stops)
 
     def evaluate(
