@@ -226,21 +226,28 @@ def test_queries_next_to_lattice_lines_stay_in_nested_squares():
     assert (answer.estimates <= TOLERANCE).all()
 
 
+@pytest.mark.mpi
 def test_a_refinement_that_cannot_end_stops_with_a_named_error(monkeypatch):
     """With the stop squares never dropped (a stale lookup: each pass sees the level it saw
     first), refine would ask for the same squares forever; after MAX_GROWTHS passes of one
-    query asking, it raises a RunError naming the query instead."""
+    query asking, it raises a RunError naming the query instead, on every rank (under mpirun
+    the query is rank 0's, the others ask none: no rank is left waiting in a collective)."""
     monkeypatch.setattr(lattice_walk.StopSquares, "drop", lambda self, built: None)
-    lat = lattice()
+    comm = MPI.COMM_WORLD
+    lat = lattice(comm)
+    query = np.array([[0.0123, -0.0456]]) if comm.rank == 0 else np.zeros((0, 2))
     expected = r"did not end: a query \(table \(1,\), stretch s = \(0\.0123, -0\.0456\)\)"
     with pytest.raises(RunError, match=expected + r" asked .* more than 13 passes"):
-        ask(lat, np.array([[0.0123, -0.0456]]))
+        ask(lat, query)
 
 
 def test_lattice_points_are_answered_exactly_and_refining_is_a_phase_of_its_own():
     """A query on a built point gets its exact value to the bit; ``interpolate`` (the frozen
-    interpolant a solve uses) solves nothing and refuses a query off the built lattice."""
+    interpolant a solve uses) solves nothing and refuses a query off the built lattice. No
+    query (a rank without cells) is answered before any point and after (the stop squares'
+    empty table failed to reshape, and under mpirun the other ranks waited forever)."""
     lat = lattice()
+    assert ask(lat, np.zeros((0, 2))).values.shape == (0, 0)
     points = np.array([[0.0, 0.0], [0.1, -0.2]])
     answer = ask(lat, points)
     np.testing.assert_array_equal(answer.values, exact(points))
@@ -250,6 +257,7 @@ def test_lattice_points_are_answered_exactly_and_refining_is_a_phase_of_its_own(
     assert len(lat.values) == count
     with pytest.raises(KeyError):
         lat.interpolate(TABLE, np.zeros(1, dtype=np.int64), np.array([[2.03, 0.01]]))
+    assert ask(lat, np.zeros((0, 2))).values.shape == (0, 5)
 
 
 @pytest.mark.mpi

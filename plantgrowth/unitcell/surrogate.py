@@ -360,6 +360,10 @@ class LatticeSurrogate:
         ``|term| / |I(s)|`` per segment; for a smooth f the error left is about a third of it).
         One lookup of each query's stop square (:class:`~plantgrowth.unitcell.lattice.
         StopSquares`); the stop squares not met before are found by walks first."""
+        if not len(ids):  # a rank without queries (perhaps without stop squares yet)
+            m = self._points_table()[1].shape[1]
+            empty = np.zeros((0, m))
+            return empty, np.zeros(0, dtype=bool), np.full(0, -1), np.zeros(0, np.int64), empty
         rows, t = self._stops.lookup(ids, s)
         miss = rows < 0
         if miss.any():  # new entries renumber the rows: look up again
