@@ -27,7 +27,7 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth.base.machine import machine_description
-from plantgrowth.unitcell.lattice import walk
+from plantgrowth.unitcell.lattice import place, walk
 from plantgrowth.unitcell.surrogate import LatticeSurrogate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         cached = lat._walk(ids, s)[0]
         times["stop_squares"].append(time.perf_counter() - start)
         start = time.perf_counter()
-        walked = walk(squares, keys, surplus, ids, s, s[:, None, :])["values"][:, 0]
+        walked = walk(squares, keys, surplus, ids, s, place(s)[:, None, :])["values"][:, 0]
         times["walk"].append(time.perf_counter() - start)
     difference = np.abs(cached - walked).max(axis=1) / np.abs(walked).max(axis=1)
     ratios = [a / b for a, b in zip(times["stop_squares"], times["walk"], strict=True)]
