@@ -61,8 +61,13 @@ MACRO_MAX_IT = 2000
 thinnest-walled hard case (w = 0.005); a solve that needs more stops with a RunError."""
 REBUILD_GROWTH = 1.5
 """CG's multigrid hierarchy is kept across steps and rebuilt once a solve needs more than 1.5 times
-the iterations of the solve after the last rebuild (plantgrowth.models.preconditioner_reuse;
-measured in docs/large_tissues.md, "Macro solve sized by accuracy")."""
+(and REBUILD_SETUP more than) the fewest iterations of a solve since the last rebuild
+(plantgrowth.models.preconditioner_reuse; measured in docs/large_tissues.md, "Macro solve sized
+by accuracy")."""
+REBUILD_SETUP = 3
+"""BoomerAMG's set-up in CG iterations: 0.80 s against 0.33 s an iteration on the organ system
+(2 ranks, docs/large_tissues.md's preconditioner table), rounded up: fewer extra iterations
+than this do not pay for a rebuild."""
 HISTORY = 5
 """CG starts from the energy-norm projection onto the last 5 solutions (plantgrowth.models.
 solution_history): on the organ scene (2 ranks, 1e-8) 2-5 iterations a step at steps 4-15,
@@ -216,7 +221,7 @@ class MacroProblem:
         self.ksp = self._linear_solver(self.A)
         self.reuse, self.history = None, None
         if self.solver == "iterative":
-            self.reuse = PreconditionerReuse(self.ksp, REBUILD_GROWTH)
+            self.reuse = PreconditionerReuse(self.ksp, REBUILD_GROWTH, REBUILD_SETUP)
             self.history = SolutionHistory(HISTORY)
 
     def _finite_forms(self, scene: Scene, psi, P1) -> None:
