@@ -190,13 +190,13 @@ def test_the_solver_is_reused_between_steps():
 @pytest.mark.parametrize("offset, expected", [(0, "iterative"), (1, "direct")])
 def test_auto_switches_at_the_threshold(offset, expected):
     """``auto`` is iterative from ``macro_threshold`` dofs on: threshold = dofs gives
-    CG + BoomerAMG, threshold = dofs + 1 gives a direct (Cholesky) factorization."""
+    CG + BoomerAMG, threshold = dofs + 1 gives LU."""
     ndofs = 2 * 70 * 31  # the rectangle at h = 0.1: 70 x 31 nodes
     s = scene({"macro": "auto", "macro_threshold": ndofs + offset})
     problem = MacroProblem(s, rectangle_mesh(s, MPI.COMM_WORLD))
     assert problem.ndofs == ndofs
     assert problem.solver == expected
-    ksp_type, pc_type = ("cg", "hypre") if expected == "iterative" else ("preonly", "cholesky")
+    ksp_type, pc_type = ("cg", "hypre") if expected == "iterative" else ("preonly", "lu")
     assert (problem.ksp.getType(), problem.ksp.getPC().getType()) == (ksp_type, pc_type)
 
 

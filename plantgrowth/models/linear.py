@@ -28,18 +28,15 @@ class SolveReport:
     bound: float = RESIDUAL_BOUND
 
 
-def lu_solver(
-    A: PETSc.Mat, comm: MPI.Comm, prefix: str, serial: str = "mumps", factor: str = "lu"
-) -> PETSc.KSP:
+def lu_solver(A: PETSc.Mat, comm: MPI.Comm, prefix: str, serial: str = "mumps") -> PETSc.KSP:
     """PREONLY + LU with its own options prefix; ``serial`` is the factor package on one rank
-    (PETSc's own LU is fastest for small unit cells), MUMPS on several. ``factor = "cholesky"``
-    for a symmetric A (``L D L^T``: half LU's work)."""
+    (PETSc's own LU is fastest for small unit cells), MUMPS on several."""
     ksp = PETSc.KSP().create(comm)
     ksp.setOptionsPrefix(prefix)
     ksp.setOperators(A)
     ksp.setType("preonly")
     pc = ksp.getPC()
-    pc.setType(factor)
+    pc.setType("lu")
     pc.setFactorSolverType(serial if comm.size == 1 else "mumps")
     ksp.setFromOptions()
     return ksp

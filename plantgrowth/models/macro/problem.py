@@ -71,14 +71,11 @@ step 16 on (two 60-step runs), where the surrogate's per-cell answers stopped ch
 before issue 33's continuous surrogate (docs/large_tissues.md, "Macro solve sized by accuracy";
 not measured again)."""
 SERIAL_LU = "petsc"
-"""The linear macro problem's factorization on one rank: PETSc's own (nested-dissection ordering;
-the matrix is symmetric positive definite, so no pivoting is needed), MUMPS on several; both as
-Cholesky (issue 33, item 3: on the reference scene 177,746 nonzeros in the factor against LU's
-351,152, 6.2 against 9.8 ms CPU a factorization; results within 3.5e-11 in u1_max and 6.7e-9 in
-elastic_strain_max of LU's). On the reference scene (4,340 dofs) PETSc's LU had taken 0.58 s
-over 61 steps against MUMPS's 0.77 s, results within 1.2e-11 in u and 4e-10 in
-elastic_strain_max of MUMPS's (docs/large_tissues.md, "Start-up"). Newton's Jacobians keep
-MUMPS's LU."""
+"""The linear macro problem's LU on one rank: PETSc's own (nested-dissection ordering; the matrix
+is symmetric positive definite, so no pivoting is needed), MUMPS on several. On the reference
+scene (4,340 dofs) the solve phase took 0.58 s over 61 steps against MUMPS's 0.77 s, results
+within 1.2e-11 in u and 4e-10 in elastic_strain_max of MUMPS's (docs/large_tissues.md,
+"Start-up"). Newton's Jacobians keep MUMPS."""
 PREFIX = "plantgrowth_macro_"
 NEWTON_PREFIX = PREFIX + "newton_"  # its own GAMG options (see linear.gamg_solver)
 NEWTON_KRYLOV_MAX_IT = 500
@@ -255,7 +252,7 @@ class MacroProblem:
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
         if self.solver == "iterative":  # warm: from the guess SolutionHistory sets
             return boomeramg_cg_solver(A, self.mesh.comm, PREFIX, self.rtol, MACRO_MAX_IT, True)
-        return lu_solver(A, self.mesh.comm, PREFIX, serial=SERIAL_LU, factor="cholesky")
+        return lu_solver(A, self.mesh.comm, PREFIX, serial=SERIAL_LU)
 
     def _jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
         """Newton's linear solver: GMRES + GAMG (a finite-kinematics Jacobian is non-symmetric
