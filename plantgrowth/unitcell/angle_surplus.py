@@ -23,7 +23,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from plantgrowth.unitcell.surrogate import CHUNK, H0, STEP
+from plantgrowth.unitcell.surrogate import H0, STEP
 
 _CORNERS = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])  # a square's corners, in its spacing
 
@@ -72,14 +72,11 @@ def grid_term(
     ``node_tables[j]``, the query's grid square ``square`` (into ``squares``) and hats, the
     exact corner values from the lattice's ``values`` ((table, point) -> packed values)."""
     points = corner_points(squares, level)
-    table = np.array([values[node, p] for p in points for node in node_tables])  # (u 4 N, m)
-    count = len(node_tables)
-    rows = (square[:, None] * 4 + np.arange(4))[:, :, None] * count + np.arange(count)
-    weights = hats[:, :, None] * surplus[:, None, :]  # (n, 4, N)
-    n = len(square)
-    rows, weights = rows.reshape(n, -1), weights.reshape(n, -1)
-    out = np.empty((n, table.shape[1]))
-    for start in range(0, n, CHUNK):
-        part = slice(start, start + CHUNK)
-        out[part] = np.einsum("qk,qkm->qm", weights[part], table[rows[part]])
+    table = np.array([[values[node, p] for node in node_tables] for p in points])  # (u 4, N, m)
+    table = table.reshape(len(squares), 4, len(node_tables), -1)
+    out = np.zeros((len(square), table.shape[-1]))
+    for u in range(len(squares)):  # a few squares: per square, 4 products (q, N) @ (N, m)
+        mine = np.flatnonzero(square == u)
+        for c in range(4):
+            out[mine] += hats[mine, c : c + 1] * (surplus[mine] @ table[u, c])
     return out
