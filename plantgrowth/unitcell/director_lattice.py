@@ -12,15 +12,25 @@ trigonometric interpolant of period 180 degrees through N equispaced nodes ``b_j
 (N even; l_j(b_j) = 1, l_j(b_k) = 0): smooth, periodic by construction (d -> d + 2 pi leaves
 l_j unchanged), and for the smooth periodic angle dependence of the cell tensors it converges
 spectrally, so it needs far fewer nodes than the piecewise-linear interpolant it replaces
-(measured in benchmarks/results/angle_nodes.json). Each node is a table of the stretch surrogate
+(measured in benchmarks/results/angle_nodes.json). A node is a table of the stretch surrogate
 (:mod:`plantgrowth.unitcell.surrogate`), its angle an integer index of ``ANGLE_STEP`` degrees.
 
-N is one per table, ``12 2^L`` (L = 0: 15-degree spacing), so every query of a table gets one
-continuous function of b. It is chosen in the refine phase of a call, before the answers: the
-estimate of a query is the relative difference between the interpolants through N and through
-every other node (N / 2); the table's L goes up while the largest estimate over its queries (all
-ranks) exceeds the tolerance, and, once raised in a call, while it exceeds ``KEEP`` times it
-(the gap of :mod:`plantgrowth.unitcell.surrogate`).
+A table is a sparse grid in (b, s) (:mod:`plantgrowth.unitcell.angle_surplus`):
+
+    A(b, s) = I_M[S](b, s) + (I_2M - I_M)[P_1 f](b, s) + (I_4M - I_2M)[P_0 f](b, s),
+
+where only the M fine nodes hold stretch tables S refined to the tolerance (each to its
+:func:`node_tolerance` by its weight in I_M), and the angle surpluses of the 3M nodes each
+doubling adds are taken on the coarse stretch grids of levels 1 and 0 (P_l: bilinear on the
+lattice's own points of spacing ``H0 / 2^l``). A is continuous in (b, s) (trigonometric in b,
+bilinear or the stretch interpolant in s) and 180-degree periodic. M is one per table,
+``6 2^L``. It is chosen in the refine phase of a call, before the answers: the estimate of a
+query is the larger of the last surplus term (the angle's: about the error of I_2M, far above
+the error of A, which is about I_4M's) and the change the level-1 grid made to the first
+surplus term (the stretch's: about three times the error that P_1 leaves there); the table's L
+goes up while the largest estimate over its queries (all ranks) exceeds the tolerance, and,
+once raised in a call, while it exceeds ``KEEP`` times it (the gap of
+:mod:`plantgrowth.unitcell.surrogate`).
 
 The cardinal functions change sign, so E_hom is no longer a non-negative combination of SPD
 tensors; it stays SPD because it is within the tolerance (1e-3 relative) of the exact tensors,
