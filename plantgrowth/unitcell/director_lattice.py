@@ -188,17 +188,22 @@ class DirectorInterpolant:
             rows = offset + np.arange(len(queries) * count).reshape(len(queries), count)
             offset += rows.size
             grids = []
-            for factor, level in SURPLUS_TERMS:
+            surpluses = [
+                angle_surplus.surplus_weights(b[queries], factor * count, trigonometric_weights)
+                for factor, _ in SURPLUS_TERMS
+            ]  # all zero at a fine node's angle: no grid asked for it (exactly, the terms are 0)
+            need = np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0)
+            for (factor, level), surplus in zip(SURPLUS_TERMS, surpluses, strict=True):
                 nodes = [table + (j * PERIOD // (factor * count),) for j in range(factor * count)]
-                squares, square, hats = angle_surplus.grid_squares(s[queries], level)
+                squares, square, hats = angle_surplus.grid_squares(s[queries[need]], level)
                 build = angle_surplus.builders(squares, level)
                 ask_which.append(np.repeat(len(ask_tables) + np.arange(len(nodes)), len(build)))
                 ask_tables += nodes
                 ask_s.append(np.tile(build, (len(nodes), 1)))
                 tol.append(np.ones(len(nodes) * len(build)))  # the corners are what is wanted
                 offset += len(nodes) * len(build)
-                grids.append((nodes, squares, level, square, hats))
-            layout.append((queries, weights, rows, grids))
+                grids.append((nodes, squares, level, square, hats, surplus[need]))
+            layout.append((queries, weights, rows, need, grids))
         ask_which.append(len(ask_tables) + which[plain])
         ask_tables += list(tables)
         ask_s.append(s[plain])
@@ -222,29 +227,28 @@ class DirectorInterpolant:
         values[plain] = answer.values[start:]
         estimates[plain] = answer.estimates[start:]
         interpolated[plain] = answer.interpolated[start:]
-        for queries, weights, rows, grids in layout:
+        for queries, weights, rows, need, grids in layout:
             value = np.einsum("qj,qjm->qm", weights, answer.values[rows])
-            terms, surpluses = [], []
-            for nodes, squares, level, square, hats in grids:
-                surplus = angle_surplus.surplus_weights(
-                    b[queries], len(nodes), trigonometric_weights
-                )
-                terms.append(angle_surplus.grid_term(
-                    nodes, squares, level, square, hats, surplus, self._values
-                ))  # fmt: skip
-                surpluses.append(surplus)
+            terms = [np.zeros_like(value) for _ in grids]
+            coarse = np.zeros_like(value)
+            if need.any():
+                for term, (nodes, squares, level, square, hats, surplus) in zip(
+                    terms, grids, strict=True
+                ):
+                    term[need] = angle_surplus.grid_term(
+                        nodes, squares, level, square, hats, surplus, self._values
+                    )
+                (first, *_, surplus), (_, squares, level, square, hats, _) = grids
+                coarse[need] = angle_surplus.grid_term(
+                    first, squares, level, square, hats, surplus, self._values
+                )  # the first surplus term on the last term's (coarser) grid
             values[queries] = value + sum(terms)
-            (first, _, _, _, _), (nodes, squares, level, square, hats) = grids
-            coarse = angle_surplus.grid_term(
-                first, squares, level, square, hats, surpluses[0], self._values
-            )  # the first surplus term on the last term's (coarser) grid
             estimates[queries] = np.maximum(
                 self._difference(values[queries] - terms[-1], values[queries]),
                 self._difference(values[queries] - terms[0] + coarse, values[queries]),
             )
             used = weights != 0.0
             interpolated[queries] = (
-                (used.sum(axis=1) > 1) | (used & answer.interpolated[rows]).any(axis=1)
-                | np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0)
-            )  # fmt: skip
+                (used.sum(axis=1) > 1) | (used & answer.interpolated[rows]).any(axis=1) | need
+            )
         return values, estimates, interpolated
