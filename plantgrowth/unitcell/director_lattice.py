@@ -60,7 +60,8 @@ SURPLUS_TERMS = ((2, 1), (4, 0))
 """The surplus terms (I_{kM} - I_{kM/2})[P_l f] as (k, l): the 2M nodes on the level-1
 stretch grid, the 4M nodes on the level-0 grid (:mod:`plantgrowth.unitcell.angle_surplus`).
 Measured for the reference cell at E_f/E = 5, s in [0, 0.15] x [-0.015, 0.04], b in
-[65, 120]: largest error 2.9e-4 with M = 6 (I_6 alone 1.7e-2, I_12 7.7e-4, I_24 1.9e-7)."""
+[65, 120]: largest error 2.9e-4 with M = 6 (I_6 alone 1.7e-2, I_12 7.7e-4, I_24 1.9e-7;
+scripts/benchmarks/bench_angle_sparse.py)."""
 LEVEL_CAP = 4
 """Largest L a table is refined to: M = 96 fine nodes (1.9 degrees apart, 384 on the level-0
 grid); every query asks every fine node, so an estimate that does not converge (a map that is
