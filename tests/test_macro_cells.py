@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -145,6 +146,23 @@ def test_the_macro_model_cuts_the_cells_the_micro_model_cuts():
     shapes = cells_domain(sc, cells, MPI.COMM_WORLD).cell_shape.shapes
     assert np.allclose(shapes.areas, np.where(cut, 2.0, 1.0) * cells.areas, rtol=1e-12)
     assert np.allclose(shapes.centres[~cut], cells.centroids[~cut], rtol=1e-12)
+
+
+def test_a_macro_newton_that_fails_is_ramped_up_in_turgor(caplog):
+    """The macro model from 32 generated cells at r = 1 (seed 1, finite kinematics, draft):
+    Newton fails at the first step from the linear guess (the line search finds no decrease;
+    at the balanced preset an element inverts at the tissue's bottom-right corner), as on the
+    micro side; the turgor ramp (plantgrowth/models/turgor_ramp.py) solves it, and leaves P1
+    at its full value."""
+    tissue = {"cells": {"voronoi": 32, "seed": 1, "regularity": 1.0}}
+    sc = parse_scene({"model": "macro", "kinematics": "finite", "tissue": tissue,
+                      "growth": {"law": "stress"}, "accuracy": {"preset": "draft"}})  # fmt: skip
+    model = model_on(macro_domain(sc, MPI.COMM_SELF), MPI.COMM_SELF)
+    with caplog.at_level(logging.WARNING, logger="plantgrowth"):
+        model.step(model.initial_growth())
+    assert "turgor ramped up" in caplog.text  # the scene needs the ramp: a test of it
+    problem = model.problem
+    assert np.array_equal(problem.cell_values(problem.P1)[:, 0], problem.P1_cells)
 
 
 @pytest.mark.mpi
