@@ -109,7 +109,8 @@ def main(argv: list[str] | None = None) -> None:
                 ax.plot(xs, means, style, color=colour, label=label)
             stopped = [r for r in rs if all(row is None for row in found[nx, r])]
             shifted = [r + 0.025 * (k - 1) for r in stopped]  # side by side, not on top
-            ax.plot(shifted, [0.0] * len(stopped), "x", color=colour, ms=9, clip_on=False)
+            if stopped:  # an empty unclipped line collapses constrained_layout
+                ax.plot(shifted, [0.0] * len(stopped), "x", color=colour, ms=9, clip_on=False)
         ax.set_xlabel("irregularity r")
         ax.set_ylabel(key)
         ax.set_ylim(bottom=0.0)
