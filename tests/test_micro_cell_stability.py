@@ -119,7 +119,7 @@ def test_the_spots_are_linear_kinematics_rotations_and_finite_kinematics_is_elli
     more, the size of the honeycomb's largest wall strain, so the flag says the linear solution
     is invalid there; measured 3.5 rad), and the stop's message names the remedy (finite
     kinematics, docs/real_tissues.md). In finite kinematics Newton fails from the linear guess,
-    and the turgor ramp (plantgrowth/models/micro/turgor_ramp.py) solves it: elliptic
+    and the turgor ramp (plantgrowth/models/turgor_ramp.py) solves it: elliptic
     everywhere, its largest rotation below that median and its max |u| below the linear one's
     (measured 0.47 against 10.5)."""
     one = runpy.run_path(str(STUDY))["one"]

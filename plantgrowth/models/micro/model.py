@@ -39,13 +39,13 @@ from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
 from plantgrowth.models.micro.outlines import CellOutlines
 from plantgrowth.models.micro.supports import supports
-from plantgrowth.models.micro.turgor_ramp import solve_ramped
 from plantgrowth.models.micro.turgor_solve import ElasticParts
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
 from plantgrowth.models.refinement import ExtendedRefinement
 from plantgrowth.models.regions import RegionStatistics
 from plantgrowth.models.step import StepResult, clamped_fraction, max_abs_components
+from plantgrowth.models.turgor_ramp import solve_ramped
 from plantgrowth.scene import Scene
 from plantgrowth.scene.micro_tissue import micro_tissue
 
