@@ -21,8 +21,10 @@ anisotropy and orientation; its ``sqrt(det Fg0)`` the cell's size relative to de
 *size* of a cell is ``sqrt(|P| / |Y|)``: the factor the unit cell's l1, l2 are scaled by to
 the cell's area (|Y| the unit cell's area, in the scene's length unit per unit cell length).
 
-A cell with a side on the symmetry plane x2 = 0 is half of a cell mirrored about it: its shape
-is that of the polygon united with its mirror image (centroid on x2 = 0, area doubled).
+A cell cut by the symmetry plane x2 = 0 (by default every cell with a side on it) is half of a
+cell mirrored about it: its shape is that of the polygon united with its mirror image (centroid
+on x2 = 0, area doubled). A cell that meets its own mirror image on x2 = 0 across a wall (a
+generated tissue's cell beside the plane) is a whole cell: its own polygon's shape.
 """
 
 from __future__ import annotations
@@ -122,13 +124,22 @@ def on_symmetry_plane(cells: CellPolygons) -> np.ndarray:
     return np.array([bool(np.any(low[loop] & low[np.roll(loop, -1)])) for loop in cells.cells])
 
 
-def cell_shapes(cells: CellPolygons, cell: HoneycombCell, delta: float | None = None) -> CellShapes:
+def cell_shapes(
+    cells: CellPolygons, cell: HoneycombCell, delta: float | None = None,
+    cut: np.ndarray | None = None,
+) -> CellShapes:  # fmt: skip
     """The shapes of ``cells`` against ``cell``'s hexagon scaled by ``delta`` (default: the
-    scale that gives the tissue's mean cell area, so a regular honeycomb gets Fg0 = I)."""
+    scale that gives the tissue's mean cell area, so a regular honeycomb gets Fg0 = I); ``cut``
+    (n,) the cells cut by the symmetry plane, mirrored about it (default: every cell with a
+    side on it; a cell beside its own mirror image is a whole cell, not cut)."""
     if np.any(cells.vertices[:, 1] < -1e-9 * float(np.ptp(cells.vertices, axis=0).max())):
         raise GeometryError("tissue.cells: every vertex must lie in x2 >= 0 (x2 = 0 is the "
                             "symmetry plane)")  # fmt: skip
-    cut = on_symmetry_plane(cells)
+    on_plane = on_symmetry_plane(cells)
+    cut = on_plane if cut is None else np.asarray(cut, dtype=bool)
+    if np.any(cut & ~on_plane):
+        raise GeometryError(f"cell {cells.labels[np.flatnonzero(cut & ~on_plane)[0]]} is cut "
+                            "but has no side on x2 = 0")  # fmt: skip
     moments = [(mirrored_moment if c else second_moment)(cells.polygon(i))
                for i, c in enumerate(cut)]  # fmt: skip
     areas = np.array([m[0] for m in moments])

@@ -347,8 +347,8 @@ def test_surrogate_interpolates_the_director_within_its_tolerance(reference, ang
     exact angle by at most the surrogate's tolerance 1e-3, at an arbitrary stretch too (the
     angle estimate, the difference to the interpolant through every other node, bounds the
     trigonometric interpolant's error by far, and the two nearest nodes' stretch errors are each
-    within 1e-3, director_lattice.node_tolerance; measured at most 3.5e-4, and 3e-9 to 3e-8 at
-    Fg = I, where 12-24 nodes resolve the angle dependence to that); and it does interpolate:
+    within 1e-3, director_lattice.node_tolerance; measured at most 2.2e-4, and 5e-13 to 3e-9 at
+    Fg = I, where the sparse grid resolves the angle dependence to that); and it does interpolate:
     the answer at Fg = I is more than the tolerance from a nearby node's own tensors (measured
     0.041 from 45 for 50, 0.044 from 135 for -37.3; 179.99, 0.01 degrees from the node 0, is
     checked against the node 165: 0.17). Under mpirun each rank answers a block of the points."""
@@ -372,10 +372,10 @@ def test_surrogate_interpolates_the_director_within_its_tolerance(reference, ang
 @pytest.mark.parametrize("angle", [90.03, 90.5, 97.0])
 def test_director_near_or_between_nodes_keeps_few_angle_nodes(reference, angle):
     """A director 0.03 degrees from a node (a growth rotation's size), 0.5 or midway between
-    two nodes: the table's trigonometric interpolant needs at most 24 nodes (7.5 degrees apart;
-    the piecewise-linear lattice it replaces was refined to 0.47 degrees for 90.5, see
-    benchmarks/results/angle_nodes.json), and the answer is within the tolerance 1e-3 of
-    CellSolver's solve at the exact angle."""
+    two nodes: the table's interpolant needs at most 24 fine nodes (7.5 degrees apart; measured
+    6, the sparse grid's M at L = 0; the piecewise-linear lattice it replaces was refined to
+    0.47 degrees for 90.5, see benchmarks/results/angle_nodes.json), and the answer is within
+    the tolerance 1e-3 of CellSolver's solve at the exact angle."""
     homogenizer = Homogenizer(1, 1e-6, True, True, MPI.COMM_WORLD, cell_tolerance=1e-3)
     Fg = np.array([[1.08, 0.0], [0.0, 0.96]])
     tensors = homogenizer.homogenize(

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from plantgrowth.base.errors import SceneError
 from plantgrowth.base.gather import MeshGather
 from plantgrowth.meshes.cell_outline import cell_of_points, tissue_outline
 from plantgrowth.meshes.cell_polygons import CellPolygons
+from plantgrowth.meshes.cell_shapes import on_symmetry_plane
 from plantgrowth.meshes.honeycomb import GeometryError, polygon_area
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models.macro.domain import cells_domain, macro_domain
@@ -29,6 +31,7 @@ from plantgrowth.models.macro.model import MacroModel, model_on
 from plantgrowth.runner.scene_run import run_scene
 from plantgrowth.scene import parse_scene
 from plantgrowth.scene.cells_spec import GeneratedCells
+from plantgrowth.scene.micro_tissue import micro_tissue
 from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx
 from plantgrowth.studies.compare import compare_one, run_compare
 
@@ -128,6 +131,38 @@ def test_each_fine_cell_takes_its_cells_shape():
     assert np.allclose(areas, cells.areas, rtol=1e-10)
     assert np.array_equal(model.shape[:n], domain.cell_shape.shapes.Fg0[owner])
     assert len(np.unique(model.shape[:n].reshape(n, 4), axis=0)) > 1  # not all alike
+
+
+@pytest.mark.mpi
+def test_the_macro_model_cuts_the_cells_the_micro_model_cuts():
+    """A generated cell beside its own mirror image on x2 = 0 (8 cells, seed 1, r = 1: label 6,
+    not of the bottom row) is a whole cell for the micro model, which does not mirror it; the
+    macro model's shape of it is then its own polygon's (area and centroid), not its union
+    with its mirror (area doubled, centre on x2 = 0). Exact arithmetic on both sides but the
+    moments' sums: 1e-12."""
+    sc = scene(tissue={"h": 0.35, "cells": {"voronoi": 8, "seed": 1, "regularity": 1.0}})
+    cells, cut = cell_polygons(sc), micro_tissue(sc).cut
+    assert on_symmetry_plane(cells)[6] and not cut[6]  # the case: a whole cell on x2 = 0
+    shapes = cells_domain(sc, cells, MPI.COMM_WORLD).cell_shape.shapes
+    assert np.allclose(shapes.areas, np.where(cut, 2.0, 1.0) * cells.areas, rtol=1e-12)
+    assert np.allclose(shapes.centres[~cut], cells.centroids[~cut], rtol=1e-12)
+
+
+def test_a_macro_newton_that_fails_is_ramped_up_in_turgor(caplog):
+    """The macro model from 32 generated cells at r = 1 (seed 1, finite kinematics, draft):
+    Newton fails at the first step from the linear guess (the line search finds no decrease;
+    at the balanced preset an element inverts at the tissue's bottom-right corner), as on the
+    micro side; the turgor ramp (plantgrowth/models/turgor_ramp.py) solves it, and leaves P1
+    at its full value."""
+    tissue = {"cells": {"voronoi": 32, "seed": 1, "regularity": 1.0}}
+    sc = parse_scene({"model": "macro", "kinematics": "finite", "tissue": tissue,
+                      "growth": {"law": "stress"}, "accuracy": {"preset": "draft"}})  # fmt: skip
+    model = model_on(macro_domain(sc, MPI.COMM_SELF), MPI.COMM_SELF)
+    with caplog.at_level(logging.WARNING, logger="plantgrowth"):
+        model.step(model.initial_growth())
+    assert "turgor ramped up" in caplog.text  # the scene needs the ramp: a test of it
+    problem = model.problem
+    assert np.array_equal(problem.cell_values(problem.P1)[:, 0], problem.P1_cells)
 
 
 @pytest.mark.mpi

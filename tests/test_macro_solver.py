@@ -25,7 +25,15 @@ from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
 from plantgrowth.models import diagnostics
-from plantgrowth.models.macro.problem import HISTORY, REBUILD_GROWTH, MacroProblem, rectangle_mesh
+from plantgrowth.models.linear import SolveReport
+from plantgrowth.models.macro.problem import (
+    HISTORY,
+    REBUILD_GROWTH,
+    REBUILD_SETUP,
+    MacroProblem,
+    rectangle_mesh,
+)
+from plantgrowth.models.preconditioner_reuse import PreconditionerReuse
 from plantgrowth.models.solution_history import SolutionHistory
 from plantgrowth.scene import parse_scene
 from plantgrowth.scene.limits import MACRO_RTOL
@@ -155,6 +163,36 @@ def test_the_rebuild_rule_fires():
     rebuilt = problem.solve()
     assert reuse.rebuilds == 2 and not reuse.rebuild_next
     assert 0 < rebuilt.iterations < stale.iterations
+
+
+class _CountingKSP:
+    """The part of a PETSc KSP that PreconditionerReuse touches: its PC's reuse flag."""
+
+    def __init__(self) -> None:
+        self.reuse_flags: list[bool] = []
+
+    def getPC(self):  # noqa: N802 (petsc4py's name)
+        return self
+
+    def setReusePreconditioner(self, flag: bool) -> None:  # noqa: N802
+        self.reuse_flags.append(flag)
+
+
+def test_an_aged_hierarchy_fires_the_rule_after_a_cold_first_solve():
+    """The organ scene's pattern (60 steps, 2 ranks): 30 iterations at step 0 (no earlier
+    solutions), then 2-5 from the projected history, then 8-10 as the hierarchy ages. Measured
+    against the cold count the rule never fired (built once in 60 steps); measured against the
+    fewest iterations since the rebuild (2) it fires once a solve needs more than
+    max(REBUILD_GROWTH x 2, 2 + REBUILD_SETUP) = 5, and not for the 4s the history's
+    prediction leaves in between."""
+    ksp = _CountingKSP()
+    reuse = PreconditionerReuse(ksp, REBUILD_GROWTH, REBUILD_SETUP)
+    fired = []
+    for iterations in (30, 3, 2, 4, 4, 8):
+        reuse.solve(lambda n=iterations: SolveReport(1, 0.0, n), lambda: None)
+        fired.append(reuse.rebuild_next)
+    assert fired == [False, False, False, False, False, True]
+    assert ksp.reuse_flags == [False, True, True, True, True, True]  # only step 0 built
 
 
 def test_earlier_solutions_cut_the_iterations():

@@ -117,13 +117,16 @@ def test_the_spots_are_linear_kinematics_rotations_and_finite_kinematics_is_elli
     check finds non-elliptic sets (a run stops), where the walls have rotated by order one
     (median |omega| above 0.5 rad: the linearised strain then misses ``omega^2 / 2`` = 0.125 and
     more, the size of the honeycomb's largest wall strain, so the flag says the linear solution
-    is invalid there; measured 3.5 rad). In finite kinematics Newton fails from the linear
-    guess, and the turgor ramp (plantgrowth/models/micro/turgor_ramp.py) solves it: elliptic
+    is invalid there; measured 3.5 rad), and the stop's message names the remedy (finite
+    kinematics, docs/real_tissues.md). In finite kinematics Newton fails from the linear guess,
+    and the turgor ramp (plantgrowth/models/turgor_ramp.py) solves it: elliptic
     everywhere, its largest rotation below that median and its max |u| below the linear one's
     (measured 0.47 against 10.5)."""
     one = runpy.run_path(str(STUDY))["one"]
     linear = one(4, 1.0, 1, "linear", 0.001)
     assert linear["stops"] and linear["rotation_median_nonelliptic"] > 0.5
+    assert 'set kinematics = "finite"' in linear["stop_message"]  # the stop names the remedy
+    assert "docs/real_tissues.md" in linear["stop_message"]
     with caplog.at_level(logging.WARNING, logger="plantgrowth"):
         finite = one(4, 1.0, 1, "finite", 0.001)
     assert "turgor ramped up" in caplog.text  # the scene needs the ramp: a test of it

@@ -24,10 +24,13 @@ NX = 4
 ROUND_OFF = 1e-8  # the micro model's documented round-off (tests/test_micro.py: LU solves of
 # the thin walls' ill-conditioned stiffness); measured 1.2e-10 relative in u between the
 # honeycomb and its perturbed copy, and the same against main's code (42b6a2a)
-SERIAL_MPI = 1e-8  # serial against mpirun -n 2 (PETSc LU against MUMPS), as tests/test_micro.py
+SERIAL_MPI = 1e-8  # serial against mpirun -n 2 (MUMPS on both), as tests/test_micro.py
 BALANCE = 1e-12  # the water balance error relative to the water held, linear kinematics
 # (tests/test_micro_water.py: sums of lumen areas and an LU solve; measured 2e-16 to 1.2e-15)
 PERTURBATION = 1e-15  # relative: vertices moved by a few ulps, so the cells are another object
+ORDERINGS = 1e-12  # two LU orderings of the same system: the refined solve's forward error,
+# measured 4.0e-14 (AMD against AMF, below); unrefined, kappa eps (kappa ~ 1e7 on thin walls):
+# 7.8e-12 (growth_anisotropy; PORD against AMD: 1.3e-10 in the vertices' displacements)
 
 
 def _scene(kinematics: str, water: bool, t_max: float = 2.0):
@@ -292,3 +295,30 @@ def test_a_generated_tissue_at_regularity_zero_is_the_honeycomb_and_r_half_runs(
     assert tissue.cut.tolist() == [True] * NX + [False] * NX
     assert np.any(tissue.on_plane & ~tissue.cut)
     assert tissue.wall_area > 0.0
+
+
+def test_two_lu_orderings_give_the_linear_answers_to_the_refined_solves_accuracy():
+    """A generated Nx = 4 tissue (r = 0.25, seed 1), linear kinematics, one step solved with
+    MUMPS's AMD and AMF orderings (ICNTL(7) = 0, 2): both LUs are backward stable (~2 eps), so
+    unrefined they differ by the forward error kappa eps, as serial and 2-rank MUMPS do; the
+    step's refinement with a long-double residual (plantgrowth/models/refinement.py) brings both
+    to the system's answer: cells.csv, the vertices' displacements and the measures agree to
+    ORDERINGS."""
+    from petsc4py import PETSc
+
+    from plantgrowth.models.linear import lu_solver
+
+    data = scene_data(NX, 1.0, "linear", pressure={"P1": 0.001})
+    data["tissue"] = {"cells": {"voronoi": 8, "seed": 1, "regularity": 0.25}}
+    model, options = MicroModel(parse_scene(data), MPI.COMM_SELF), PETSc.Options()
+    key = "plantgrowth_micro_mat_mumps_icntl_7"
+    answers = []
+    try:
+        for ordering in (0, 2):  # one model, a factorization of each ordering
+            options[key] = ordering
+            model.ksp = lu_solver(model.A, MPI.COMM_SELF, "plantgrowth_micro_")
+            answers.append(_replicated(model, 1))
+    finally:
+        options.delValue(key)
+    for name, value in answers[0].items():
+        assert _relative(value, answers[1][name]) < ORDERINGS, name

@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from plantgrowth.base.errors import RunError
+from plantgrowth.unitcell import lattice as lattice_walk
 from plantgrowth.unitcell import surrogate
 
 TOLERANCE = 1e-3
@@ -123,10 +125,129 @@ def test_interpolant_is_a_non_negative_combination_of_exact_values():
                                rtol=1e-13)  # fmt: skip
 
 
+def walked(lat: surrogate.LatticeSurrogate, s: np.ndarray) -> dict[str, np.ndarray]:
+    """The walk down every level at the queries s themselves (no stop squares)."""
+    keys, surplus = lat._points_table()
+    squares = np.array(sorted(lat._built), dtype=np.int64)
+    ids = np.zeros(len(s), dtype=np.int64)
+    return lattice_walk.walk(squares, keys, surplus, ids, s, lattice_walk.place(s)[:, None, :])
+
+
+def assert_cached_is_walked(lat: surrogate.LatticeSurrogate, s: np.ndarray, rtol: float) -> None:
+    """The stop squares' answers at s (values, estimates' terms to ``rtol`` of the largest
+    value's size; deepest squares and on-point flags identical) are the walk's."""
+    values, interpolated, level, square, change = lat._walk(np.zeros(len(s), dtype=np.int64), s)
+    walk = walked(lat, s)
+    scale = np.abs(walk["values"][:, 0]).max(axis=1)
+    assert (np.abs(values - walk["values"][:, 0]).max(axis=1) <= rtol * scale).all()
+    assert (np.abs(change - walk["change"][:, 0]).max(axis=1) <= rtol * scale).all()
+    np.testing.assert_array_equal(level, walk["level"])
+    np.testing.assert_array_equal(square, walk["square"])
+    np.testing.assert_array_equal(interpolated, ~walk["on_point"][:, 0])
+
+
+ROUNDING = 1e-13
+"""Stop squares against the walk: both place a query in its squares by the same exact
+arithmetic (lattice.place), so they differ only by the order of a sum of at most 13 levels'
+products of size |I| (a few ulps each): measured 5e-16 relative here and over
+gradient_nu_stress at draft; 1e-13 leaves room for other sums' orders, and is far below the
+1e-9 quantum that a wrong place (one level's square) makes."""
+
+
+def test_stop_squares_answer_as_the_walk_and_forget_what_a_refinement_changes():
+    """A step's answers come from the stop squares' corners (one lookup); they are the walk's
+    answers (values and estimates' terms to ROUNDING, deepest built squares and on-point flags
+    identical). Then queries elsewhere refine the lattice: the first queries' answers follow
+    the new interpolant (the table's entries were dropped), again the walk's."""
+    lat = lattice()
+    rng = np.random.default_rng(5)
+    first = np.vstack([rng.uniform(-0.3, 0.3, (300, 2)), [[0.0, 0.0], [0.1, -0.2]]])
+    ask(lat, first)
+    for refined in (False, True):
+        if refined:  # queries next to the first refine the squares they share
+            count = len(lat._built)
+            ask(lat, rng.uniform(-0.02, 0.02, (50, 2)) + first[:50])
+            assert len(lat._built) > count
+        assert_cached_is_walked(lat, first, ROUNDING)
+        interpolated = lat._walk(np.zeros(2, dtype=np.int64), first[-2:])[1]
+        assert not interpolated.any()
+
+
+def test_a_refinement_inside_a_cached_square_renews_it_and_its_neighbours():
+    """Built: a level-2 square P (side h2), its left neighbour N, and N's lower child away
+    from P (its corner at N's bottom edge midpoint is a point new on level 3, so the walk in
+    N's lower child next to P, A, goes on to level 4). Queries on a 41 x 41 grid over P and its
+    eight neighbours cache their stop squares. Then a query in P's lower-left quarter with a
+    tight tolerance builds that quarter B and squares inside it: B's corner at P's left edge
+    midpoint carries a hat reaching h2 / 2 into N, over the whole of A, whose left level-4 stop
+    squares touch neither B nor P. Every grid query's cached answer, estimate's term, deepest
+    square and stop square is then a fresh walk's. Dropping only the entries that meet the
+    built squares' parents (not widened by a spacing), or the built squares themselves, left
+    A's answers stale here."""
+    lat = lattice()
+    lat._register(TABLE)
+    ids = np.zeros(8, dtype=np.int64)
+    level = np.array([0, 0, 1, 1, 2, 2, 3, 3])  # P at (4096, 2048) finest, side 1024
+    corner = np.array([[0, 0], [4096, 0], [2048, 2048], [4096, 2048], [3072, 2048],
+                       [4096, 2048], [3072, 2048], [3072, 2048]])  # fmt: skip
+    lat._build_squares(np.unique(lattice_walk.square_key(ids, level, corner)))
+    low, side = np.array([0.1, 0.05]), surrogate.H0 / 4  # P's corner and side in s
+    axis = np.linspace(-side, 2 * side, 41)
+    grid = low + np.stack(np.meshgrid(axis, axis), axis=-1).reshape(-1, 2)
+    assert_cached_is_walked(lat, grid, ROUNDING)
+    count = len(lat._built)
+    inside = low + np.array([[0.2, 0.3]]) * side
+    lat.evaluate(TABLE, np.zeros(1, dtype=np.int64), inside, np.array([TOLERANCE / 100]))
+    assert lat._deepest(np.zeros(1, dtype=np.int64), inside)[0][0] >= 4
+    assert len(lat._built) > count
+    assert_cached_is_walked(lat, grid, ROUNDING)
+
+
+def test_queries_next_to_lattice_lines_stay_in_nested_squares():
+    """Cells a hair off a lattice line (the near-homogeneous cells of gradient_nu_stress,
+    s = (6.4e-10, -3.9e-11), and the like next to a level-3 line): each query's squares nest
+    level by level, so its stop square's walk is its own and a refinement ends with the walk's
+    answers. Rounded to 9 digits per level, such a query's level-1 square lay outside its level-0
+    square: its cached deepest square was never the one refine built, and refine asked for it
+    forever (the draft run hung at step 15; here: the MAX_GROWTHS RunError)."""
+    hair = np.array([[6.43e-10, -3.94e-11], [6.07e-10, -4.89e-11], [-4.2e-11, 3.8e-10],
+                     [3e-10, 0.0], [0.0, -4.9e-10]])  # fmt: skip
+    s = np.vstack([hair, hair + [0.0125, 0.05], hair - [0.1, 0.0375]])
+    for level in range(surrogate.MAX_LEVEL):
+        corner = lattice_walk.cell(s, level)[0]
+        child = lattice_walk.cell(s, level + 1)[0]
+        np.testing.assert_array_equal(child // (surrogate.STEP >> level), corner // (
+            surrogate.STEP >> level))  # fmt: skip
+    lat = lattice()
+    ask(lat, s)
+    assert_cached_is_walked(lat, s, ROUNDING)
+    answer = ask(lat, s)
+    assert answer.solves == 0
+    assert (answer.estimates <= TOLERANCE).all()
+
+
+@pytest.mark.mpi
+def test_a_refinement_that_cannot_end_stops_with_a_named_error(monkeypatch):
+    """With the stop squares never dropped (a stale lookup: each pass sees the level it saw
+    first), refine would ask for the same squares forever; after MAX_GROWTHS passes of one
+    query asking, it raises a RunError naming the query instead, on every rank (under mpirun
+    the query is rank 0's, the others ask none: no rank is left waiting in a collective)."""
+    monkeypatch.setattr(lattice_walk.StopSquares, "drop", lambda self, built: None)
+    comm = MPI.COMM_WORLD
+    lat = lattice(comm)
+    query = np.array([[0.0123, -0.0456]]) if comm.rank == 0 else np.zeros((0, 2))
+    expected = r"did not end: a query \(table \(1,\), stretch s = \(0\.0123, -0\.0456\)\)"
+    with pytest.raises(RunError, match=expected + r" asked .* more than 13 passes"):
+        ask(lat, query)
+
+
 def test_lattice_points_are_answered_exactly_and_refining_is_a_phase_of_its_own():
     """A query on a built point gets its exact value to the bit; ``interpolate`` (the frozen
-    interpolant a solve uses) solves nothing and refuses a query off the built lattice."""
+    interpolant a solve uses) solves nothing and refuses a query off the built lattice. No
+    query (a rank without cells) is answered before any point and after (the stop squares'
+    empty table failed to reshape, and under mpirun the other ranks waited forever)."""
     lat = lattice()
+    assert ask(lat, np.zeros((0, 2))).values.shape == (0, 0)
     points = np.array([[0.0, 0.0], [0.1, -0.2]])
     answer = ask(lat, points)
     np.testing.assert_array_equal(answer.values, exact(points))
@@ -136,6 +257,7 @@ def test_lattice_points_are_answered_exactly_and_refining_is_a_phase_of_its_own(
     assert len(lat.values) == count
     with pytest.raises(KeyError):
         lat.interpolate(TABLE, np.zeros(1, dtype=np.int64), np.array([[2.03, 0.01]]))
+    assert ask(lat, np.zeros((0, 2))).values.shape == (0, 5)
 
 
 @pytest.mark.mpi
@@ -157,6 +279,7 @@ def test_a_query_builds_only_its_own_chain_of_squares():
     np.testing.assert_array_equal(answer.estimates, 0.0)
 
 
+@pytest.mark.mpi
 def test_ranks_build_the_same_tables():
     """Under mpirun each rank asks its own half of the queries, of two tables named in an order
     of its own (a rank numbers the tables it meets; the squares' keys must not depend on that):

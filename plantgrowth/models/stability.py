@@ -239,6 +239,7 @@ class Ellipticity:
         place: (x1, x2), reference coordinates, where it is.
         extended: the sets larger than one cell, largest first.
         singular: the sets within one cell (singular points), largest first.
+        remedy: what the user can change, appended to :meth:`describe` ("": nothing said).
     """
 
     nonelliptic_area_fraction: float
@@ -247,6 +248,7 @@ class Ellipticity:
     place: tuple[float, float]
     extended: tuple[NonellipticSet, ...] = ()
     singular: tuple[NonellipticSet, ...] = ()
+    remedy: str = ""
 
     @property
     def lost(self) -> bool:
@@ -264,7 +266,7 @@ class Ellipticity:
             f"(loss of ellipticity: smallest acoustic eigenvalue {worst.smallest:.3g} times the "
             f"shear modulus, on {self.nonelliptic_area_fraction:.2%} of the tissue, the largest "
             f"connected set {size}) at {worst.where()}, t = {t:g}; results past this point are "
-            "outside the model"
+            "outside the model" + (f"; {self.remedy}" if self.remedy else "")
         )
         values, angle = principal_stresses(worst.stress)
         if values[0] < 0.0:

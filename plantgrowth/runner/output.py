@@ -43,12 +43,20 @@ from mpi4py import MPI
 from plantgrowth.base.blocks import Block, CanonicalBlocks
 from plantgrowth.base.errors import RunError
 from plantgrowth.models.step import SideMesh
+from plantgrowth.runner.xdmf import (
+    ATTRIBUTE_TYPES,
+    STEP_DIR,
+    Attribute,
+    IndexMesh,
+    grid_xml,
+    pad,
+    series_xml,
+)
 
 OUTPUT_FILES = (
     "fields.xdmf", "coarse.xdmf", "cells.xdmf", "fields.h5", "state.h5", "summary.csv",
     "cells.csv", "scene.toml", "run.log",
 )  # fmt: skip
-STEP_DIR = "fields"
 _TEMPORARY = tuple(f".{name}.tmp" for name in OUTPUT_FILES)  # a kill during an atomic write
 _STEP_FILE = re.compile(r"\.?step_\d{6,}\.h5(\.tmp)?")  # a step file or its temporary name
 FIELD_FILTERS = {"compression": "gzip", "compression_opts": 1, "shuffle": True}
@@ -101,12 +109,15 @@ def temporary_path(path: Path) -> Path:
     return path.with_name(f".{path.name}.tmp")
 
 
-def atomic_write_text(path: Path, text: str) -> None:
+def atomic_write_text(path: Path, text: str, durable: bool = True) -> None:
+    """Write ``text`` under a temporary name and rename it into place (a killed process leaves
+    the old or the new file); ``durable``: fsync'ed before the rename (also a power loss)."""
     tmp = temporary_path(path)
     with open(tmp, "w") as f:
         f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
+        if durable:
+            f.flush()
+            os.fsync(f.fileno())
     os.replace(tmp, path)
 
 
@@ -171,10 +182,10 @@ def _write_block(
     shape = (block.total, *tail)
     chunks = ((block.total + comm.size - 1) // comm.size, *tail) if compressed else None
     filters = FIELD_FILTERS if compressed else {}
-    dataset = f.create_dataset(name, shape=shape, dtype=dtype, chunks=chunks, **filters)
-    if comm.size == 1:
-        dataset[...] = values
+    if comm.size == 1:  # created with its data: one write, no selection
+        f.create_dataset(name, data=values, chunks=chunks, **filters)
         return
+    dataset = f.create_dataset(name, shape=shape, dtype=dtype, chunks=chunks, **filters)
     rows, zeros = len(values), (0,) * len(tail)
     memory = h5py.h5s.create_simple((max(rows, 1), *tail))
     space = dataset.id.get_space()
@@ -246,94 +257,6 @@ class StateFile:
         return state
 
 
-_ATTRIBUTE_TYPES = {1: ("Scalar", 1), 2: ("Vector", 3), 4: ("Tensor", 9)}
-"""Block size -> XDMF attribute type and its padded width (2D vectors/tensors padded to 3D)."""
-
-
-def _pad(values: np.ndarray) -> np.ndarray:
-    n, bs = values.shape
-    if bs == 2:
-        return np.column_stack([values, np.zeros(n)])
-    if bs == 4:
-        out = np.zeros((n, 9))
-        out[:, [0, 1, 3, 4]] = values
-        return out
-    return values
-
-
-@dataclass(frozen=True)
-class _Attribute:
-    """One field of a time series: its XDMF attribute and its dataset in each step file."""
-
-    name: str
-    dataset: str
-    kind: str  # Scalar | Vector | Tensor
-    center: str  # Node | Cell
-    shape: tuple[int, int]
-    precision: int  # bytes per value
-
-    def xml(self, step: int) -> str:
-        dims = " ".join(map(str, self.shape))
-        return (
-            f'        <Attribute Name="{self.name}" AttributeType="{self.kind}" '
-            f'Center="{self.center}">\n'
-            f'          <DataItem Dimensions="{dims}" NumberType="Float" '
-            f'Precision="{self.precision}" '
-            f'Format="HDF">{STEP_DIR}/step_{step:06d}.h5:/{self.dataset}</DataItem>\n'
-            f"        </Attribute>\n"
-        )
-
-
-@dataclass(frozen=True)
-class _Mesh:
-    """A mesh in fields.h5: ``/<group>/geometry`` and ``/<group>/topology`` (triangles, or
-    2-node lines)."""
-
-    group: str
-    n_nodes: int
-    n_cells: int
-    nodes_per_cell: int = 3
-
-
-def _series_xml(mesh: _Mesh, attributes: list[_Attribute], steps: list[tuple[int, float]]) -> str:
-    """XDMF 3: the mesh grid, then a temporal collection with one grid per step that includes
-    the mesh's topology and geometry."""
-    group, n_nodes, n_cells, k = mesh.group, mesh.n_nodes, mesh.n_cells, mesh.nodes_per_cell
-    kind = {3: "Triangle", 2: "Polyline"}[k]
-    grid = (
-        f'    <Grid Name="{group}" GridType="Uniform">\n'
-        f'      <Topology TopologyType="{kind}" NumberOfElements="{n_cells}" '
-        f'NodesPerElement="{k}">\n'
-        f'        <DataItem Dimensions="{n_cells} {k}" NumberType="Int" Precision="8" '
-        f'Format="HDF">fields.h5:/{group}/topology</DataItem>\n'
-        f"      </Topology>\n"
-        f'      <Geometry GeometryType="XY">\n'
-        f'        <DataItem Dimensions="{n_nodes} 2" NumberType="Float" Precision="8" '
-        f'Format="HDF">fields.h5:/{group}/geometry</DataItem>\n'
-        f"      </Geometry>\n"
-        f"    </Grid>\n"
-    )
-    include = (
-        "<xi:include xpointer=\"xpointer(/Xdmf/Domain/Grid[@GridType='Uniform'][1]/"
-        '*[self::Topology or self::Geometry])" />'
-    )
-    grids = [
-        f'      <Grid Name="step_{step}" GridType="Uniform">\n'
-        f"        {include}\n"
-        f'        <Time Value="{t!r}" />\n' + "".join(a.xml(step) for a in attributes)
-        + "      </Grid>\n"
-        for step, t in steps
-    ]  # fmt: skip
-    return (
-        '<?xml version="1.0"?>\n'
-        '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
-        "  <Domain>\n" + grid
-        + '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">\n'
-        + "".join(grids)
-        + "    </Grid>\n  </Domain>\n</Xdmf>\n"
-    )  # fmt: skip
-
-
 class FieldSeries:
     """Writes the XDMF time series of a run, one HDF5 file per written step.
 
@@ -364,6 +287,7 @@ class FieldSeries:
         self.blocks = CanonicalBlocks(V1)
         points, triangles = self.blocks.points, self.blocks.triangles
         self.steps: list[tuple[int, float]] = []
+        self._grids: dict[tuple[str, int, float], str] = {}  # (index, step, t) -> its grid
         if self.comm.rank == 0:
             self._write_meshes(points, triangles)
             self.indexes = {"fields.xdmf": self._fine_index(points, triangles)}
@@ -384,31 +308,31 @@ class FieldSeries:
 
     def _fine_index(
         self, points: np.ndarray, triangles: np.ndarray
-    ) -> tuple[_Mesh, list[_Attribute]]:
+    ) -> tuple[IndexMesh, list[Attribute]]:
         """The fine mesh and its attributes (fields.xdmf)."""
         n_nodes, n_cells = len(points), len(triangles)
         attributes = []
         for f in self.functions:
-            kind, width = _ATTRIBUTE_TYPES[f.function_space.dofmap.index_map_bs]
+            kind, width = ATTRIBUTE_TYPES[f.function_space.dofmap.index_map_bs]
             cell = f.function_space.ufl_element().degree() == 0
             center, n = ("Cell", n_cells) if cell else ("Node", n_nodes)
             attributes.append(
-                _Attribute(f.name, f.name, kind, center, (n, width), self.dtype.itemsize)
+                Attribute(f.name, f.name, kind, center, (n, width), self.dtype.itemsize)
             )
-        return _Mesh("Mesh", n_nodes, n_cells), attributes
+        return IndexMesh("Mesh", n_nodes, n_cells), attributes
 
-    def _side_index(self) -> tuple[_Mesh, list[_Attribute]]:
+    def _side_index(self) -> tuple[IndexMesh, list[Attribute]]:
         """The second mesh and its attributes (coarse.xdmf or cells.xdmf)."""
         side, size = self.side, self.dtype.itemsize
         n_nodes, (n_cells, k) = len(side.points), side.cells.shape
         attributes = []
         for name, (center, components) in side.fields.items():
-            kind, width = _ATTRIBUTE_TYPES[components]
+            kind, width = ATTRIBUTE_TYPES[components]
             n = n_nodes if center == "Node" else n_cells
             attributes.append(
-                _Attribute(name, f"{side.prefix}/{name}", kind, center, (n, width), size)
+                Attribute(name, f"{side.prefix}/{name}", kind, center, (n, width), size)
             )
-        return _Mesh(side.group, n_nodes, n_cells, k), attributes
+        return IndexMesh(side.group, n_nodes, n_cells, k), attributes
 
     def _keep(self, keep_until: int | None) -> None:
         """Index the written steps to keep, then remove the files of the others."""
@@ -431,7 +355,7 @@ class FieldSeries:
         with _atomic_h5(step_file(self.outdir, step), self.comm) as f:
             f.attrs["step"], f.attrs["t"] = step, t
             for name, block in blocks.items():
-                padded = Block(_pad(block.values), block.start, block.total)
+                padded = Block(pad(block.values), block.start, block.total)
                 _write_block(f, name, padded, self.dtype, True, self.comm)
         if self.comm.rank != 0:
             return
@@ -440,9 +364,14 @@ class FieldSeries:
 
     def _write_index(self) -> None:
         """fields.xdmf (and coarse.xdmf or cells.xdmf) for the steps written so far, each
-        replaced atomically."""
+        replaced atomically (a step's grid is formatted once). Not fsync'ed: the step files
+        are the record, and a resumed run writes the index again from those on disk."""
         for name, (mesh, attributes) in self.indexes.items():
-            atomic_write_text(self.outdir / name, _series_xml(mesh, attributes, self.steps))
+            for s, t in self.steps:
+                if (name, s, t) not in self._grids:
+                    self._grids[name, s, t] = grid_xml(attributes, s, t)
+            grids = [self._grids[name, s, t] for s, t in self.steps]
+            atomic_write_text(self.outdir / name, series_xml(mesh, grids), durable=False)
 
 
 class SummaryWriter:

@@ -16,7 +16,7 @@ from plantgrowth.meshes.cell_tissue import CellTissue
 from plantgrowth.meshes.geometry_error import GeometryError
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.scene.cells_spec import GeneratedCells
-from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx
+from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx, cut_cells
 
 if TYPE_CHECKING:
     from plantgrowth.scene.schema import Scene
@@ -38,8 +38,7 @@ def micro_tissue(scene: Scene, nx: int | None = None) -> CellTissue:
     w = float(scene.cell.w(0.0, 0.0))
     spec = scene.tissue.cells
     try:
-        if isinstance(spec, GeneratedCells):  # its bottom row (labels < Nx) is the cut one
-            return CellTissue.from_cells(cells, w * 4.0 / spec.nx, cells.labels < spec.nx)
-        return CellTissue.from_cells(cells, w)
+        scale = 4.0 / spec.nx if isinstance(spec, GeneratedCells) else 1.0
+        return CellTissue.from_cells(cells, w * scale, cut_cells(scene, cells))
     except GeometryError as e:
         raise SceneError(f"tissue.cells: {e}") from None

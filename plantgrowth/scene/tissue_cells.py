@@ -7,6 +7,8 @@ from dataclasses import replace
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from plantgrowth.base.errors import SceneError
 from plantgrowth.meshes.cell_polygons import CellPolygons
 from plantgrowth.meshes.geometry_error import GeometryError
@@ -42,6 +44,16 @@ def cell_polygons(scene: Scene) -> CellPolygons | None:
         return _generated(spec, scene.cell.at(0.0, 0.0))
     except GeometryError as e:
         raise SceneError(str(e)) from None
+
+
+def cut_cells(scene: Scene, cells: CellPolygons) -> np.ndarray | None:
+    """(n,) bool: the cells the symmetry plane x2 = 0 cuts (each the half of a cell mirrored
+    about it), the same for the micro and the macro model: a generated tissue's bottom row
+    (labels < Nx: seeds on x2 = 0); another generated cell with a side on x2 = 0 meets its own
+    mirror image there across a wall, a whole cell. None for an imported tissue, which cannot
+    tell the two apart: every cell with a side on x2 = 0 is then taken as cut."""
+    spec = scene.tissue.cells
+    return cells.labels < spec.nx if isinstance(spec, GeneratedCells) else None
 
 
 def cells_at_nx(scene: Scene, nx: int) -> Scene:

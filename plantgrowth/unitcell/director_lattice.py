@@ -12,15 +12,25 @@ trigonometric interpolant of period 180 degrees through N equispaced nodes ``b_j
 (N even; l_j(b_j) = 1, l_j(b_k) = 0): smooth, periodic by construction (d -> d + 2 pi leaves
 l_j unchanged), and for the smooth periodic angle dependence of the cell tensors it converges
 spectrally, so it needs far fewer nodes than the piecewise-linear interpolant it replaces
-(measured in benchmarks/results/angle_nodes.json). Each node is a table of the stretch surrogate
+(measured in benchmarks/results/angle_nodes.json). A node is a table of the stretch surrogate
 (:mod:`plantgrowth.unitcell.surrogate`), its angle an integer index of ``ANGLE_STEP`` degrees.
 
-N is one per table, ``12 2^L`` (L = 0: 15-degree spacing), so every query of a table gets one
-continuous function of b. It is chosen in the refine phase of a call, before the answers: the
-estimate of a query is the relative difference between the interpolants through N and through
-every other node (N / 2); the table's L goes up while the largest estimate over its queries (all
-ranks) exceeds the tolerance, and, once raised in a call, while it exceeds ``KEEP`` times it
-(the gap of :mod:`plantgrowth.unitcell.surrogate`).
+A table is a sparse grid in (b, s) (:mod:`plantgrowth.unitcell.angle_surplus`):
+
+    A(b, s) = I_M[S](b, s) + (I_2M - I_M)[P_1 f](b, s) + (I_4M - I_2M)[P_0 f](b, s),
+
+where only the M fine nodes hold stretch tables S refined to the tolerance (each to its
+:func:`node_tolerance` by its weight in I_M), and the angle surpluses of the 3M nodes each
+doubling adds are taken on the coarse stretch grids of levels 1 and 0 (P_l: bilinear on the
+lattice's own points of spacing ``H0 / 2^l``). A is continuous in (b, s) (trigonometric in b,
+bilinear or the stretch interpolant in s) and 180-degree periodic. M is one per table,
+``6 2^L``. It is chosen in the refine phase of a call, before the answers: the estimate of a
+query is the larger of the last surplus term (the angle's: about the error of I_2M, far above
+the error of A, which is about I_4M's) and the change the level-1 grid made to the first
+surplus term (the stretch's: about three times the error that P_1 leaves there); the table's L
+goes up while the largest estimate over its queries (all ranks) exceeds the tolerance, and,
+once raised in a call, while it exceeds ``KEEP`` times it (the gap of
+:mod:`plantgrowth.unitcell.surrogate`).
 
 The cardinal functions change sign, so E_hom is no longer a non-negative combination of SPD
 tensors; it stays SPD because it is within the tolerance (1e-3 relative) of the exact tensors,
@@ -29,25 +39,33 @@ whose smallest eigenvalue is about 1e-2 of their norm (the honeycomb's G12 / E1)
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.unitcell.surrogate import KEEP, Answer
+from plantgrowth.unitcell import angle_surplus
+from plantgrowth.unitcell.surrogate import KEEP, Answer, Point
 
 H0_ANGLE = 15.0
-"""Coarsest spacing of the angle nodes (degrees): 12 nodes over 180, where the hexagon's
-60-degree symmetry repeats every 4."""
+"""The angle unit of the node indices (degrees; 12 per 180), unchanged since the cache's
+angle-node keys were made with it."""
 MAX_ANGLE_LEVEL = 10
 """Finest level of the nodes' index unit (12 288 per 180 degrees, 0.0146 degrees apart)."""
 ANGLE_STEP = H0_ANGLE / 2**MAX_ANGLE_LEVEL
 """Degrees per integer index of a node's angle."""
+FINE_NODES = 6
+"""M at L = 0: 6 nodes 30 degrees apart hold stretch tables refined to the tolerance."""
+SURPLUS_TERMS = ((2, 1), (4, 0))
+"""The surplus terms (I_{kM} - I_{kM/2})[P_l f] as (k, l): the 2M nodes on the level-1
+stretch grid, the 4M nodes on the level-0 grid (:mod:`plantgrowth.unitcell.angle_surplus`).
+Measured for the reference cell at E_f/E = 5, s in [0, 0.15] x [-0.015, 0.04], b in
+[65, 120]: largest error 2.9e-4 with M = 6 (I_6 alone 1.7e-2, I_12 7.7e-4, I_24 1.9e-7;
+scripts/benchmarks/bench_angle_sparse.py)."""
 LEVEL_CAP = 4
-"""Largest L a table is refined to: 192 nodes (0.94 degrees apart), 8 times the 24 that
-E_f / E = 5 needs at 1e-3 (benchmarks/results/angle_nodes.json); every query asks every node,
-so an estimate that does not converge (a map that is not smooth in the angle) must not take
-the count on to 12 288."""
+"""Largest L a table is refined to: M = 96 fine nodes (1.9 degrees apart, 384 on the level-0
+grid); every query asks every fine node, so an estimate that does not converge (a map that is
+not smooth in the angle) must not take the count on to 12 288."""
 PERIOD = round(180.0 / ANGLE_STEP)
 """Node indices per 180 degrees (index PERIOD is index 0)."""
 
@@ -83,6 +101,8 @@ class DirectorInterpolant:
         difference: the relative difference per row of two (n, m) value arrays.
         tolerance: the surrogate's relative tolerance.
         comm: the ranks that share the tables.
+        values: the stretch surrogate's exact lattice values, ``values[node table, point]``
+            (read for the grids' corners, which ``evaluate`` has built).
     """
 
     def __init__(
@@ -91,12 +111,14 @@ class DirectorInterpolant:
         difference: Callable[[np.ndarray, np.ndarray], np.ndarray],
         tolerance: float,
         comm: MPI.Comm,
+        values: Mapping[Point, np.ndarray],
     ) -> None:
         self._evaluate = evaluate
+        self._values = values
         self._difference = difference
         self.tolerance = tolerance
         self.comm = comm
-        self.levels: dict[tuple, int] = {}  # fibred table -> L (N = 12 2^L nodes)
+        self.levels: dict[tuple, int] = {}  # fibred table -> L (M = 6 2^L fine nodes)
 
     def state(self) -> np.ndarray:
         """The tables' levels as int64 rows ``[table..., L]`` (a resumed run's :meth:`restore`)."""
@@ -108,8 +130,8 @@ class DirectorInterpolant:
         self.levels = {tuple(row[:-1]): row[-1] for row in rows.tolist()}
 
     def count(self, table: tuple) -> int:
-        """The table's node count N."""
-        return round(180.0 / H0_ANGLE) * 2 ** self.levels.get(table, 0)
+        """The table's fine node count M."""
+        return FINE_NODES * 2 ** self.levels.get(table, 0)
 
     def __call__(
         self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray, b: np.ndarray
@@ -148,11 +170,12 @@ class DirectorInterpolant:
     def _ask(
         self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray, b: np.ndarray,
         groups: dict[tuple, np.ndarray], plain: np.ndarray,
-    ) -> tuple[Answer, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:  # fmt: skip
-        """One collective evaluation of every node of the fibred tables at their queries'
-        stretches (each node to its :func:`node_tolerance`) and of the isotropic queries.
-        Returns the answer and, per fibred table, its queries (q,), their weights (q, N) and
-        their rows in the answer (q, N)."""
+    ) -> tuple[Answer, list[tuple]]:  # fmt: skip
+        """One collective evaluation of the fibred tables' M nodes at their queries' stretches
+        (each to its :func:`node_tolerance`), of the grid squares' builders of every node of
+        the surplus terms (:data:`SURPLUS_TERMS`) and of the isotropic queries. Returns the
+        answer and, per fibred table, its queries (q,), their weights (q, M), their rows in the
+        answer (q, M) and the surplus terms' grids."""
         ask_tables: list[tuple] = []
         ask_which, ask_s, tol, layout = [], [], [], []
         offset = 0
@@ -164,8 +187,24 @@ class DirectorInterpolant:
             ask_s.append(np.repeat(s[queries], count, axis=0))
             tol.append(node_tolerance(self.tolerance, weights).ravel())
             rows = offset + np.arange(len(queries) * count).reshape(len(queries), count)
-            layout.append((queries, weights, rows))
             offset += rows.size
+            grids = []
+            surpluses = [
+                angle_surplus.surplus_weights(b[queries], factor * count, trigonometric_weights)
+                for factor, _ in SURPLUS_TERMS
+            ]  # all zero at a fine node's angle: no grid asked for it (exactly, the terms are 0)
+            need = np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0)
+            for (factor, level), surplus in zip(SURPLUS_TERMS, surpluses, strict=True):
+                nodes = [table + (j * PERIOD // (factor * count),) for j in range(factor * count)]
+                squares, square, hats = angle_surplus.grid_squares(s[queries[need]], level)
+                build = angle_surplus.builders(squares, level)
+                ask_which.append(np.repeat(len(ask_tables) + np.arange(len(nodes)), len(build)))
+                ask_tables += nodes
+                ask_s.append(np.tile(build, (len(nodes), 1)))
+                tol.append(np.ones(len(nodes) * len(build)))  # the corners are what is wanted
+                offset += len(nodes) * len(build)
+                grids.append((nodes, squares, level, square, hats, surplus[need]))
+            layout.append((queries, weights, rows, need, grids))
         ask_which.append(len(ask_tables) + which[plain])
         ask_tables += list(tables)
         ask_s.append(s[plain])
@@ -176,26 +215,41 @@ class DirectorInterpolant:
         return answer, layout
 
     def _combine(
-        self, answer: Answer, layout: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-        b: np.ndarray, plain: np.ndarray, n: int,
+        self, answer: Answer, layout: list[tuple], b: np.ndarray, plain: np.ndarray, n: int,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-        """The queries' values (the fibred ones ``sum_j l_j(b) f(b_j)``), their estimates (the
-        difference to the interpolant through every other node) and which were interpolated."""
+        """The queries' values (the fibred ones A(b, s) of the module docstring), their
+        estimates (the larger of the last surplus term, the angle's, and the change the
+        level-1 grid made to the first, the stretch's: :mod:`plantgrowth.unitcell.angle_surplus`)
+        and which were interpolated."""
         values = np.zeros((n, answer.values.shape[1]))
         estimates = np.zeros(n)
         interpolated = np.zeros(n, dtype=bool)
-        start = sum(rows.size for _, _, rows in layout)
+        start = len(answer.values) - len(plain)
         values[plain] = answer.values[start:]
         estimates[plain] = answer.estimates[start:]
         interpolated[plain] = answer.interpolated[start:]
-        for queries, weights, rows in layout:
-            nodes = answer.values[rows]  # (q, N, m)
-            values[queries] = np.einsum("qj,qjm->qm", weights, nodes)
-            half = trigonometric_weights(b[queries], rows.shape[1] // 2)
-            coarse = np.einsum("qj,qjm->qm", half, nodes[:, ::2])
-            estimates[queries] = self._difference(coarse, values[queries])
+        for queries, weights, rows, need, grids in layout:
+            value = np.einsum("qj,qjm->qm", weights, answer.values[rows])
+            terms = [np.zeros_like(value) for _ in grids]
+            coarse = np.zeros_like(value)
+            if need.any():
+                for term, (nodes, squares, level, square, hats, surplus) in zip(
+                    terms, grids, strict=True
+                ):
+                    term[need] = angle_surplus.grid_term(
+                        nodes, squares, level, square, hats, surplus, self._values
+                    )
+                (first, *_, surplus), (_, squares, level, square, hats, _) = grids
+                coarse[need] = angle_surplus.grid_term(
+                    first, squares, level, square, hats, surplus, self._values
+                )  # the first surplus term on the last term's (coarser) grid
+            values[queries] = value + sum(terms)
+            estimates[queries] = np.maximum(
+                self._difference(values[queries] - terms[-1], values[queries]),
+                self._difference(values[queries] - terms[0] + coarse, values[queries]),
+            )
             used = weights != 0.0
-            interpolated[queries] = (used.sum(axis=1) > 1) | (
-                used & answer.interpolated[rows]
-            ).any(axis=1)  # fmt: skip
+            interpolated[queries] = (
+                (used.sum(axis=1) > 1) | (used & answer.interpolated[rows]).any(axis=1) | need
+            )
         return values, estimates, interpolated

@@ -151,8 +151,9 @@ class Homogenizer:
                 self._solve_stretch, cell_tolerance, segments, comm, self.scheduler, _mesh_group
             )
             self.angles = director_lattice.DirectorInterpolant(
-                self._evaluate, self.surrogate.relative_difference, cell_tolerance, comm
-            )
+                self._evaluate, self.surrogate.relative_difference, cell_tolerance, comm,
+                self.surrogate.values,
+            )  # fmt: skip
             fingerprint = (resolution, pressure, strain_averages)
             self.cache = CellCache(cache_root(), fingerprint, comm)
             self._loaded: set[tuple] = set()  # tables whose cached lattice is loaded

@@ -58,17 +58,25 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from plantgrowth.base.errors import RunError
 from plantgrowth.base.tensors import det2
+from plantgrowth.unitcell.lattice import (
+    CHUNK,
+    H0,
+    MAX_LEVEL,
+    OFFSETS,
+    STEP,
+    StopSquares,
+    cell,
+    hats,
+    point_key,
+    square_corners,
+    square_key,
+    walk,
+)
 from plantgrowth.unitcell.scheduler import CellScheduler
 
 log = logging.getLogger("plantgrowth")
-
-H0 = 0.1
-"""Spacing of the coarsest lattice in (s1, s2); |s| = 0.1 is a 10% deviatoric stretch."""
-MAX_LEVEL = 12
-"""Finest level (spacing H0 / 4096); a query not resolved there takes that level's value."""
-STEP = 2**MAX_LEVEL  # finest-lattice integers per coarsest spacing
-_OFFSET = 2**20  # finest-lattice integers are keyed in [-OFFSET, OFFSET): |s| < 25
 
 
 def split_growth(Fg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -119,52 +127,16 @@ need. Measured on tests/test_surrogate_continuity.py's drifting queries, KEEP 0.
 (no gap): 28 / 33 / 44 refining calls, 321 / 293 / 275 points, largest jump beyond the exact
 change 0.055 / 0.029 / 0.054 tolerance; on gradient_E_strain at ``balanced`` 101 / 73 / 67
 lattice points (0.5 overshot a level in most squares: the estimates there sit at 0.5-0.7)."""
-_OFFSETS = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])  # a square's corners, in its spacing
-_LOW = (1 << 21) - 1
+MAX_GROWTHS = MAX_LEVEL + 1
+"""Most passes of one refinement in which a query asks for a square (a bound no correct table
+reaches). A query grows when its deepest built square S has level -1 (none) or is below
+MAX_LEVEL, and then asks for S's child holding it (the level-0 square for -1), which is not
+built (S is the deepest) and which the next pass's lookup sees: its level rises by at least one
+each pass it grows, from -1 to at most MAX_LEVEL, so at most MAX_LEVEL + 1 times. A query that
+asks more often sees a stale level (stop squares that a refinement did not drop, squares that
+do not nest): it would ask for the same built square forever."""
 SQUARE_TABLE = 7
 """Most entries of a table (a fibred table's angle node: geometry, nu, fibre_stiffness, node)."""
-
-
-def _cell(s: np.ndarray, level: int | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The lower-left corner (finest integers, (n, 2)) of the square of ``level`` (one, or
-    one per query) that holds each query s (n, 2), and its coordinates t (n, 2) in [0, 1]."""
-    level = np.reshape(np.asarray(level, dtype=np.int64), (-1, 1))
-    x = s / (H0 / 2.0**level)
-    base = np.floor(np.round(x, 9))  # round-off of Fg (x = 1e-17, or 0.9999999999) is on the
-    t = np.clip(np.round(x - base, 9), 0.0, 1.0)  # lattice line: one exact point
-    return base.astype(np.int64) * (STEP >> level), t
-
-
-def _hats(t: np.ndarray) -> np.ndarray:
-    """Bilinear hat values (n, 4) of a square's corners (order of ``_OFFSETS``) at t (n, 2)."""
-    tx, ty = t[:, 0:1], t[:, 1:2]
-    return np.hstack([(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty])
-
-
-CHUNK = 8192
-"""Queries per batched product in :func:`_combine` (and rows per pass of
-:meth:`LatticeSurrogate.relative_difference`): a chunk's gathered corner rows (8192 x 4
-x m, about 10 MB for the 38 packed values of the strain law) stay in cache; the whole (n, 4, m)
-gather of a fine mesh's 500,000 queries took 11 times as long (3.3 s against 0.3 s) and 600 MB."""
-
-
-def _combine(weights: np.ndarray, rows: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """``sum_c weights[n, c] table[rows[n, c], :]`` (n, m), as batched products over chunks of
-    :data:`CHUNK` queries (each row's arithmetic is the same whatever the chunk)."""
-    out = np.empty((len(weights), table.shape[1]))
-    for start in range(0, len(weights), CHUNK):
-        part = slice(start, start + CHUNK)
-        out[part] = (weights[part, None, :] @ table[rows[part]])[:, 0, :]
-    return out
-
-
-def _find(keys: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions of ``wanted`` among the sorted ``keys`` (any valid row where absent) and
-    whether each is there."""
-    if not len(keys):
-        return np.zeros(wanted.shape, dtype=np.int64), np.zeros(wanted.shape, dtype=bool)
-    pos = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
-    return pos, keys[pos] == wanted
 
 
 class LatticeSurrogate:
@@ -202,6 +174,7 @@ class LatticeSurrogate:
         self._built: set[int] = set()  # keys of the built squares
         self._points_index: tuple[np.ndarray, np.ndarray] | None = None
         self._squares_index: np.ndarray | None = None
+        self._stops = StopSquares()  # I at the corners of the stop squares met
 
     def add(self, values: dict[Point, np.ndarray]) -> None:
         """Lattice values known from elsewhere (the on-disk cache; the same on every rank):
@@ -242,20 +215,6 @@ class LatticeSurrogate:
         )  # fmt: skip
         self.new_points += missing
         return len(missing)
-
-    @staticmethod
-    def _point_key(ids: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-        """One int64 key per lattice point: table number, then the two finest integers."""
-        if np.size(i) and max(np.abs(i).max(), np.abs(j).max()) >= _OFFSET:
-            raise ValueError(f"a growth stretch |s| >= {_OFFSET * H0 / STEP:g}: off the lattice")
-        return (ids << 42) | ((i + _OFFSET) << 21) | (j + _OFFSET)
-
-    @staticmethod
-    def _square_key(ids: np.ndarray, level: int | np.ndarray, corner: np.ndarray) -> np.ndarray:
-        """One int64 key per square: table number, level, lower-left corner's finest integers."""
-        return (ids << 46) | (np.asarray(level, dtype=np.int64) << 42) | (
-            ((corner[..., 0] + _OFFSET) << 21) | (corner[..., 1] + _OFFSET)
-        )  # fmt: skip
 
     def _register(self, tables: Sequence[tuple]) -> None:
         """Collective: number the tables any rank names that have no number yet, in sorted
@@ -305,11 +264,12 @@ class LatticeSurrogate:
         s = np.asarray(s, dtype=float).reshape(n, 2)
         fresh = np.zeros(0, dtype=np.int64)  # squares built in this call
         solves = 0
+        grown = np.zeros(n, dtype=np.int64)  # passes in which each query asked for a square
         while True:
             values, interpolated, level, key, change = self._walk(ids, s)
             error = np.full(n, np.inf)
             inside = level >= 1  # level 0 has no estimate: its children are built first,
-            on_corner = (level == 0) & (_cell(s, 0)[1] % 1.0 == 0.0).all(axis=1)
+            on_corner = (level == 0) & (cell(s, 0)[1] % 1.0 == 0.0).all(axis=1)
             error[on_corner] = 0.0  # unless the query is a corner: answered exactly
             if inside.all():
                 error = self.relative_difference(values - change, values)
@@ -319,24 +279,42 @@ class LatticeSurrogate:
             going = np.isin(key, fresh) & (error > KEEP * tol)
             grow = (level < 0) | ((level < MAX_LEVEL) & ((error > tol) | going))
             child = level[grow] + 1
-            wanted = self._square_key(ids[grow], child, _cell(s[grow], child)[0])
-            squares = np.unique(np.concatenate(self.comm.allgather(np.unique(wanted))))
+            wanted = square_key(ids[grow], child, cell(s[grow], child)[0])
+            grown += grow
+            stuck = np.flatnonzero(grown > MAX_GROWTHS)[:1]
+            every = self.comm.allgather((np.unique(wanted), ids[stuck], s[stuck]))
+            self._check_growths(every)
+            squares = np.unique(np.concatenate([w for w, _, _ in every]))
             if not len(squares):  # nothing built anywhere: the interpolant is final
                 return Answer(values, error, interpolated, solves)
             solves += self._build_squares(squares)
             fresh = np.union1d(fresh, squares)
+
+    def _check_growths(self, every: list[tuple[np.ndarray, ...]]) -> None:
+        """Raise RunError on every rank if a query on any rank (its table numbers and
+        stretches, gathered in ``every``) asked for a square in more than :data:`MAX_GROWTHS`
+        passes of one refinement."""
+        for _, ids, s in every:
+            if len(ids):
+                names = {v: k for k, v in self._table_ids.items()}
+                raise RunError(
+                    f"the surrogate's refinement did not end: a query (table {names[ids[0]]}, "
+                    f"stretch s = ({s[0, 0]:.6g}, {s[0, 1]:.6g})) asked for a finer square in "
+                    f"more than {MAX_GROWTHS} passes, but its deepest square can deepen only "
+                    f"{MAX_GROWTHS} times (levels -1 to {MAX_LEVEL}): the lattice lookup does not "
+                    "see the squares it builds (a bug, please report it)"
+                )
 
     def _build_squares(self, squares: np.ndarray) -> int:
         """Build the squares (sorted keys, the same on every rank): their corners and those
         corners' surpluses (a level-0 corner's is its value; a corner new on level l >= 1 has
         the bilinear interpolant of the parent square's corners subtracted). Collective."""
         names = {v: k for k, v in self._table_ids.items()}
-        ids, level = squares >> 46, (squares >> 42) & 15
-        corner = np.column_stack([((squares >> 21) & _LOW) - _OFFSET, (squares & _LOW) - _OFFSET])
+        ids, level, corner = square_corners(squares)
         step = (STEP >> level)[:, None, None]
         parent_step = (STEP >> np.maximum(level - 1, 0))[:, None, None]
-        corners = corner[:, None, :] + _OFFSETS[None] * step  # (q, 4, 2)
-        parents = (corner[:, None, :] // parent_step + _OFFSETS[None]) * parent_step
+        corners = corner[:, None, :] + OFFSETS[None] * step  # (q, 4, 2)
+        parents = (corner[:, None, :] // parent_step + OFFSETS[None]) * parent_step
         every = np.concatenate([corners, parents], axis=1)
         points = [(names[t], (a, b)) for t, row in zip(ids.tolist(), every.tolist(), strict=True)
                   for a, b in row]  # fmt: skip
@@ -345,14 +323,15 @@ class LatticeSurrogate:
         for q, t in enumerate(ids.tolist()):
             table = names[t]
             f = np.array([self.values[table, tuple(p)] for p in every[q].tolist()])
-            keys = self._point_key(np.int64(t), corners[q, :, 0], corners[q, :, 1]).tolist()
-            coarse = _hats(place[q]) @ f[4:] if level[q] else np.zeros_like(f[:4])
+            keys = point_key(np.int64(t), corners[q, :, 0], corners[q, :, 1]).tolist()
+            coarse = hats(place[q]) @ f[4:] if level[q] else np.zeros_like(f[:4])
             new = ((corners[q] // step[q]) % 2).any(axis=-1) | (level[q] == 0)
             for k, value, below, is_new in zip(keys, f[:4], coarse, new, strict=True):
                 if is_new:
                     self._surplus.setdefault(k, value - below)
             self._built.add(int(squares[q]))
         self._points_index = self._squares_index = None
+        self._stops.drop(squares)
         return solves
 
     def interpolate(
@@ -374,46 +353,41 @@ class LatticeSurrogate:
     def _walk(
         self, ids: np.ndarray, s: np.ndarray, strict: bool = False
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """One walk down the levels for n queries: I(s) (:meth:`interpolate`; ``strict``: a
+        """The frozen interpolant at n queries: I(s) (:meth:`interpolate`; ``strict``: a
         KeyError off the built lattice), which queries are not on a built point, the level and
         key of the deepest built square S holding each (-1, 0: none), and S's term of I, the
         change its new corners made there, ``sum_c alpha_c phi_c(s)`` (the error estimate is
-        ``|term| / |I(s)|`` per segment; for a smooth f the error left is about a third of it)."""
+        ``|term| / |I(s)|`` per segment; for a smooth f the error left is about a third of it).
+        One lookup of each query's stop square (:class:`~plantgrowth.unitcell.lattice.
+        StopSquares`); the stop squares not met before are found by walks first."""
+        if not len(ids):  # a rank without queries (perhaps without stop squares yet)
+            m = self._points_table()[1].shape[1]
+            empty = np.zeros((0, m))
+            return empty, np.zeros(0, dtype=bool), np.full(0, -1), np.zeros(0, np.int64), empty
+        rows, t = self._stops.lookup(ids, s)
+        miss = rows < 0
+        if miss.any():  # new entries renumber the rows: look up again
+            self._learn(ids[miss], s[miss])
+            rows, t = self._stops.lookup(ids, s)
+        found = self._stops.answer(rows, t, s, strict)
+        return (found["values"], ~found["on_point"], found["level"], found["square"],
+                found["change"])  # fmt: skip
+
+    def _learn(self, ids: np.ndarray, s: np.ndarray) -> None:
+        """Walk the queries to their stop squares, then each new stop square's centre to I and
+        S's term at its corners (:func:`~plantgrowth.unitcell.lattice.walk`)."""
         if self._squares_index is None:
             self._squares_index = np.array(sorted(self._built), dtype=np.int64)
-        n = len(ids)
         keys, surplus = self._points_table()
-        values = np.zeros((n, surplus.shape[1] if len(keys) else 0))
-        change = np.zeros_like(values)
-        on_point = np.zeros(n, dtype=bool)
-        level, square = np.full(n, -1), np.zeros(n, dtype=np.int64)
-        chain = np.ones(n, dtype=bool)  # every square so far on the query's chain is built
-        alive = np.arange(n)
-        for k in range(MAX_LEVEL + 1):
-            corner, t = _cell(s[alive], k)
-            asked = chain[alive]
-            wanted = self._square_key(ids[alive[asked]], k, corner[asked])
-            hit = _find(self._squares_index, wanted)[1]
-            level[alive[asked][hit]], square[alive[asked][hit]] = k, wanted[hit]
-            chain[alive[asked][~hit]] = False
-            points = corner[:, None, :] + _OFFSETS[None] * (STEP >> k)
-            weights = _hats(t)
-            wanted = self._point_key(ids[alive, None], points[..., 0], points[..., 1])
-            rows, built = _find(keys, wanted)
-            if strict and k == 0 and not np.all(built | (weights == 0.0)):
-                raise KeyError("a query outside the refined lattice: refine() first")
-            if k > 0:  # only the points new on this level carry its hats
-                built &= ((points // (STEP >> k)) % 2).any(axis=-1)
-            has = built.any(axis=1)  # the others have no finer hat either: done
-            alive, built, weights, rows = alive[has], built[has], weights[has], rows[has]
-            term = _combine(np.where(built, weights, 0.0), rows, surplus)
-            values[alive] += term
-            own = level[alive] == k
-            change[alive[own]] = term[own]
-            on_point[alive] |= (built & (weights == 1.0)).any(axis=1)
-            if not len(alive):
-                break
-        return values, ~on_point, level, square, change
+        nowhere = np.empty((len(s), 0, 2))  # no targets: the stop levels only (no products)
+        stop = walk(self._squares_index, keys, surplus, ids, s, nowhere)["stop"]
+        stops, pick = np.unique(square_key(ids, stop, cell(s, stop)[0]), return_index=True)
+        _, level, corner = square_corners(stops)
+        step = (STEP >> level)[:, None]
+        corners = corner[:, None, :] + OFFSETS[None] * step[:, None, :]
+        centre = (corner + 0.5 * step) * (H0 / STEP)
+        found = walk(self._squares_index, keys, surplus, ids[pick], centre, corners / STEP)
+        self._stops.add(found, stops)
 
     def evaluate(
         self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray,
@@ -434,8 +408,7 @@ class LatticeSurrogate:
         for r, key in enumerate(keys.tolist()):
             table = names[key >> 46]
             rows[r, 0], rows[r, 1 : 1 + len(table)] = len(table), table
-        rows[:, -3] = (keys >> 42) & 15
-        rows[:, -2], rows[:, -1] = ((keys >> 21) & _LOW) - _OFFSET, (keys & _LOW) - _OFFSET
+        _, rows[:, -3], rows[:, -2:] = square_corners(keys.reshape(-1))
         return rows
 
     def restore(self, rows: np.ndarray) -> int:
@@ -446,7 +419,7 @@ class LatticeSurrogate:
         tables = [tuple(row[1 : 1 + row[0]]) for row in rows.tolist()]
         self._register(tables)
         ids = self._numbers(tables)
-        keys = self._square_key(ids, rows[:, -3], rows[:, -2:])
+        keys = square_key(ids, rows[:, -3], rows[:, -2:])
         return self._build_squares(np.unique(keys))
 
     def take_new_points(self) -> dict[Point, np.ndarray]:

@@ -12,11 +12,16 @@ under ``mpirun -n 2`` into two separate directories; compared, over every step:
 
 as ``max |a - b| / max |a|`` per column (``max |a|`` the column's largest magnitude over both
 runs; a column zero in both: 0). Recorded per case: the largest of these and its column, the
-wall seconds of each run, the steps each reached (against t_max), Newton's iterations per step.
-Results: benchmarks/results/micro_cells_ranks.json (rewritten after each case) with the machine
-and the load averages.
+wall seconds of each run, the steps each reached (against t_max), Newton's iterations per step,
+and the cells.csv row where ``growth_direction_*`` differ most with that cell's
+``growth_anisotropy`` (the direction of a nearly isotropic G is ill-conditioned: a change dG
+turns it by about ``|dG| / (A tr G)``). Results: benchmarks/results/micro_cells_ranks.json
+(rewritten after each case) with the machine and the load averages; ``--update`` keeps the
+file's other rows and replaces those of the cases run (``updates``: each update's command
+and load averages).
 
     python scripts/studies/micro_cells_ranks.py [--nx 8 16] [--r 0.25 0.5 1] [--seeds 1]
+        [--kinematics finite linear] [--update] [--json FILE]
 """
 
 from __future__ import annotations
@@ -47,6 +52,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--nx", type=int, nargs="+", default=[8, 16])
     parser.add_argument("--r", type=float, nargs="+", default=[0.25, 0.5, 1.0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
+    parser.add_argument("--kinematics", nargs="+", default=["finite", "linear"])
+    parser.add_argument("--update", action="store_true", help="keep the file's other rows")
     parser.add_argument(
         "--json", type=Path, default=REPO / "benchmarks/results/micro_cells_ranks.json"
     )
@@ -109,6 +116,17 @@ def worst(diffs: dict[str, float | None]) -> dict:
     return {"max_relative": diffs[name], "column": name}
 
 
+def direction_worst(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict:
+    """The cells.csv row (step, cell) where the growth direction differs most, the difference
+    and that cell's growth_anisotropy (run a's)."""
+    diff = np.hypot(a["growth_direction_1"] - b["growth_direction_1"],
+                    a["growth_direction_2"] - b["growth_direction_2"])  # fmt: skip
+    i = int(np.argmax(diff))
+    return {"step": int(a["step"][i]), "cell": int(a["cell"][i]), "difference": float(diff[i]),
+            "growth_anisotropy": float(a["growth_anisotropy"][i]),
+            "growth_anisotropy_min": float(a["growth_anisotropy"].min())}  # fmt: skip
+
+
 def one(nx: int, r: float, seed: int, kinematics: str, tmp: Path) -> dict:
     case = f"nx{nx}_r{r}_s{seed}_{kinematics}"
     scene = tmp / f"{case}.toml"
@@ -128,13 +146,15 @@ def one(nx: int, r: float, seed: int, kinematics: str, tmp: Path) -> dict:
         }  # fmt: skip
     if not all((out[k] / "cells.csv").exists() for k in out):
         return row | {"error": "a run wrote no cells.csv (see its exit code)"}
-    cells = differences(*(table(out[k] / "cells.csv", ("step", "cell")) for k in out))
+    cells_tables = [table(out[k] / "cells.csv", ("step", "cell")) for k in out]
+    cells = differences(*cells_tables)
     summaries = [table(out[k] / "summary.csv", ("step",)) for k in out]
     summary = differences(*summaries)
     answers = {k: v for k, v in summary.items()
                if not k.startswith("seconds") and k not in SOLVER_COLUMNS}  # fmt: skip
     return row | {
         "cells_csv": worst(cells), "summary_csv": worst(answers),
+        "growth_direction_worst": direction_worst(*cells_tables),
         "cells_csv_columns": cells, "summary_csv_columns": answers,
         "solver_residuals": {k: [s[k].tolist() for s in summaries] for k in SOLVER_COLUMNS
                              if all(k in s for s in summaries)},
@@ -145,22 +165,34 @@ def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     from plantgrowth.base.machine import machine_description
 
+    command = "python scripts/studies/micro_cells_ranks.py " + " ".join(sys.argv[1:])
     result = {
         "description": "plantgrowth run in serial against mpirun -n 2 on generated tissues: "
         "largest relative difference of cells.csv and summary.csv columns (module docstring)",
-        "command": "python scripts/studies/micro_cells_ranks.py " + " ".join(sys.argv[1:]),
-        "machine": machine_description(), "load_average_before": os.getloadavg(), "rows": [],
+        "command": command, "machine": machine_description(),
+        "load_average_before": os.getloadavg(), "rows": [],
     }  # fmt: skip
+    loads = result  # where this run's load averages go
+    if args.update and args.json.is_file():  # an update: its command and loads listed apart
+        result = json.loads(args.json.read_text())
+        loads = {"command": command, "load_average_before": os.getloadavg()}
+        result.setdefault("updates", []).append(loads)
     with tempfile.TemporaryDirectory(prefix="plantgrowth-cells-ranks-") as tmp:
         for nx in args.nx:
             for r in args.r:
                 for seed in args.seeds:
                     for kinematics in ("finite", "linear") if r == 0.25 else ("finite",):
+                        if kinematics not in args.kinematics:
+                            continue
                         row = one(nx, r, seed, kinematics, Path(tmp))
-                        result["rows"].append(row)
+                        case = (nx, r, seed, kinematics)
+                        result["rows"] = [
+                            old for old in result["rows"]
+                            if (old["nx"], old["r"], old["seed"], old["kinematics"]) != case
+                        ] + [row]  # fmt: skip
                         print(json.dumps({k: v for k, v in row.items()
                                           if not k.endswith("_columns")}), flush=True)  # fmt: skip
-                        result["load_average_after"] = os.getloadavg()
+                        loads["load_average_after"] = os.getloadavg()
                         args.json.parent.mkdir(parents=True, exist_ok=True)
                         args.json.write_text(json.dumps(result, indent=1) + "\n")
 

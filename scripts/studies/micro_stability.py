@@ -11,7 +11,8 @@ For generated tissues ``{voronoi = Nx^2/2, seed, regularity = r}`` under P1 = 0.
   or the polar rotation angle of ``F = I + grad u`` (finite), its maximum and median |.|, and
   the median at the non-elliptic samples;
 - the ellipticity check (plantgrowth.models.micro.wall_stability): the smallest normalised
-  acoustic eigenvalue, whether a run would stop (a non-elliptic set) and the sets' area fraction.
+  acoustic eigenvalue, whether a run would stop (a non-elliptic set), its message, and the sets'
+  area fraction.
 
 A solve that fails (Newton) is recorded with its error. Results: JSON with the machine.
 
@@ -105,6 +106,7 @@ def one(nx: int, r: float, seed: int, kinematics: str, P1: float) -> dict:
         "rotation_max": float(omega.max()), "rotation_median": float(np.median(omega)),
         "rotation_median_nonelliptic": float(np.median(omega[bad])) if bad.any() else None,
         "smallest": e.smallest, "stops": e.lost,
+        "stop_message": e.describe(0.0) if e.lost else None,
         "nonelliptic_fraction": e.nonelliptic_area_fraction + e.singular_area_fraction,
     }  # fmt: skip
 

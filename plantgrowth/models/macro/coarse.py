@@ -93,24 +93,34 @@ def coarse_grid_for(
     return grid, W, active_nodes(W, comm)
 
 
-def project_to_nodes(
-    W: sp.csr_matrix, areas: np.ndarray, values: np.ndarray, comm: MPI.Comm
-) -> np.ndarray:
+class NodeProjection:
     """Lumped L2 projection of cell values onto coarse nodes (paper Algorithm 1, last step).
 
     ``F_n = sum_c W_cn |c| F_c / sum_c W_cn |c|`` over the owned fine cells of all ranks; a node
     with no fine cell in its support (its value is never interpolated back) gets the mean.
+    W's transpose and the nodes' mass ``sum_c W_cn |c|`` are made once (collective).
     Args:
         W: interpolation weights at the owned fine cells' midpoints.
         areas: owned fine cells' areas.
-        values: (n_cells, k) values per owned cell.
     """
-    weighted = W.T @ (areas[:, None] * values)
-    mass = W.T @ areas
-    weighted = comm.allreduce(weighted, op=MPI.SUM)
-    mass = comm.allreduce(mass, op=MPI.SUM)
-    # a node whose triangles hold no fine cell midpoint (outside a non-rectangular tissue, or
-    # a fine mesh coarser than the coarse one) weighs no fine cell: give it the tissue mean
-    empty = mass <= 0.0
-    mean = weighted.sum(axis=0) / mass.sum()
-    return np.where(empty[:, None], mean, weighted / np.where(empty, 1.0, mass)[:, None])
+
+    def __init__(self, W: sp.csr_matrix, areas: np.ndarray, comm: MPI.Comm) -> None:
+        self.Wt, self.areas, self.comm = W.T, areas, comm
+        self.mass = comm.allreduce(self.Wt @ areas, op=MPI.SUM)
+
+    def __call__(self, values: np.ndarray) -> np.ndarray:
+        """Collective: (n_nodes, k) node values of (n_cells, k) values per owned cell."""
+        weighted = self.comm.allreduce(self.Wt @ (self.areas[:, None] * values), op=MPI.SUM)
+        # a node whose triangles hold no fine cell midpoint (outside a non-rectangular tissue,
+        # or a fine mesh coarser than the coarse one) weighs no fine cell: the tissue mean
+        mass = self.mass
+        empty = mass <= 0.0
+        mean = weighted.sum(axis=0) / mass.sum()
+        return np.where(empty[:, None], mean, weighted / np.where(empty, 1.0, mass)[:, None])
+
+
+def project_to_nodes(
+    W: sp.csr_matrix, areas: np.ndarray, values: np.ndarray, comm: MPI.Comm
+) -> np.ndarray:
+    """Collective: :class:`NodeProjection` of ``values`` (n_cells, k) made once."""
+    return NodeProjection(W, areas, comm)(values)

@@ -31,7 +31,7 @@ from plantgrowth.models.macro.problem import mesh_bounding_box, rectangle_mesh
 from plantgrowth.scene import Scene
 from plantgrowth.scene.cells_spec import ImportedCells
 from plantgrowth.scene.fields import Field
-from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx
+from plantgrowth.scene.tissue_cells import cell_polygons, cells_at_nx, cut_cells
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,8 @@ def cells_domain(scene: Scene, cells: CellPolygons, comm: MPI.Comm) -> MacroDoma
     """The macro model's domain of a tissue given as cells (docs/model.md "The macro model from
     cells"): the region the cells cover, meshed conforming to their sides with edges about
     ``tissue.h``, the scene's fields spanning its extent, and each cell's shape Fg0 against the
-    scene's unit cell scaled to the cells' mean area (:func:`meshes.cell_shapes.cell_shapes`).
+    scene's unit cell scaled to the cells' mean area (:func:`meshes.cell_shapes.cell_shapes`;
+    the cells cut by the symmetry plane are the micro model's, :func:`cut_cells`).
     The cell geometry must be constant (it is the hexagon the shapes are measured against);
     an imported tissue's ``cell.w``, in the scene's length unit, becomes ``w / delta`` in the
     unit cell (:func:`unit_cell_walls`)."""
@@ -101,7 +102,7 @@ def cells_domain(scene: Scene, cells: CellPolygons, comm: MPI.Comm) -> MacroDoma
         )
     cells.check()
     tissue_outline(cells)  # one connected tissue, else a named error
-    shapes = cell_shapes(cells, scene.cell.at(0.0, 0.0))
+    shapes = cell_shapes(cells, scene.cell.at(0.0, 0.0), cut=cut_cells(scene, cells))
     if isinstance(scene.tissue.cells, ImportedCells):
         scene = unit_cell_walls(scene, shapes.delta)
     msh = build_cells_outline_mesh(cells, scene.tissue.h, comm)[0]

@@ -41,7 +41,7 @@ from plantgrowth.models.elastic_strain import StrainFields, principal_magnitude,
 from plantgrowth.models.growth_fields import GrowthFields
 from plantgrowth.models.linear import SolveReport
 from plantgrowth.models.macro.boundary import Boundary
-from plantgrowth.models.macro.coarse import CoarseGrid, coarse_grid_for, project_to_nodes
+from plantgrowth.models.macro.coarse import CoarseGrid, NodeProjection, coarse_grid_for
 from plantgrowth.models.macro.director import MacroDirector
 from plantgrowth.models.macro.domain import MacroDomain, macro_domain
 from plantgrowth.models.macro.hydraulics import MacroHydraulics, cell_scale, from_scene
@@ -151,6 +151,8 @@ class MacroModel:
         self.grid, self.W, self.active = coarse_grid_for(
             width, height, scene.tissue.H, problem.midpoints[:, :2], comm
         )
+        # Algorithm 1's projection of the owned fine cells' values onto the coarse nodes
+        self.to_nodes = NodeProjection(self.W[: problem.n_owned], problem.areas, comm)
         self.per_cell = scene.accuracy.cell_tolerance > 0.0
         nodes = self.grid.nodes[self.active]
         self._W_active = self.W[:, self.active]
@@ -304,9 +306,7 @@ class MacroModel:
         else:
             n_owned, problem = self.problem.n_owned, self.problem
             W_owned = self.W[:n_owned]
-            Fg_nodes = project_to_nodes(
-                W_owned, problem.areas, Fg[:n_owned].reshape(-1, 4), self.comm
-            )[self.active]
+            Fg_nodes = self.to_nodes(Fg[:n_owned].reshape(-1, 4))[self.active]
             points = self.grid.nodes[self.active]
             fibres = None if director is None else (
                 director.stiffness,
@@ -330,10 +330,10 @@ class MacroModel:
 
     def _fill_coarse_E_hom(self, C: np.ndarray) -> None:
         """E_hom's components at the coarse nodes: the lumped L2 average of the owned fine
-        cells' values (:func:`project_to_nodes`; a node outside the tissue gets the mean)."""
+        cells' values (:class:`NodeProjection`; a node outside the tissue gets the mean)."""
         n = self.problem.n_owned
         values = C[:n][:, [i for i, _ in VOIGT_POSITIONS], [j for _, j in VOIGT_POSITIONS]]
-        nodes = project_to_nodes(self.W[:n], self.problem.areas, values, self.comm)
+        nodes = self.to_nodes(values)
         for k, name in enumerate(VOIGT_NAMES):
             self.side_output.values[name] = nodes[:, k]
 
@@ -372,7 +372,8 @@ class MacroModel:
             + diagnostics.inversion_problems(det2(np.eye(2) + grad_u), midpoints),
             self.comm,
         )
-        ellipticity = self._ellipticity(grad_u, Fg)
+        walls = None if problem.finite else (stability.stretch_of_strain(eps_el), sigma, C)
+        ellipticity = self._ellipticity(grad_u, Fg, walls)
         problem.set_cell_values(self.out.G, G)
         if "stability" in self.out.fields:
             exact = problem.stability_values(grad_u, screened=False)
@@ -418,12 +419,16 @@ class MacroModel:
             self.water_out.update(self._water_dt, self._time - self._remaining)
         return report, self.problem.P1_cells  # set by the water solve
 
-    def _ellipticity(self, grad_u: np.ndarray, Fg: np.ndarray) -> stability.Ellipticity:
+    def _ellipticity(
+        self, grad_u: np.ndarray, Fg: np.ndarray, walls: tuple[np.ndarray, ...] | None
+    ) -> stability.Ellipticity:
         """Collective: the step's stability check with the resolution rule: the owned fine
         cells' values with the walls' stress, connected by their vertices, each set against the
-        grown area of a cell there, ``Jg |Y|`` (docs/model.md section 10)."""
+        grown area of a cell there, ``Jg |Y|`` (docs/model.md section 10). ``walls``: the
+        step's (Fe, S_w, C) if it has them (linear kinematics: the stretch of eps_el,
+        sigma_hom, E_hom), else :meth:`MacroProblem.walls_state`."""
         problem, n = self.problem, self.problem.n_owned
-        Fe, S, C = problem.walls_state(grad_u)
+        Fe, S, C = problem.walls_state(grad_u) if walls is None else walls
         values = stability.normalised(Fe[:n], S[:n], C[:n], screened=True)
         Jg = det2(Fg[:n])
         return stability.check(

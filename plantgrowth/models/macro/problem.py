@@ -48,6 +48,7 @@ from plantgrowth.models.newton import (
 )
 from plantgrowth.models.preconditioner_reuse import PreconditionerReuse
 from plantgrowth.models.solution_history import SolutionHistory
+from plantgrowth.models.turgor_ramp import solve_ramped
 from plantgrowth.scene import Scene
 
 log = logging.getLogger("plantgrowth")
@@ -61,8 +62,13 @@ MACRO_MAX_IT = 2000
 thinnest-walled hard case (w = 0.005); a solve that needs more stops with a RunError."""
 REBUILD_GROWTH = 1.5
 """CG's multigrid hierarchy is kept across steps and rebuilt once a solve needs more than 1.5 times
-the iterations of the solve after the last rebuild (plantgrowth.models.preconditioner_reuse;
-measured in docs/large_tissues.md, "Macro solve sized by accuracy")."""
+(and REBUILD_SETUP more than) the fewest iterations of a solve since the last rebuild
+(plantgrowth.models.preconditioner_reuse; measured in docs/large_tissues.md, "Macro solve sized
+by accuracy")."""
+REBUILD_SETUP = 3
+"""BoomerAMG's set-up in CG iterations: 0.80 s against 0.33 s an iteration on the organ system
+(2 ranks, docs/large_tissues.md's preconditioner table), rounded up: fewer extra iterations
+than this do not pay for a rebuild."""
 HISTORY = 5
 """CG starts from the energy-norm projection onto the last 5 solutions (plantgrowth.models.
 solution_history): on the organ scene (2 ranks, 1e-8) 2-5 iterations a step at steps 4-15,
@@ -155,13 +161,13 @@ class MacroProblem:
         self.K = None
         self.P2vec = None
         at_cells = self.midpoints[:, 0], self.midpoints[:, 1]
-        P1 = grad_P1 = None
+        P1 = grad_P1 = self.P1 = None
         self.P1_cells = None  # (n_cells,) when a pressure term is assembled
         if not (scene.P1.is_constant and float(scene.P1(0.0, 0.0)) == 0.0):
             self.K = fem.Function(self.T0, name="K")
             # P1 at the cell midpoints: the one-point rule integrates a linear P1 exactly (every
             # other factor of both kinematics' forms is constant on a cell)
-            P1 = fem.Function(self.Q0)
+            P1 = self.P1 = fem.Function(self.Q0)
             self.P1_cells = scene.P1(*at_cells)
             self.set_cell_values(P1, self.P1_cells)
             self.active_terms.append("pressure")
@@ -220,7 +226,7 @@ class MacroProblem:
         self.ksp = self._linear_solver(self.A)
         self.reuse, self.history = None, None
         if self.solver == "iterative":
-            self.reuse = PreconditionerReuse(self.ksp, REBUILD_GROWTH)
+            self.reuse = PreconditionerReuse(self.ksp, REBUILD_GROWTH, REBUILD_SETUP)
             self.history = SolutionHistory(HISTORY)
 
     def _finite_forms(self, scene: Scene, psi, P1) -> None:
@@ -310,9 +316,15 @@ class MacroProblem:
         return report
 
     def _newton_solve(self) -> NewtonReport:
-        """Newton's solve; with total forces, again until their tractions ``F / L`` hold at the
+        """Newton's solve (with turgor, ramped up if it fails: :mod:`plantgrowth.models.
+        turgor_ramp`); with total forces, again until their tractions ``F / L`` hold at the
         solution's edge lengths (a few extra iterations: L moves by the last correction only)."""
-        report = self.newton.solve()
+        if self.P1 is None:
+            report = self.newton.solve()
+        else:
+            report = solve_ramped(
+                self.newton, lambda s: self.set_cell_values(self.P1, s * self.P1_cells)
+            )
         for _ in range(MAX_FORCE_UPDATES):
             if self.loads.update_forces() <= FORCE_LENGTH_RTOL:
                 return report

@@ -39,12 +39,13 @@ from plantgrowth.models.micro.director import MicroDirector
 from plantgrowth.models.micro.hydraulic import turgor_solve, water_measures
 from plantgrowth.models.micro.outlines import CellOutlines
 from plantgrowth.models.micro.supports import supports
-from plantgrowth.models.micro.turgor_ramp import solve_ramped
 from plantgrowth.models.micro.turgor_solve import ElasticParts
 from plantgrowth.models.micro.wall_stability import WallStability
 from plantgrowth.models.newton import NEWTON_ATOL, NewtonSolver, log_report
+from plantgrowth.models.refinement import ExtendedRefinement
 from plantgrowth.models.regions import RegionStatistics
 from plantgrowth.models.step import StepResult, clamped_fraction, max_abs_components
+from plantgrowth.models.turgor_ramp import solve_ramped
 from plantgrowth.scene import Scene
 from plantgrowth.scene.micro_tissue import micro_tissue
 
@@ -130,6 +131,7 @@ class MicroModel:
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = lu_solver(self.A, comm, "plantgrowth_micro_")
+        self._refinement = ExtendedRefinement()  # of a linear-kinematics step's solve
         if self.finite:  # the linear solve above is Newton's predictor
             residual = finite_forms.micro_residual(self.u, psi, self.Fg, E, nu, dx, wall_fibres)
             load = None
@@ -261,8 +263,10 @@ class MicroModel:
             )  # fmt: skip
             log_report("micro", newton)
             report = SolveReport(newton.reason, newton.linear_residual)
-        else:
-            report = self._linear_solve() if self.turgor is None else self.turgor.solve(Fg)
+        elif self.turgor is not None:
+            report = self.turgor.solve(Fg)
+        else:  # refined once: plantgrowth/models/refinement.py
+            report = self._refinement.refine(self._linear_solve(), self.ksp, self.A, self.b, self.u)
         t1 = time.perf_counter()
         diagnostics.check_solution(report, self.u, self.comm)
         driving = self._tensor_rows(self.driving)

@@ -16,6 +16,8 @@ its fibres (q = 1) to a stretch of 0.9 is elliptic under C_iso (smallest acousti
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from dolfinx import fem
 
@@ -27,6 +29,12 @@ from plantgrowth.models import stability
 from plantgrowth.models.newton import global_extreme
 
 SAMPLES_PER_CELL = 6  # DG2 nodes: vertices and edge midpoints
+LINEAR_REMEDY = (
+    'linear kinematics reads large wall rotations as strain: if the walls turned by order one '
+    'here, set kinematics = "finite" (a top-level scene key; docs/real_tissues.md, "Why '
+    'irregular tissues stopped at step 0")'
+)
+"""Appended to a linear run's loss of stability: the remedy (irregular tissues at P1 = 0.001)."""
 
 
 class WallStability:
@@ -76,13 +84,15 @@ class WallStability:
 
     def check(self) -> stability.Ellipticity:
         """Collective: the step's :class:`plantgrowth.models.stability.Ellipticity`. The micro
-        model resolves every wall, so every non-elliptic set counts (no resolution limit)."""
+        model resolves every wall, so every non-elliptic set counts (no resolution limit); a
+        linear run's names :data:`LINEAR_REMEDY`."""
         Fe, C = self._deformation(), self.tangent()
         values = stability.normalised(Fe, stability.svk_stress(Fe, C), C, True)
         per_cell = values.reshape(-1, SAMPLES_PER_CELL)
         worst = np.arange(len(per_cell)) * SAMPLES_PER_CELL + np.argmin(per_cell, axis=1)
         S = stability.svk_stress(Fe[worst], C[worst])
-        return stability.check(values[worst], self.areas, self.points[worst], self.comm, S)
+        found = stability.check(values[worst], self.areas, self.points[worst], self.comm, S)
+        return found if self.finite else dataclasses.replace(found, remedy=LINEAR_REMEDY)
 
     def smallest(self) -> tuple[float, np.ndarray]:
         """Collective: the smallest value over all ranks and where (Newton's ranking)."""

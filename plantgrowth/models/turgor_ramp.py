@@ -1,15 +1,16 @@
-"""Turgor continuation for the micro model's Newton solve (finite kinematics; docs/real_tissues.md,
-the micro model on cells).
+"""Turgor continuation for Newton's solve in finite kinematics (the micro model, and the macro
+model without water; docs/real_tissues.md, the micro model on cells).
 
 Newton starts from the linear-kinematics solution (plantgrowth.models.newton). On an irregular
 tissue that guess is far off: the walls' network bends under turgor where the honeycomb's is only
 stretched, and the linear solution rotates walls by radians (median 1.4 rad at the walls a
 linear run flags, r = 0.5, Nx = 4), so Newton can fail at the first step although the finite
-problem has an elliptic solution. Then the solve is repeated along the turgor ``s P1``,
-``s = s_1 < s_2 < ... < 1``, each solve starting from the last one's solution: the increment
-starts at :data:`FIRST`, doubles after a success and halves after a failure, down to
-:data:`SMALLEST` (then the first failure is raised). A solve that converges directly is
-unchanged.
+problem has an elliptic solution; the macro model from such cells (each cell's own unit cell,
+some very soft) can fail likewise (an element inverted at Nx = 8, r = 1, seed 1). Then the solve
+is repeated along the turgor ``s P1``, ``s = s_1 < s_2 < ... < 1``, each solve starting from the
+last one's solution: the increment starts at :data:`FIRST`, doubles after a success and halves
+after a failure, down to :data:`SMALLEST` (then the first failure is raised). A solve that
+converges directly is unchanged.
 """
 
 from __future__ import annotations

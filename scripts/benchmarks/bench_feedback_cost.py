@@ -1,0 +1,123 @@
+"""Cost and accuracy of stress feedback on the fibred gradient scene (issue 33, item 2).
+
+Scene: ``scenes/gradient_E_strain.toml`` at ``balanced`` (61 steps) with ``[walls]
+fibre_stiffness = 5, fibre_angle = 90`` and ``[feedback] cue = "stress", rate = 0.5``, against
+the same scene without ``[walls]`` (unfibred). Whole ``plantgrowth run`` processes, cell cache
+off, one rank, alternated unfibred / feedback (/ the ``--base`` checkout's feedback run)
+``--repeats`` times: median CPU seconds (user + sys of the child) and the median of the pairs'
+CPU ratios. Then one feedback run each on the exact path (``cell_tolerance = 0``: one cell
+problem per coarse node and step, the directors projected to the nodes) and with
+``cell_tolerance = --reference-tolerance`` (the surrogate ten times tighter, each fine cell
+answered at its own Fg and director), and their cell solves, t = 60 measures and the largest
+error of the runs' exact self-checks. Writes
+``benchmarks/results/feedback_cost.json`` with the machine and the load.
+
+    python scripts/benchmarks/bench_feedback_cost.py [--repeats 3] \\
+        [--base /work/main/.venv/bin/plantgrowth] [--reference-tolerance 1e-4]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import re
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import tomllib
+from pathlib import Path
+
+from bench_fibre_cost import scene_text
+
+from plantgrowth.base.machine import machine_description
+from plantgrowth.scene.toml_text import dict_to_toml
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "benchmarks/results/feedback_cost.json"
+MEASURES = ("area", "u1_max", "u2_max", "growth_rate_area", "fibre_order", "fibre_angle_mean")
+CHECK = re.compile(r"largest so far ([0-9.e+-]+)")
+
+
+def feedback_text(tolerance: float | None = None) -> str:
+    """The fibred feedback scene at ``balanced``, its cell tolerance replaced if given."""
+    data = tomllib.loads(scene_text(True, feedback=True))
+    if tolerance is not None:
+        data["accuracy"]["cell_tolerance"] = tolerance
+    return dict_to_toml(data)
+
+
+def run(exe: str, text: str) -> dict:
+    """One whole run of the scene text (cache off): CPU seconds, cell solves summed over the
+    steps, the t = 60 measures and the largest error of its exact self-checks (run.log)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "scene.toml").write_text(text)
+        env = os.environ | {"PLANTGROWTH_CACHE_DIR": "off"}
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        subprocess.run([exe, "run", f"{tmp}/scene.toml", "-o", f"{tmp}/o", "-q"], check=True,
+                       capture_output=True, env=env)  # fmt: skip
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        with open(Path(tmp) / "o/summary.csv", newline="") as f:
+            rows = list(csv.DictReader(f))
+        checks = [float(x) for x in CHECK.findall((Path(tmp) / "o/run.log").read_text())]
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return {"cpu": cpu, "cell_solves": sum(int(float(r["n_cell_solves"])) for r in rows),
+            "largest_checked_error": max(checks, default=None)} | {
+        m: float(rows[-1][m]) for m in MEASURES if m in rows[-1]
+    }  # fmt: skip
+
+
+def relative(run_: dict, against: dict) -> dict:
+    """Relative differences of the t = 60 measures."""
+    return {m: (run_[m] - against[m]) / abs(against[m]) for m in MEASURES if m in against}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--base", help="another checkout's plantgrowth (its feedback run too)")
+    parser.add_argument("--reference-tolerance", type=float, default=1e-4)
+    args = parser.parse_args(argv)
+    exe = str(Path(sys.executable).with_name("plantgrowth"))
+    result: dict = {"machine": machine_description(), "load_before": os.getloadavg(),
+                    "scene": "scenes/gradient_E_strain.toml", "preset": "balanced",
+                    "cache": "off", "base": args.base}  # fmt: skip
+    kinds = {"unfibred": (exe, scene_text(False)), "feedback": (exe, feedback_text())}
+    if args.base:
+        kinds["feedback_base"] = (args.base, feedback_text())
+    runs: dict[str, list[dict]] = {name: [] for name in kinds}
+    for _ in range(args.repeats):
+        for name, (program, text) in kinds.items():
+            runs[name].append(run(program, text))
+            print(name, json.dumps(runs[name][-1]), flush=True)
+    result["runs"] = runs
+    result["cpu_median"] = {k: statistics.median(r["cpu"] for r in v) for k, v in runs.items()}
+    result["cpu_ratio_median"] = {
+        name: statistics.median(
+            r["cpu"] / p["cpu"] for p, r in zip(runs["unfibred"], runs[name], strict=True)
+        )
+        for name in kinds if name != "unfibred"
+    }  # fmt: skip
+    exact = run(exe, feedback_text(0.0))
+    reference = run(exe, feedback_text(args.reference_tolerance))
+    result["exact_path"], result["reference"] = exact, reference
+    result["reference_tolerance"] = args.reference_tolerance
+    for name in runs:
+        last = runs[name][-1]
+        if name != "unfibred":
+            result[name] = {
+                "cell_solves": last["cell_solves"],
+                "fraction_of_exact": last["cell_solves"] / exact["cell_solves"],
+                "vs_reference": relative(last, reference), "vs_exact_path": relative(last, exact),
+            }  # fmt: skip
+    result["load_after"] = os.getloadavg()
+    print(json.dumps({k: result[k] for k in ("cpu_median", "cpu_ratio_median")}), flush=True)
+    OUT.write_text(json.dumps(result, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
