@@ -220,6 +220,7 @@ def _cubic(original, rows: np.ndarray):
     """The ``cubic`` variant's ``_refine`` (module docstring)."""
     import logging
 
+    import plantgrowth.unitcell.lattice as lat
     import plantgrowth.unitcell.surrogate as sg
 
     def refine(self, tables, which, s, tolerance):
@@ -230,7 +231,7 @@ def _cubic(original, rows: np.ndarray):
             for table_id, table in names.items():
                 keys = [k for k in self._surplus if k >> 42 == table_id]
                 points = np.array(
-                    [[((k >> 21) & sg._LOW) - sg._OFFSET, (k & sg._LOW) - sg._OFFSET] for k in keys]
+                    [[((k >> 21) & lat.LOW) - lat.OFFSET, (k & lat.LOW) - lat.OFFSET] for k in keys]
                 )  # fmt: skip
                 exact = np.array([self.values[table, tuple(p)] for p in points.tolist()])
                 terms = _cubic_terms(points * (sg.H0 / sg.STEP))
@@ -254,6 +255,7 @@ def _cubic(original, rows: np.ndarray):
 
 def _lookahead(original, ahead: int):
     """The ``lookahead`` variant's ``_refine`` (module docstring)."""
+    import plantgrowth.unitcell.lattice as lat
     import plantgrowth.unitcell.surrogate as sg
 
     def refine(self, tables, which, s, tolerance):
@@ -286,7 +288,7 @@ def _lookahead(original, ahead: int):
             if x >= 1.0:
                 del memory["blend"][key]
                 continue
-            point = np.array([((key >> 21) & sg._LOW) - sg._OFFSET, (key & sg._LOW) - sg._OFFSET])
+            point = np.array([((key >> 21) & lat.LOW) - lat.OFFSET, (key & lat.LOW) - lat.OFFSET])
             level = next(k for k in range(sg.MAX_LEVEL + 1) if not (point % (sg.STEP >> k)).any())
             d = np.abs(s - point * (sg.H0 / sg.STEP)) / (sg.H0 / 2.0**level)
             hat = np.clip(1 - d[:, 0], 0, None) * np.clip(1 - d[:, 1], 0, None)
