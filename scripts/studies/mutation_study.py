@@ -451,6 +451,14 @@ MUTANTS = (
           "surplus[:, ::2] += weights(b, count // 2)"),),
     ),
     Mutant(
+        "angle_surplus_levels_swapped", "plantgrowth/unitcell/director_lattice.py",
+        "wrong scale",
+        "the angle surpluses' stretch grids swapped: (I_2M - I_M) f, the larger surplus, on the "
+        "coarse level-0 grid and (I_4M - I_2M) f on the level-1 grid, instead of the other way "
+        "round (the larger surplus interpolated with P_0's larger error, 1-2% against 0.4%)",
+        (("SURPLUS_TERMS = ((2, 1), (4, 0))", "SURPLUS_TERMS = ((2, 0), (4, 1))"),),
+    ),
+    Mutant(
         "refinement_residual_in_double", "plantgrowth/models/refinement.py",
         "wrong law or integrator",
         "the refinement step's residual b - A x with products and sums in double instead of "
