@@ -11,8 +11,9 @@ replacements in one file of the committed tree. The study never touches the work
 3. a baseline run of the default serial suite on the unmutated copy, which must pass;
 4. per mutant: restore the pristine files, apply the mutant (every replacement must match
    exactly once, else the study stops: a mutant whose code has moved is an error, never a silent
-   pass), run ``python -m pytest -q -m "not slow" -x -p no:cacheprovider tests`` and record the
-   first failing test (``-x``: the test that killed the mutant) and the wall time.
+   pass; tests/test_mutant_patterns.py checks the same in CI), run ``python -m pytest -q -m
+   "not slow" -x -p no:cacheprovider tests`` and record the first failing test (``-x``: the
+   test that killed the mutant) and the wall time.
 
 Results go to ``benchmarks/results/mutants.json`` (``scripts/figures/mutants_table.py`` prints
 them as a Markdown table). The exit code is 1 if a mutant survives or the baseline fails.
