@@ -18,9 +18,12 @@ from cli_helpers import RANK0, call, shared_dir, write
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
+from plantgrowth.base.tensors import voigt_matrix
+from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.models.macro.model import macro_model
 from plantgrowth.scene import Scene, load_scene
 from plantgrowth.unitcell.homogenization import Homogenizer
+from plantgrowth.unitcell.solver import CellSolver
 
 ROOT = Path(__file__).resolve().parents[1]
 DISC = ROOT / "scenes/examples/soft_disc.toml"
@@ -69,6 +72,27 @@ def test_each_cell_takes_its_own_E():
     unit = C / E[:, None, None]
     np.testing.assert_allclose(unit, np.broadcast_to(unit[:1], unit.shape), rtol=1e-12)
     assert set(np.unique(E)) == {0.3, 1.0}
+
+
+def test_a_nodes_tensors_at_its_wall_modulus_are_the_cell_problems_at_that_modulus():
+    """Linear walls of modulus E: the cell's stresses are E times those of E = 1 and its strains
+    per unit pressure 1/E times, so the Homogenizer's tensors at E = 0.3 (one E = 1 solve,
+    scaled) are CellSolver's own solve at that modulus: E_hom, dbar[v], K_hom and dbar[w] to
+    1e-10 relative (two direct solves of one mesh, whose matrices differ by the factor E:
+    round-off; measured 8e-15); at E = 2 from the same solve, E_hom and dbar[v] are 2 / 0.3
+    and 0.3 / 2 times those at 0.3 (a sheared Fg, so every component is nonzero)."""
+    E, Fg = np.array([0.3, 2.0]), np.array([[1.25, 0.5], [0.0, 0.8]])  # det 1: on the key grid
+    tensors = Homogenizer(1, 1e-6, True, True, MPI.COMM_SELF).homogenize(
+        np.tile((1.5, 1.0, 30.0, 0.1), (2, 1)), E, np.full(2, 0.3), np.tile(Fg, (2, 1, 1))
+    )
+    cell = CellSolver(HoneycombCell(1.5, 1.0, 30.0, 0.1), 1, MPI.COMM_SELF).solve(Fg, 0.3, 0.3)
+    pairs = ((tensors.C[0], voigt_matrix(cell.E_hom)), (tensors.dbar_v[0], cell.dbar_v),
+             (tensors.K[0], cell.K_hom), (tensors.dbar_w[0], cell.dbar_w))  # fmt: skip
+    errors = [np.abs(mine - theirs).max() / np.abs(theirs).max() for mine, theirs in pairs]
+    print(f"largest relative difference {max(errors):.2g}")
+    assert max(errors) < 1e-10
+    np.testing.assert_allclose(tensors.C[1], tensors.C[0] * 2.0 / 0.3, rtol=1e-12)
+    np.testing.assert_allclose(tensors.dbar_v[1], tensors.dbar_v[0] * 0.3 / 2.0, rtol=1e-12)
 
 
 def _growth(points: np.ndarray) -> np.ndarray:

@@ -31,14 +31,14 @@ def director_map(b: np.ndarray, s: np.ndarray) -> np.ndarray:
     ])  # fmt: skip
 
 
-def fake_evaluate(tables, which, s, tolerance) -> Answer:
+def fake_evaluate(tables, which, s, tolerance, f=director_map) -> Answer:
     """The stretch surrogate of a fibred node table (its 7th entry the angle index) or of an
-    isotropic table, answering the director map exactly."""
+    isotropic table, answering the map f (the director map) exactly."""
     angles = np.array([
         t[6] * director_lattice.ANGLE_STEP if len(t) > 6 else 0.0 for t in tables
     ])[np.asarray(which, dtype=np.int64)]  # fmt: skip
     n = len(angles)
-    return Answer(director_map(angles, np.reshape(s, (n, 2))), np.zeros(n), np.zeros(n, bool), 0)
+    return Answer(f(angles, np.reshape(s, (n, 2))), np.zeros(n), np.zeros(n, bool), 0)
 
 
 def difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -46,13 +46,17 @@ def difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class ExactValues(dict):
-    """The stretch surrogate's lattice values of the director map: a node table's value at a
-    lattice point (finest integers), made when first read."""
+    """The stretch surrogate's lattice values of the map f (the director map): a node table's
+    value at a lattice point (finest integers), made when first read."""
+
+    def __init__(self, f=director_map) -> None:
+        super().__init__()
+        self.f = f
 
     def __missing__(self, key: tuple) -> np.ndarray:
         table, point = key
         s = np.array([point], dtype=float) * (H0 / STEP)
-        self[key] = director_map(np.array([table[6] * director_lattice.ANGLE_STEP]), s)[0]
+        self[key] = self.f(np.array([table[6] * director_lattice.ANGLE_STEP]), s)[0]
         return self[key]
 
 
@@ -146,22 +150,10 @@ def test_new_angle_nodes_are_asked_on_the_coarse_stretch_grids_only():
         which = np.asarray(which, dtype=np.int64)
         for t, point in zip(which.tolist(), np.reshape(s_asked, (-1, 2)).tolist(), strict=True):
             asked.setdefault(tables[t], set()).add(tuple(point))
-        angles = np.array([t[6] if len(t) > 6 else 0 for t in tables])[which]
-        angles = angles * director_lattice.ANGLE_STEP
-        n = len(angles)
-        values = curved_map(angles, np.reshape(s_asked, (n, 2)))
-        return Answer(values, np.zeros(n), np.zeros(n, bool), 0)
-
-    class CurvedValues(dict):
-        def __missing__(self, key: tuple) -> np.ndarray:
-            table, point = key
-            s_point = np.array([point], dtype=float) * (H0 / STEP)
-            angle = np.array([table[6] * director_lattice.ANGLE_STEP])
-            self[key] = curved_map(angle, s_point)[0]
-            return self[key]
+        return fake_evaluate(tables, which, s_asked, tolerance, curved_map)
 
     angles = director_lattice.DirectorInterpolant(
-        recording, difference, 1e-3, MPI.COMM_SELF, CurvedValues()
+        recording, difference, 1e-3, MPI.COMM_SELF, ExactValues(curved_map)
     )
     answer = angles([FIBRED], np.zeros(len(b), dtype=np.int64), s, b)
     exact = curved_map(b, s)
@@ -181,3 +173,46 @@ def test_new_angle_nodes_are_asked_on_the_coarse_stretch_grids_only():
         on_level1 = node[6] % (director_lattice.PERIOD // (2 * count)) == 0  # a node of 2M
         grids = level0 + level1 * on_level1
         assert len(points) == grids + len(b) * (node in fine)
+
+
+def degree_four_map(b: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """(n, 2) values whose angle dependence has degree 4 in theta = 2 pi b / 180 (12 nodes
+    reproduce it, 6 do not) with amplitudes not bilinear in s."""
+    theta = np.radians(2.0 * b)
+    return np.column_stack([
+        2.0 + np.exp(3.0 * s[:, 0]) * np.cos(4.0 * theta + 5.0 * s[:, 1]),
+        1.5 + 0.3 * np.exp(2.0 * s[:, 1]) * np.sin(4.0 * theta),
+    ])  # fmt: skip
+
+
+def test_the_2M_nodes_surplus_is_exact_on_the_level1_grid():
+    """A(b, s) = I_M f + (I_2M - I_M)[P_1 f] + (I_4M - I_2M)[P_0 f]: for a map of degree 4 in the
+    angle (I_12 and I_24 reproduce it exactly, so the last surplus is 0) and at points of the
+    level-1 stretch grid (where P_1 is exact) that are not level-0 points, A is I_12 f = f to
+    round-off (1e-12, the module's: the stretch tables are exact here), although I_6 alone
+    misses by far (measured 1.2) and P_0 would not be exact there. With the surpluses on
+    each other's grids (the larger one on level 0) the answer misses by P_0's error."""
+    rng = np.random.default_rng(3)
+    points = np.array([[0.05, 0.0], [0.0, 0.05], [0.05, 0.05], [0.15, -0.05]])
+    b = rng.uniform(0.0, 180.0, 10 * len(points))
+    s = np.repeat(points, 10, axis=0)
+
+    def evaluate(tables, which, s_asked, tolerance) -> Answer:
+        return fake_evaluate(tables, which, s_asked, tolerance, degree_four_map)
+
+    # tolerance 0.5: the node count stays at M = 6 (12 would make I_M itself exact)
+    angles = director_lattice.DirectorInterpolant(
+        evaluate, difference, 0.5, MPI.COMM_SELF, ExactValues(degree_four_map)
+    )
+    answer = angles([FIBRED], np.zeros(len(b), dtype=np.int64), s, b)
+    assert angles.count(FIBRED) == 6
+    exact = degree_four_map(b, s)
+    fine = np.arange(6) * 30.0
+    only_fine = np.einsum(
+        "qj,jqm->qm", director_lattice.trigonometric_weights(b, 6),
+        np.array([degree_four_map(np.full(len(b), a), s) for a in fine]),
+    )  # fmt: skip
+    print(f"A: {difference(answer.values, exact).max():.2g}, I_6 alone: "
+          f"{difference(only_fine, exact).max():.2g}")  # fmt: skip
+    assert difference(answer.values, exact).max() <= ROUND_OFF
+    assert difference(only_fine, exact).max() > 0.1

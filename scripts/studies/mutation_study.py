@@ -11,8 +11,9 @@ replacements in one file of the committed tree. The study never touches the work
 3. a baseline run of the default serial suite on the unmutated copy, which must pass;
 4. per mutant: restore the pristine files, apply the mutant (every replacement must match
    exactly once, else the study stops: a mutant whose code has moved is an error, never a silent
-   pass), run ``python -m pytest -q -m "not slow" -x -p no:cacheprovider tests`` and record the
-   first failing test (``-x``: the test that killed the mutant) and the wall time.
+   pass; tests/test_mutant_patterns.py checks the same in CI), run ``python -m pytest -q -m
+   "not slow" -x -p no:cacheprovider tests`` and record the first failing test (``-x``: the
+   test that killed the mutant) and the wall time.
 
 Results go to ``benchmarks/results/mutants.json`` (``scripts/figures/mutants_table.py`` prints
 them as a Markdown table). The exit code is 1 if a mutant survives or the baseline fails.
@@ -400,15 +401,17 @@ MUTANTS = (
         (("factor = np.exp(-rate * np.asarray(cue_anisotropy, dtype=float) * dt)",
           "factor = np.exp(rate * np.asarray(cue_anisotropy, dtype=float) * dt)"),),
     ),
+    # The walk over the levels moved from surrogate.py into lattice.py (issue 33, the stop-square
+    # cache): surrogate_level_per_query follows it, the same bug in the walk's two lines.
     Mutant(
-        "surrogate_level_per_query", "plantgrowth/unitcell/surrogate.py", "wrong average",
+        "surrogate_level_per_query", "plantgrowth/unitcell/lattice.py", "wrong average",
         "a lattice level chosen per query again (issue 33): only the hats of the query's own "
         "chain of refined squares are summed (a square's hats count where at least 3 of its "
         "corners are points of that level), the neighbours' finer points on its edges dropped",
-        (("values[alive] += _combine(np.where(built, weights, 0.0), rows, surplus)",
-          "values[alive] += _combine(np.where(built & (built.sum(axis=1, keepdims=True) >= 3), "
-          "weights, 0.0), rows, surplus)"),
-         ("alive = alive[built.any(axis=1)]", "alive = alive[built.sum(axis=1) >= 3]")),
+        (("used = np.where(built[:, None, :], weights, 0.0).reshape(-1, 4)",
+          "used = np.where((built & (built.sum(axis=1, keepdims=True) >= 3))[:, None, :], "
+          "weights, 0.0).reshape(-1, 4)"),
+         ("has = built.any(axis=1)", "has = built.sum(axis=1) >= 3")),
     ),
     Mutant(
         "director_not_periodic", "plantgrowth/unitcell/director_lattice.py",
@@ -418,6 +421,59 @@ MUTANTS = (
         "degrees and changing sign over 180 (issue 33, item 2)",
         (("weights = np.sin(count * d) * np.cos(d) / (count * safe)",
           "weights = np.sin(count * d) / (count * safe)"),),
+    ),
+    # --- issue 33, this stop: stop squares, the angle's sparse grid, refinement, AMG reuse ------
+    Mutant(
+        "lattice_place_per_level", "plantgrowth/unitcell/lattice.py", "wrong scale",
+        "a query placed per level again: each level's square from s / (H0 / 2^k) rounded to 9 "
+        "digits on its own instead of one rounding of s / H0 for every level, so a query a hair "
+        "off a lattice line may sit in a level-1 square outside its level-0 one (the squares "
+        "do not nest; the draft gradient_nu_stress scene's endless refinement)",
+        (("    x = place(s) * 2.0**level  # exact: a power of 2\n    base = np.floor(x)\n"
+          "    return base.astype(np.int64) * (STEP >> level), x - base",
+          "    x = s / (H0 / 2.0**level)\n    base = np.floor(np.round(x, 9))\n"
+          "    return base.astype(np.int64) * (STEP >> level), "
+          "np.clip(np.round(x - base, 9), 0.0, 1.0)"),),
+    ),
+    Mutant(
+        "stop_square_drop_built_only", "plantgrowth/unitcell/lattice.py", "wrong index",
+        "a refinement drops the cached stop squares that meet the built square only, instead "
+        "of its parent widened by one spacing h on every side (the new points' hat supports): "
+        "a neighbour's cached corners keep the interpolant of before",
+        (("low = b_corner // span * span - h", "low = b_corner"),
+         ("high = low + span + 2 * h", "high = low + h")),
+    ),
+    Mutant(
+        "angle_surplus_sign", "plantgrowth/unitcell/angle_surplus.py", "sign",
+        "the angle surplus (I_2N + I_N) g instead of (I_2N - I_N) g: a doubling's new nodes "
+        "taken against the coarser interpolant with the wrong sign (both surplus terms of the "
+        "director's sparse grid)",
+        (("surplus[:, ::2] -= weights(b, count // 2)",
+          "surplus[:, ::2] += weights(b, count // 2)"),),
+    ),
+    Mutant(
+        "angle_surplus_levels_swapped", "plantgrowth/unitcell/director_lattice.py",
+        "wrong scale",
+        "the angle surpluses' stretch grids swapped: (I_2M - I_M) f, the larger surplus, on the "
+        "coarse level-0 grid and (I_4M - I_2M) f on the level-1 grid, instead of the other way "
+        "round (the larger surplus interpolated with P_0's larger error, 1-2% against 0.4%)",
+        (("SURPLUS_TERMS = ((2, 1), (4, 0))", "SURPLUS_TERMS = ((2, 0), (4, 1))"),),
+    ),
+    Mutant(
+        "refinement_residual_in_double", "plantgrowth/models/refinement.py",
+        "wrong law or integrator",
+        "the refinement step's residual b - A x with products and sums in double instead of "
+        "long double: its round-off floor is the LU's own residual, so the step stalls",
+        (("EXTENDED = np.longdouble", "EXTENDED = np.float64"),),
+    ),
+    Mutant(
+        "preconditioner_reference_first_solve", "plantgrowth/models/preconditioner_reuse.py",
+        "wrong law or integrator",
+        "the AMG rebuild rule's reference kept at the first solve after a rebuild (the old rule) "
+        "instead of the fewest iterations since: a cold first solve (step 0, a resumed run) "
+        "sets a reference the rule never exceeds again",
+        (("        elif report.iterations > 0:\n"
+          "            self.reference = min(self.reference, report.iterations)\n", ""),),
     ),
     # --- issue 35: water fluxes (docs/model.md, "Water fluxes") ------------------------------
     # The storage, the conductivity's grown lengths and the supplies are coded twice: in the
@@ -553,7 +609,7 @@ MUTANTS = (
         "cut_cell_centre_own_centroid", "meshes/cell_tissue.py", "wrong configuration",
         "a cut cell's centre (where the scene's fields are read) at its own half's centroid, "
         "above x2 = 0, instead of the mirrored whole cell's, on x2 = 0",
-        (("centres[i] = [((full[:, 0] + q[:, 0]) * cross).sum() / (3.0 * cross.sum()), 0.0]",
+        (("centres[i] = [polygon_centroid(self.outline(i))[0], 0.0]",
           "centres[i] = self.cells.centroids[i]"),),
     ),
 )  # fmt: skip
