@@ -84,6 +84,14 @@ class CellPolygons:
         """(n_cells, 2) each polygon's centroid (area-weighted, not the vertices' mean)."""
         return np.array([polygon_centroid(self.polygon(i)) for i in range(self.n_cells)])
 
+    @property
+    def on_symmetry_plane(self) -> np.ndarray:
+        """(n_cells,) bool: the cells with a side on x2 = 0 (both ends within 1e-9 of the
+        tissue's extent of it)."""
+        tol = 1e-9 * float(np.ptp(self.vertices, axis=0).max())
+        low = np.abs(self.vertices[:, 1]) <= tol
+        return np.array([bool(np.any(low[c] & low[np.roll(c, -1)])) for c in self.cells])
+
     def sides(self) -> dict[tuple[int, int], list[int]]:
         """Undirected side (sorted vertex pair) -> the cells that have it (one or two)."""
         out: dict[tuple[int, int], list[int]] = {}

@@ -116,14 +116,6 @@ class CellShapes:
     delta: float
 
 
-def on_symmetry_plane(cells: CellPolygons) -> np.ndarray:
-    """(n,) bool: the cells with a side on x2 = 0 (both ends within 1e-9 of the tissue's
-    extent of it)."""
-    tol = 1e-9 * float(np.ptp(cells.vertices, axis=0).max())
-    low = np.abs(cells.vertices[:, 1]) <= tol
-    return np.array([bool(np.any(low[loop] & low[np.roll(loop, -1)])) for loop in cells.cells])
-
-
 def cell_shapes(
     cells: CellPolygons, cell: HoneycombCell, delta: float | None = None,
     cut: np.ndarray | None = None,
@@ -135,7 +127,7 @@ def cell_shapes(
     if np.any(cells.vertices[:, 1] < -1e-9 * float(np.ptp(cells.vertices, axis=0).max())):
         raise GeometryError("tissue.cells: every vertex must lie in x2 >= 0 (x2 = 0 is the "
                             "symmetry plane)")  # fmt: skip
-    on_plane = on_symmetry_plane(cells)
+    on_plane = cells.on_symmetry_plane
     cut = on_plane if cut is None else np.asarray(cut, dtype=bool)
     if np.any(cut & ~on_plane):
         raise GeometryError(f"cell {cells.labels[np.flatnonzero(cut & ~on_plane)[0]]} is cut "

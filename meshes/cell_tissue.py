@@ -150,8 +150,7 @@ class CellTissue:
     @cached_property
     def on_plane(self) -> np.ndarray:
         """(n_cells,) whether each cell has a side on the symmetry plane x2 = 0."""
-        on = np.abs(self.cells.vertices[:, 1]) < self.tolerance
-        return np.array([bool(np.any(on[c] & on[np.roll(c, -1)])) for c in self.cells.cells])
+        return self.cells.on_symmetry_plane
 
     @cached_property
     def cut(self) -> np.ndarray:

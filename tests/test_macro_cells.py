@@ -23,7 +23,6 @@ from plantgrowth.base.errors import SceneError
 from plantgrowth.base.gather import MeshGather
 from plantgrowth.meshes.cell_outline import cell_of_points, tissue_outline
 from plantgrowth.meshes.cell_polygons import CellPolygons
-from plantgrowth.meshes.cell_shapes import on_symmetry_plane
 from plantgrowth.meshes.honeycomb import GeometryError, polygon_area
 from plantgrowth.meshes.tissue import TissueLayout
 from plantgrowth.models.macro.domain import cells_domain, macro_domain
@@ -142,7 +141,7 @@ def test_the_macro_model_cuts_the_cells_the_micro_model_cuts():
     moments' sums: 1e-12."""
     sc = scene(tissue={"h": 0.35, "cells": {"voronoi": 8, "seed": 1, "regularity": 1.0}})
     cells, cut = cell_polygons(sc), micro_tissue(sc).cut
-    assert on_symmetry_plane(cells)[6] and not cut[6]  # the case: a whole cell on x2 = 0
+    assert cells.on_symmetry_plane[6] and not cut[6]  # the case: a whole cell on x2 = 0
     shapes = cells_domain(sc, cells, MPI.COMM_WORLD).cell_shape.shapes
     assert np.allclose(shapes.areas, np.where(cut, 2.0, 1.0) * cells.areas, rtol=1e-12)
     assert np.allclose(shapes.centres[~cut], cells.centroids[~cut], rtol=1e-12)
