@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cell_polygons import CellPolygons
+from .cell_polygons import CellPolygons, polygon_centroid
 from .geometry_error import GeometryError
-from .honeycomb import HoneycombCell
+from .honeycomb import HoneycombCell, polygon_area
 
 
 def second_moment(polygon: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -48,11 +48,8 @@ def second_moment(polygon: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
 
     evaluated on the vertices taken relative to the centroid."""
     p = np.asarray(polygon, dtype=float)
-    q = np.roll(p, -1, axis=0)
-    cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
-    area = 0.5 * float(cross.sum())
-    centroid = ((p + q) * cross[:, None]).sum(axis=0) / (6.0 * area)
-    return area, centroid, _moment_about(p - centroid)
+    centroid = polygon_centroid(p)
+    return polygon_area(p), centroid, _moment_about(p - centroid)
 
 
 def _moment_about(p: np.ndarray) -> np.ndarray:
