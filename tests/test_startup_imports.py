@@ -15,10 +15,13 @@ from __future__ import annotations
 import subprocess
 import sys
 import tempfile
+from importlib import metadata
 from pathlib import Path
 
 import pytest
 from cli_helpers import ENV
+
+from plantgrowth.base import dist_versions
 
 REPO = Path(__file__).resolve().parents[1]
 RUNNER = """
@@ -173,3 +176,15 @@ def test_under_a_launcher_mpi_starts_as_configured():
                           text=True, env=ENV, timeout=120)  # fmt: skip
     lines = [line.split() for line in done.stdout.splitlines() if line[:1].isdigit()]
     assert lines == [["2", "2", "-", "-"]] * 2, (done.stdout, done.stderr)
+
+
+def test_the_stand_in_hands_every_other_name_to_the_real_pkg_resources(monkeypatch):
+    """A module importing pkg_resources while ufl's ``__init__`` runs gets the stand-in: any name
+    but ``get_distribution`` is the real module's, which then replaces the stand-in."""
+    stand_in = dist_versions._StandIn("pkg_resources")
+    monkeypatch.setitem(sys.modules, "pkg_resources", stand_in)
+    assert stand_in.get_distribution("fenics-ufl").version == metadata.version("fenics-ufl")
+    assert sys.modules["pkg_resources"] is stand_in
+    working_set = stand_in.working_set
+    real = sys.modules["pkg_resources"]
+    assert real is not stand_in and working_set is real.working_set
