@@ -21,6 +21,8 @@ import os
 import sys
 from typing import Any
 
+from plantgrowth.base.dist_versions import install as install_dist_versions
+
 if "numpy" not in sys.modules:
     # numpy asks Linux for transparent huge pages on every array of 4 MB or more; with the
     # kernel's default "defrag = madvise" each such allocation may stall while the kernel
@@ -28,6 +30,10 @@ if "numpy" not in sys.modules:
     # 69.6 s with, 48.9 s without (system time 21.5 s against 3.2 s; user time the same, 44.8 s
     # against 45.1 s). numpy reads this at import; a user's own setting is kept.
     os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
+
+# ufl and ffcx (imported with dolfinx) import pkg_resources for their version only: 0.07-0.13 s
+# of every run's start-up. plantgrowth/base/dist_versions.py answers them from importlib.metadata.
+install_dist_versions()
 
 _API = {
     "load_scene": "plantgrowth.scene",

@@ -15,10 +15,13 @@ from __future__ import annotations
 import subprocess
 import sys
 import tempfile
+from importlib import metadata
 from pathlib import Path
 
 import pytest
 from cli_helpers import ENV
+
+from plantgrowth.base import dist_versions
 
 REPO = Path(__file__).resolve().parents[1]
 RUNNER = """
@@ -38,6 +41,10 @@ SOLVER = {"dolfinx", "dolfinx_mpc", "petsc4py.PETSc", "ufl", "basix", "gmsh", "s
 PETSc together about 0.5 s, gmsh 0.35-0.45 s: ``python -X importtime``)."""
 NOT_EVEN_MPI = SOLVER | {"mpi4py.MPI", "numpy"}
 """``--help`` and ``--version``: not MPI_Init either (0.3-0.5 s)."""
+NOT_IN_A_RUN = {"pkg_resources", "scipy.spatial", "matplotlib"}
+"""What a run that does not resume never loads (issue 33, item 3): ``pkg_resources``, which ufl
+and ffcx import for their version only (0.07-0.13 s; ``plantgrowth/base/dist_versions.py``),
+scipy.spatial's k-d tree (0.05-0.1 s; matches saved points at a resume only), matplotlib."""
 pytestmark = pytest.mark.skip_in_parallel
 
 
@@ -97,18 +104,42 @@ def test_the_runner_sees_what_a_command_loads():
 
 
 def test_a_run_builds_no_mesh_with_gmsh_once_its_cells_are_cached(tmp_path):
-    """The first run solves its cell problem on a gmsh mesh (the runner sees gmsh: the check can
-    fail); the second finds the values in the cache and loads neither gmsh nor matplotlib."""
+    """The reference scene (two steps, the coarsest cell mesh): the first run solves its cell
+    problems on a gmsh mesh (the runner sees gmsh: the check can fail); the second finds the
+    values in the cache and loads no gmsh. Neither loads what no run needs (``NOT_IN_A_RUN``)."""
+    text = (REPO / "scenes/reference_stress.toml").read_text()
     scene = tmp_path / "scene.toml"
-    scene.write_text(
-        '[tissue]\nh = 0.5\n[growth]\nlaw = "stress"\n[time]\nt_max = 1\n'
-        "[accuracy]\ncell_resolution = 1\n"
-    )
+    scene.write_text(text.replace("t_max = 60.0", "t_max = 1.0").replace(
+        "[accuracy]", "[accuracy]\ncell_resolution = 1"))  # fmt: skip
     env = dict(ENV, PLANTGROWTH_CACHE_DIR=str(tmp_path / "cache"))
     runs = [loaded(["run", str(scene), "-o", str(tmp_path / f"out{k}")], env=env) for k in (1, 2)]
     assert [code for code, _, _ in runs] == [0, 0]
-    assert "gmsh" in runs[0][2]
-    assert not heavy(runs[1][2], {"gmsh", "matplotlib"}), heavy(runs[1][2], {"gmsh", "matplotlib"})
+    assert "gmsh" in runs[0][2] and not heavy(runs[1][2], {"gmsh"}), heavy(runs[1][2], {"gmsh"})
+    for _, _, modules in runs:
+        assert {"dolfinx", "ufl", "ffcx", "scipy.sparse"} <= modules  # what loaded them ran
+        assert not heavy(modules, NOT_IN_A_RUN), heavy(modules, NOT_IN_A_RUN)
+
+
+VERSIONS = """
+import sys
+import plantgrowth
+import dolfinx.fem, ffcx, ufl
+before = "pkg_resources" in sys.modules
+import pkg_resources
+print(before, hasattr(pkg_resources, "working_set"), ufl.__version__, ffcx.__version__,
+      *(pkg_resources.get_distribution(d).version for d in ("fenics-ufl", "fenics-ffcx")))
+"""
+
+
+def test_ufl_and_ffcx_know_their_versions_without_pkg_resources():
+    """After ``import plantgrowth`` dolfinx loads ufl and ffcx without pkg_resources, and their
+    versions are pkg_resources' own (ffcx's is part of its forms' cache signature); a later
+    ``import pkg_resources`` gets the real module."""
+    done = subprocess.run([sys.executable, "-c", VERSIONS], capture_output=True, text=True,
+                          env=ENV, timeout=120)  # fmt: skip
+    before, real, ufl, ffcx, ufl_pkg, ffcx_pkg = done.stdout.split()
+    assert (before, real) == ("False", "True"), done.stderr
+    assert (ufl, ffcx) == (ufl_pkg, ffcx_pkg)
 
 
 PROBE = """
@@ -145,3 +176,15 @@ def test_under_a_launcher_mpi_starts_as_configured():
                           text=True, env=ENV, timeout=120)  # fmt: skip
     lines = [line.split() for line in done.stdout.splitlines() if line[:1].isdigit()]
     assert lines == [["2", "2", "-", "-"]] * 2, (done.stdout, done.stderr)
+
+
+def test_the_stand_in_hands_every_other_name_to_the_real_pkg_resources(monkeypatch):
+    """A module importing pkg_resources while ufl's ``__init__`` runs gets the stand-in: any name
+    but ``get_distribution`` is the real module's, which then replaces the stand-in."""
+    stand_in = dist_versions._StandIn("pkg_resources")
+    monkeypatch.setitem(sys.modules, "pkg_resources", stand_in)
+    assert stand_in.get_distribution("fenics-ufl").version == metadata.version("fenics-ufl")
+    assert sys.modules["pkg_resources"] is stand_in
+    working_set = stand_in.working_set
+    real = sys.modules["pkg_resources"]
+    assert real is not stand_in and working_set is real.working_set

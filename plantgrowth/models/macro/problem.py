@@ -218,7 +218,7 @@ class MacroProblem:
                 self.active_terms.append("pressure gradient (grad P1, P2)")
         rhs += self.loads.terms(lambda f, n, ds: boundary_traction(f, psi, self.Fg, n, ds))
         a = macro.macro_bilinear_form(u, psi, self.Fg, self.C, dx)
-        self.held.set_residual(ufl.action(a, self.u) - rhs)
+        self.held.set_residual(lambda: ufl.action(a, self.u) - rhs)
         self.a = fem.form(a)
         self.L = fem.form(rhs)
         self.A = fem.petsc.create_matrix(self.a)
@@ -241,7 +241,7 @@ class MacroProblem:
         if tractions:
             residual -= tractions
             load = -tractions if load is None else load - tractions
-        self.held.set_residual(residual)
+        self.held.set_residual(lambda: residual)
         self.active_terms.append("finite kinematics (Newton, linear predictor)")
         self.newton = NewtonSolver(
             residual, self.u, self.bcs, self._jacobian_solver, load, self._newton_floor,

@@ -12,6 +12,8 @@ dof of a node on x2 = 0 counts for the symmetry plane, not for a held edge throu
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -50,7 +52,7 @@ class HeldEdges:
         self._counted = {
             i: np.setdiff1d(d, self.symmetry) if i else d for i, d in self.dofs.items()
         }
-        self._residual: ufl.Form | None = None
+        self._residual: Callable[[], ufl.Form] | None = None
         self._form: fem.FormMetaClass | None = None
         self._vector: PETSc.Vec | None = None
 
@@ -61,15 +63,16 @@ class HeldEdges:
             fem.dirichletbc(zero, dofs, self.V.sub(i)) for i, dofs in self.dofs.items()
         ]
 
-    def set_residual(self, residual: ufl.Form) -> None:
-        """The weak form's residual ``R(u; psi)`` (compiled at the first :meth:`force`)."""
+    def set_residual(self, residual: Callable[[], ufl.Form]) -> None:
+        """The weak form's residual ``R(u; psi)``, made and compiled at the first :meth:`force`
+        (a scene without supports never pays for ``ufl.action``'s derivative expansion)."""
         self._residual, self._form = residual, None
 
     def force(self) -> tuple[float, float]:
         """Collective: the total force (F1, F2) the held edges exert on the tissue at the
         current u."""
         if self._form is None:
-            self._form = fem.form(self._residual)
+            self._form = fem.form(self._residual())
             self._vector = fem.petsc.create_vector(self._form)
         b = self._vector
         with b.localForm() as local:

@@ -231,7 +231,7 @@ class MacroWater:
         self.a, self.L = fem.form(a), fem.form([rhs_u, rhs_p])
         # the held edges' reaction: the mechanics' residual at the solved (u, P)
         turgor = water.turgor_coupling(self.P, v, Fg, K, phi_w, dx)
-        pr.held.set_residual(ufl.action(a[0][0], pr.u) - turgor - rhs_u)
+        pr.held.set_residual(lambda: ufl.action(a[0][0], pr.u) - turgor - rhs_u)
         # the mechanics alone at a given P: the initial equilibrium
         self._a_u = fem.form(a[0][0])
         self._L_u = fem.form(rhs_u + turgor)

@@ -82,7 +82,7 @@ class MacroWaterFinite(MacroWater):
         a = [[ufl.derivative(R, f, du) for f, du in zip((u, P), trial, strict=True)]
              for R in (R_u, R_P)]  # fmt: skip
         self.a, self.L = fem.form(a), fem.form([R_u, R_P])
-        pr.held.set_residual(R_u)
+        pr.held.set_residual(lambda: R_u)
         # the tolerance's scales: the turgor and tractions' work, the water held
         self._load_u, self._held_q = fem.form(load_u), fem.form(self.m * q * dx)
 
