@@ -25,7 +25,7 @@ from mpi4py import MPI
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.gather import dof_state
 from plantgrowth.cli import main
-from plantgrowth.models import newton
+from plantgrowth.models import newton, turgor_ramp
 from plantgrowth.models.macro import problem as problem_module
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import rectangle_mesh
@@ -317,14 +317,18 @@ def test_linear_predictor_saves_newton_iterations():
 @pytest.mark.mpi
 def test_newton_failure_names_step_place_and_cause(mpi_tmp_path, monkeypatch):
     """Newton allowed a single iteration (it needs 4-6 here) stops the run with a RunError that
-    names the step, the place of the largest residual and the cause."""
+    names the step, the place of the largest residual and the cause, and that the turgor ramp
+    was tried too. The ramp is allowed its first increment only (SMALLEST = FIRST): with one
+    iteration a solve, it reaches P1 in about 66 increments and the run then goes on."""
     monkeypatch.setattr(newton, "NEWTON_MAX_IT", 1)
+    monkeypatch.setattr(turgor_ramp, "SMALLEST", turgor_ramp.FIRST)
     sc = scene(time={"t_max": 1.0})
     pattern = (
         r"^step 0, t = 0: Newton did not converge: residual .* times the tolerance after 1 "
         r"iterations"
     )
-    with pytest.raises(RunError, match=pattern + r".* largest at x = \(\d"):
+    ramp = r".* \(also with the turgor ramped up in steps down to 0.25 P1, stuck at 0 P1\)"
+    with pytest.raises(RunError, match=pattern + r".* largest at x = \(\d" + ramp):
         run_model(macro(sc), sc, mpi_tmp_path, MPI.COMM_WORLD)
 
 
