@@ -12,31 +12,11 @@ files have different columns or steps.
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
-import numpy as np
-
-SKIPPED = ("residual", "newton_residual")
-"""Round-off of the solves, not results (any change of the arithmetic's order moves them)."""
-
-
-def read(path: Path) -> dict[str, np.ndarray]:
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
-
-
-def differences(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, float]:
-    """Column -> max |a - b| over max(|a|, |b|) of the column (0 for a column of zeros)."""
-    out = {}
-    for key in a:
-        if key.startswith("seconds") or key in SKIPPED:
-            continue
-        scale = max(np.abs(a[key]).max(), np.abs(b[key]).max())
-        out[key] = float(np.abs(a[key] - b[key]).max() / scale) if scale > 0 else 0.0
-    return out
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies"))
+from micro_cells_ranks import SOLVER_COLUMNS, differences, table  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -45,11 +25,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("b", type=Path)
     parser.add_argument("--rtol", type=float, default=1e-12)
     args = parser.parse_args(argv)
-    a, b = read(args.a), read(args.b)
+    a, b = table(args.a, ("step",)), table(args.b, ("step",))
     if list(a) != list(b) or len(a["step"]) != len(b["step"]):
         print("different columns or steps")
         return 1
-    diff = differences(a, b)
+    diff = {k: v for k, v in differences(a, b).items()
+            if not k.startswith("seconds") and k not in SOLVER_COLUMNS}  # fmt: skip
     worst = max(diff, key=diff.get)
     for key, value in diff.items():
         print(f"  {key}: {value:.3g}")
