@@ -191,14 +191,21 @@ def relative_residual(A: PETSc.Mat, x: PETSc.Vec, b: PETSc.Vec) -> float:
     return value
 
 
+def assemble_matrix(A: PETSc.Mat, a: fem.FormMetaClass, bcs: list) -> PETSc.Mat:
+    """Assemble ``a`` into A with Dirichlet conditions (their rows and columns zero, 1 on the
+    diagonal); returns A."""
+    A.zeroEntries()
+    fem.petsc.assemble_matrix(A, a, bcs=bcs)
+    A.assemble()
+    return A
+
+
 def assemble_system(
     A: PETSc.Mat, b: PETSc.Vec, a: fem.FormMetaClass, L: fem.FormMetaClass, bcs: list
 ) -> None:
     """Assemble ``a`` into A and ``L`` into b with Dirichlet conditions (lifted, b's owned
     entries summed over the ranks; ghosts not updated)."""
-    A.zeroEntries()
-    fem.petsc.assemble_matrix(A, a, bcs=bcs)
-    A.assemble()
+    assemble_matrix(A, a, bcs)
     with b.localForm() as local:
         local.set(0.0)
     fem.petsc.assemble_vector(b, L)
@@ -211,14 +218,19 @@ def assemble_and_solve(
     A: PETSc.Mat, b: PETSc.Vec, a: fem.FormMetaClass, L: fem.FormMetaClass, bcs: list,
     ksp: PETSc.KSP, u: fem.Function, bound: float = RESIDUAL_BOUND,
     guess: Callable[[PETSc.Mat, PETSc.Vec, PETSc.Vec], None] | None = None,
+    solve: Callable[[PETSc.Mat, PETSc.Vec, PETSc.Vec], object] | None = None,
 ) -> SolveReport:  # fmt: skip
     """Assemble ``a`` and ``L`` with Dirichlet conditions, solve into ``u`` with ``ksp`` (from
-    ``u`` if its initial guess is nonzero, after ``guess(A, b, u.vector)`` has set it);
+    ``u`` if its initial guess is nonzero, after ``guess(A, b, u.vector)`` has set it), or with
+    ``solve(A, b, u.vector)`` if given (:class:`~plantgrowth.models.factor_reuse.FactorReuse`);
     ``bound``: the report's residual bound."""
     assemble_system(A, b, a, L, bcs)
     if guess is not None:
         guess(A, b, u.vector)
-    ksp.solve(b, u.vector)
+    if solve is None:
+        ksp.solve(b, u.vector)
+    else:
+        solve(A, b, u.vector)
     u.x.scatter_forward()
     residual = relative_residual(A, u.vector, b)
     iterations = 0 if ksp.getType() == "preonly" else ksp.getIterationNumber()

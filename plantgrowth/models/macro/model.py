@@ -231,9 +231,14 @@ class MacroModel:
             parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
         if self.water is not None:  # after end_step: the time the next step reaches
             parts |= self.water.state() | {"water_time": np.full((n, 1), self._time)}
+        factors = self.problem.factorized_cells()  # kept LU factors: what they factorize
+        if factors is not None:
+            parts |= {k: v[:n] for k, v in factors[0].items()}
         blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         whole = newton | self.homogenizer.state()  # the surrogate: the same on every rank
+        if factors is not None:
+            whole["lu_floor"] = np.array([factors[1]])
         return blocks | root_blocks(whole if self.comm.rank == 0 else {}, self.comm)
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -261,6 +266,9 @@ class MacroModel:
             self._water_dt = self.scene.time.dt
             self._time = float(state["water_time"].reshape(-1)[0])
         self.homogenizer.restore(state)
+        if "lu_Fg" in state and self.problem.factors is not None:  # the straight run's factors
+            cells = {k: state[k][index] for k in ("lu_Fg", "lu_C")}
+            self.problem.restore_factors(cells, float(state["lu_floor"].reshape(-1)[0]))
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def end_step(self, dt: float) -> None:

@@ -29,9 +29,11 @@ from plantgrowth.forms import finite, macro
 from plantgrowth.forms.elasticity import boundary_traction, grown_length
 from plantgrowth.models import growth, stability
 from plantgrowth.models.diagnostics import RESIDUAL_BOUND, TRUE_RESIDUAL_FACTOR
+from plantgrowth.models.factor_reuse import FactorReuse
 from plantgrowth.models.linear import (
     SolveReport,
     assemble_and_solve,
+    assemble_matrix,
     boomeramg_cg_solver,
     gamg_solver,
     lu_solver,
@@ -224,7 +226,9 @@ class MacroProblem:
         self.A = fem.petsc.create_matrix(self.a)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = self._linear_solver(self.A)
-        self.reuse, self.history = None, None
+        self.reuse, self.history, self.factors = None, None, None
+        if self.solver != "iterative" and not self.finite:
+            self.factors = FactorReuse(self.ksp, (self.Fg, self.C))
         if self.solver == "iterative":
             self.reuse = PreconditionerReuse(self.ksp, REBUILD_GROWTH, REBUILD_SETUP)
             self.history = SolutionHistory(HISTORY)
@@ -299,6 +303,26 @@ class MacroProblem:
         dofmap = function.function_space.dofmap
         return function.x.array.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
 
+    def factorized_cells(self) -> tuple[dict[str, np.ndarray], float] | None:
+        """The coefficients per cell of the matrix whose LU factors are kept (``lu_Fg``,
+        ``lu_C``: what a resumed run factorizes again) and their floor; None without kept
+        factors (:mod:`plantgrowth.models.factor_reuse`)."""
+        kept = None if self.factors is None else self.factors.factorized()
+        if kept is None:
+            return None
+        cells = {}
+        for name, f, array in zip(("lu_Fg", "lu_C"), (self.Fg, self.C), kept[0], strict=True):
+            dofmap = f.function_space.dofmap
+            cells[name] = array.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
+        return cells, kept[1]
+
+    def restore_factors(self, cells: dict[str, np.ndarray], floor: float) -> None:
+        """Collective: factorize the matrix of :meth:`factorized_cells`' coefficients (a resumed
+        run; the step's own coefficients are set before its solve)."""
+        self.set_cell_values(self.Fg, cells["lu_Fg"])
+        self.set_cell_values(self.C, cells["lu_C"])
+        self.factors.refactor(lambda: assemble_matrix(self.A, self.a, self.bcs), floor)
+
     def solve(self) -> SolveReport:
         """Assemble the active terms and solve for u; returns the solver diagnostics (finite
         kinematics: those of the worst linear solve; Newton's in ``newton_report``)."""
@@ -343,6 +367,7 @@ class MacroProblem:
             return assemble_and_solve(
                 self.A, self.b, self.a, self.L, self.bcs, self.ksp, self.u, self.residual_bound,
                 None if self.history is None else self.history.guess,
+                None if self.factors is None else self.factors.solve,
             )  # fmt: skip
 
         if self.reuse is None:
