@@ -16,15 +16,36 @@ from plantgrowth.base.tensors import from_voigt_stress, inv2, voigt_matrix, voig
 INTEGRATORS = ("euler", "exp")
 
 
-def symmetric_function(A: np.ndarray, f) -> np.ndarray:
-    """``Q f(Lambda) Q^T`` for symmetric (n, 2, 2) tensors ``A = Q Lambda Q^T``."""
-    lam, Q = np.linalg.eigh(A)
-    return np.einsum("nij,nj,nkj->nik", Q, f(lam), Q)
+def _spectral(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Symmetric (n, 2, 2) ``A = m I + D``: the mean eigenvalue m, the deviator D (trace 0)
+    and its eigenvalue r >= 0 (A's eigenvalues are ``m -/+ r``), each (n,) or (n, 2, 2)."""
+    m = 0.5 * (A[:, 0, 0] + A[:, 1, 1])
+    D = A - m[:, None, None] * np.eye(2)
+    return m, D, np.hypot(D[:, 0, 0], 0.5 * (A[:, 0, 1] + A[:, 1, 0]))
 
 
 def positive_part(A: np.ndarray) -> np.ndarray:
-    """``A_+``: the tensor rebuilt from the positive parts of the eigenvalues."""
-    return symmetric_function(A, lambda lam: np.maximum(lam, 0.0))
+    """``A_+``: the tensor rebuilt from the positive parts of the eigenvalues, in closed form
+    for symmetric (n, 2, 2) A: A where both are >= 0, 0 where both are <= 0, else
+    ``lam_1 (A - lam_2 I) / (lam_1 - lam_2)`` (lam_1 > 0 > lam_2: no cancellation)."""
+    m, _, r = _spectral(A)
+    high, low = m + r, m - r
+    mixed = (high > 0.0) & (low < 0.0)
+    weight = np.where(mixed, high / np.where(mixed, high - low, 1.0), 0.0)
+    shift = np.where(mixed, low, 0.0)
+    out = weight[:, None, None] * (A - shift[:, None, None] * np.eye(2))
+    return np.where((low >= 0.0)[:, None, None], A, out)
+
+
+def exp_symmetric(A: np.ndarray, dt: float) -> np.ndarray:
+    """``expm(dt A)`` of symmetric (n, 2, 2) A, in closed form: with ``A = m I + D``, ``D^2 =
+    r^2 I``, ``expm(dt A) = e^(dt m) (cosh(dt r) I + sinh(dt r) / r D)``."""
+    m, D, r = _spectral(A)
+    x = dt * r
+    small = x < 1e-8  # sinh(x) / x = 1 + x^2 / 6 + ...: 1 to round-off
+    sinhc = np.where(small, 1.0, np.sinh(x) / np.where(small, 1.0, x))
+    out = np.cosh(x)[:, None, None] * np.eye(2) + (dt * sinhc)[:, None, None] * D
+    return np.exp(dt * m)[:, None, None] * out
 
 
 def elastic_strain(grad_u: np.ndarray, Fg: np.ndarray) -> np.ndarray:
@@ -90,5 +111,5 @@ def advance(Fg: np.ndarray, G: np.ndarray, dt: float, integrator: str) -> np.nda
     if integrator == "euler":
         return Fg + dt * G @ Fg
     if integrator == "exp":
-        return symmetric_function(G, lambda lam: np.exp(dt * lam)) @ Fg
+        return exp_symmetric(G, dt) @ Fg
     raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")

@@ -153,8 +153,9 @@ MUTANTS = (
     # --- growth law and integrators ---------------------------------------------------------------
     Mutant(
         "positive_part_abs", "plantgrowth/models/growth.py", "wrong law or integrator",
-        "[A]_+ built from |eigenvalues| instead of max(eigenvalues, 0)",
-        (("lambda lam: np.maximum(lam, 0.0)", "lambda lam: np.abs(lam)"),),
+        "[A]_+ built from |eigenvalues| instead of max(eigenvalues, 0) where both are negative",
+        (("weight = np.where(mixed, high / np.where(mixed, high - low, 1.0), 0.0)",
+          "weight = np.where(mixed, high / np.where(mixed, high - low, 1.0), -1.0)"),),
     ),
     Mutant(
         "clamp_before_eta", "plantgrowth/models/growth.py", "wrong law or integrator",
@@ -176,8 +177,7 @@ MUTANTS = (
     Mutant(
         "exp_integrator_order", "plantgrowth/models/growth.py", "wrong law or integrator",
         "exp integrator Fg expm(dt G) instead of expm(dt G) Fg",
-        (("return symmetric_function(G, lambda lam: np.exp(dt * lam)) @ Fg",
-          "return Fg @ symmetric_function(G, lambda lam: np.exp(dt * lam))"),),
+        (("return exp_symmetric(G, dt) @ Fg", "return Fg @ exp_symmetric(G, dt)"),),
     ),
     # --- coupled loop -----------------------------------------------------------------------------
     Mutant(
