@@ -213,11 +213,12 @@ class StateFile:
     """``state.h5``: what --resume needs to continue after either of the last two completed
     steps, in float64, one group ``step_NNNNNN`` per step.
 
-    Replaced atomically after every step, so it stays small whatever ``output.every`` is. Two
-    steps, not one: a step's summary row is written before its state, so the newest state's row
-    exists, and the previous state still serves if summary.csv lost its last row. Written
-    collectively: every rank writes its blocks of the arrays (and keeps them for the next step's
-    file as the previous state).
+    Replaced atomically after every step, so it stays small whatever ``output.every`` is; a
+    block both steps give (the same object: the kept LU factors' coefficients) is written once
+    and linked from the other step's group. Two steps, not one: a step's summary row is
+    written before its state, so the newest state's row exists, and the previous state still
+    serves if summary.csv lost its last row. Written collectively: every rank writes its
+    blocks of the arrays (and keeps them for the next step's file as the previous state).
     """
 
     def __init__(self, outdir: Path, comm: MPI.Comm) -> None:
@@ -230,12 +231,17 @@ class StateFile:
         """Save the state of (step, t): collective, every rank gives its blocks (the same keys
         in the same order on every rank)."""
         current = (step, t, state)
+        written: dict[int, str] = {}  # a block given again (the same object): linked
         with _atomic_h5(self.path, self.comm) as f:
             for s, s_t, blocks in [x for x in (self._previous, current) if x is not None]:
                 group = f.create_group(f"step_{s:06d}")
                 group.attrs["t"] = s_t
                 for key, block in blocks.items():
+                    if id(block) in written:  # an HDF5 hard link: the data once in the file
+                        group[key] = f[written[id(block)]]
+                        continue
                     _write_block(group, key, block, block.values.dtype, False, self.comm)
+                    written[id(block)] = f"{group.name}/{key}"
         self._previous = current
 
     def steps(self) -> list[int]:

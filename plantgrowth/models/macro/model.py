@@ -194,6 +194,7 @@ class MacroModel:
         self.cell_table = None  # per-cell rows (cells.csv): micro only
         self.output_space = problem.V
         self._blocks = CanonicalBlocks(problem.V)
+        self._factors_saved: tuple[int, dict[str, Block]] = (0, {})  # see _factor_blocks
         log.info(
             "macro: %d fine dofs, %d coarse nodes (%d in the tissue), terms: %s",
             problem.ndofs, len(self.grid.nodes), len(nodes), ", ".join(problem.active_terms),
@@ -231,15 +232,25 @@ class MacroModel:
             parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
         if self.water is not None:  # after end_step: the time the next step reaches
             parts |= self.water.state() | {"water_time": np.full((n, 1), self._time)}
-        factors = self.problem.factorized_cells()  # kept LU factors: what they factorize
-        if factors is not None:
-            parts |= {k: v[:n] for k, v in factors[0].items()}
         blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         whole = newton | self.homogenizer.state()  # the surrogate: the same on every rank
-        if factors is not None:
-            whole["lu_floor"] = np.array([factors[1]])
-        return blocks | root_blocks(whole if self.comm.rank == 0 else {}, self.comm)
+        whole = root_blocks(whole if self.comm.rank == 0 else {}, self.comm)
+        return blocks | whole | self._factor_blocks()
+
+    def _factor_blocks(self) -> dict[str, Block]:
+        """Collective: the kept LU factors' coefficients (``lu_Fg``, ``lu_C``) and floor as state
+        blocks, the same objects while the factors are (StateFile writes them once)."""
+        factors = self.problem.factors
+        if factors is None or factors.floor is None:
+            return {}
+        if self._factors_saved[0] != factors.factorizations:
+            kept, n = self.problem.factorized_cells(), self.problem.n_owned
+            cells = {key: self._blocks.cells(v[:n]) for key, v in kept[0].items()}
+            floor = {"lu_floor": np.array([kept[1]])} if self.comm.rank == 0 else {}
+            blocks = cells | root_blocks(floor, self.comm)
+            self._factors_saved = (factors.factorizations, blocks)
+        return self._factors_saved[1]
 
     def restore(self, state: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """This rank's (Fg, G) per fine cell, matched to the saved cells by midpoint (and the
@@ -266,9 +277,7 @@ class MacroModel:
             self._water_dt = self.scene.time.dt
             self._time = float(state["water_time"].reshape(-1)[0])
         self.homogenizer.restore(state)
-        if "lu_Fg" in state and self.problem.factors is not None:  # the straight run's factors
-            cells = {k: state[k][index] for k in ("lu_Fg", "lu_C")}
-            self.problem.restore_factors(cells, float(state["lu_floor"].reshape(-1)[0]))
+        self.problem.restore_factors(state, index)  # the straight run's kept LU factors
         return state["Fg"][index].reshape(-1, 2, 2), state["G"][index].reshape(-1, 2, 2)
 
     def end_step(self, dt: float) -> None:

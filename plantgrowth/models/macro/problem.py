@@ -316,11 +316,15 @@ class MacroProblem:
             cells[name] = array.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
         return cells, kept[1]
 
-    def restore_factors(self, cells: dict[str, np.ndarray], floor: float) -> None:
-        """Collective: factorize the matrix of :meth:`factorized_cells`' coefficients (a resumed
-        run; the step's own coefficients are set before its solve)."""
-        self.set_cell_values(self.Fg, cells["lu_Fg"])
-        self.set_cell_values(self.C, cells["lu_C"])
+    def restore_factors(self, state: dict[str, np.ndarray], index: np.ndarray) -> None:
+        """Collective: factorize the matrix of the saved :meth:`factorized_cells` (a resumed
+        run; ``index``: this rank's cells in the saved arrays); nothing if none were saved. The
+        step's own coefficients are set before its solve."""
+        if self.factors is None or "lu_Fg" not in state:
+            return
+        self.set_cell_values(self.Fg, state["lu_Fg"][index])
+        self.set_cell_values(self.C, state["lu_C"][index])
+        floor = float(state["lu_floor"].reshape(-1)[0])
         self.factors.refactor(lambda: assemble_matrix(self.A, self.a, self.bcs), floor)
 
     def solve(self) -> SolveReport:
