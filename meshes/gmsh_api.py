@@ -1,9 +1,9 @@
 """gmsh, imported when the first mesh is built and initialized once per process.
 
-Importing gmsh costs 0.35-0.45 s (``python -X importtime``), which a run whose cell values are
-cached never pays. gmsh 4.8 sets SIGINT to its default action when it is imported; imported late,
-it would replace the handler then in place (the time loop's, which stops a run at the end of a
-step), so :func:`gmsh_api` puts that handler back.
+Importing gmsh costs 0.35-0.45 s (``python -X importtime``; 0.07-0.09 s loaded as below), which
+a run whose cell values are cached never pays. gmsh 4.8 sets SIGINT to its default action when
+it is imported; imported late, it would replace the handler then in place (the time loop's,
+which stops a run at the end of a step), so :func:`gmsh_api` puts that handler back.
 
 Imported after dolfinx, PETSc and MPI, loading libgmsh and its 70 libraries (OpenCASCADE, FLTK,
 ...) resolves their symbols through every library loaded before (ctypes binds at load time):
