@@ -192,7 +192,7 @@ class MacroProblem:
         self.solver = scene.solver.macro_kind(self.ndofs)
         self.rtol = scene.solver.macro_rtol
         self.with_water = water
-        self.ksp = None
+        self.ksp = self.factors = None  # factors: the kept LU factors (FactorReuse) or None
         if not water:
             self._linear_forms(scene, psi, P1, grad_P1)  # finite kinematics: Newton's predictor
         if self.finite:
