@@ -105,15 +105,17 @@ def every_edge(conductance: float, potential: float = 0.0) -> list[dict]:
 # main's summary of scene_data() (Nx = 4, t = 0, 1, 2), recorded at 7aa6412 (before [hydraulics])
 # and again at 3cfe906, whose long-double refinement step of the linear micro solve (plantgrowth/
 # models/refinement.py) moved it by up to 1e-10 relative (u1_max; the solve's forward error, its
-# condition number 6e7 times round-off); nothing in [hydraulics] has moved it
+# condition number 6e7 times round-off), and on branch i33-ref, whose closed-form growth law
+# (positive part, expm; no eigh) moved steps 1-2 by up to 2.3e-11 (u1_max) and 4.6e-14 (area);
+# nothing in [hydraulics] has moved it
 MAIN_SUMMARY = {
-    "area": [17.666575329426596, 17.94906807495057, 18.23606748607141],
-    "growth_rate_11": [0.007917685442411046, 0.007917701346144904, 0.007917716027095158],
-    "growth_rate_22": [0.007917685442379042, 0.007917701589879568, 0.007917716550770452],
-    "u1_max": [0.5418640386199437, 0.6001047261161897, 0.6588287977599611],
-    "u2_max": [0.24511911242645973, 0.26616908164604414, 0.28740263414958905],
-    "det_Fg_min": [1.0, 1.0158882912108793, 1.0320185122603849],
-    "elastic_strain_max": [0.006420700931438487, 0.006422298268936636, 0.0064235755204975886],
+    "area": [17.666575329426596, 17.949068074951395, 18.236067486070613],
+    "growth_rate_11": [0.007917685442411046, 0.007917701346147703, 0.007917716027086626],
+    "growth_rate_22": [0.007917685442379044, 0.007917701589880602, 0.007917716550767284],
+    "u1_max": [0.5418640386199437, 0.6001047261302196, 0.6588287977533526],
+    "u2_max": [0.24511911242645973, 0.26616908164639785, 0.28740263414748757],
+    "det_Fg_min": [1.0, 1.0158882912108793, 1.0320185122603782],
+    "elastic_strain_max": [0.006420700931438487, 0.0064222982689722385, 0.006423575520475907],
 }
 
 
