@@ -179,9 +179,13 @@ class DirectorInterpolant:
         ask_tables: list[tuple] = []
         ask_which, ask_s, tol, layout = [], [], [], []
         offset = 0
+        factors = [factor for factor, _ in SURPLUS_TERMS]
         for table, queries in groups.items():
             count = self.count(table)
-            weights = trigonometric_weights(b[queries], count)
+            cardinal = {  # each interpolant's cardinal functions at the queries, once
+                k: trigonometric_weights(b[queries], k * count) for k in (1, *factors)
+            }
+            weights = cardinal[1]
             ask_which.append(np.tile(len(ask_tables) + np.arange(count), len(queries)))
             ask_tables += [table + (j * PERIOD // count,) for j in range(count)]
             ask_s.append(np.repeat(s[queries], count, axis=0))
@@ -190,8 +194,8 @@ class DirectorInterpolant:
             offset += rows.size
             grids = []
             surpluses = [
-                angle_surplus.surplus_weights(b[queries], factor * count, trigonometric_weights)
-                for factor, _ in SURPLUS_TERMS
+                angle_surplus.surplus_weights(cardinal[factor], cardinal[factor // 2])
+                for factor in factors
             ]  # all zero at a fine node's angle: no grid asked for it (exactly, the terms are 0)
             need = np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0)
             for (factor, level), surplus in zip(SURPLUS_TERMS, surpluses, strict=True):
