@@ -55,7 +55,9 @@ MAX_ANGLE_LEVEL = 10
 ANGLE_STEP = H0_ANGLE / 2**MAX_ANGLE_LEVEL
 """Degrees per integer index of a node's angle."""
 FINE_NODES = 6
-"""M at L = 0: 6 nodes 30 degrees apart hold stretch tables refined to the tolerance."""
+"""M at L = 0: 6 nodes 30 degrees apart hold stretch tables refined to the tolerance. The fewest
+within the tolerance: with the same surplus grids M = 5 (odd, no Nyquist term) errs by 1.3e-3,
+M = 4 by 2.8e-3, M = 3 by 3.2e-3 (scripts/benchmarks/bench_angle_sparse.py; docs/fibres.md)."""
 SURPLUS_TERMS = ((2, 1), (4, 0))
 """The surplus terms (I_{kM} - I_{kM/2})[P_l f] as (k, l): the 2M nodes on the level-1
 stretch grid, the 4M nodes on the level-0 grid (:mod:`plantgrowth.unitcell.angle_surplus`).
