@@ -11,7 +11,9 @@ surrogate filled) and the median over steps 1..n of summary.csv's ``seconds_*`` 
 wall of a step on rank 0), the CG iterations of each step (run.log). Per size and rank count:
 the medians over the repeats, the largest relative difference of each solver's summary columns
 from the first solver's (``max |a - b| / max |b|`` over the steps), and the per-step ratios to
-the reference scene (the repeats' medians) and 2 ranks to 1.
+the reference scene (the repeats' medians) and 2 ranks to 1; over the sizes, the fine dofs
+where iterative's per-step time (whole step, and solve alone) meets direct's (``crossover``:
+what sets ``solver.macro_threshold``).
 
     python scripts/benchmarks/bench_tissue_solver.py [--dofs 1e5 5e4 2e5] [--ranks 1 2]
         [--macro direct iterative] [--repeats 3] [--t-max 10] [--label NAME]
@@ -20,20 +22,17 @@ the reference scene (the repeats' medians) and 2 ranks to 1.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
+import math
 import os
 import re
-import resource
 import statistics
-import subprocess
 import sys
-import tempfile
-import time
 import tomllib
 from pathlib import Path
 
-from scaling import ENV, scaled_scene
+from phase_timings import PHASES, whole_run
+from scaling import scaled_scene
 
 from plantgrowth.base.machine import machine_description
 from plantgrowth.scene.toml_text import dict_to_toml
@@ -42,7 +41,6 @@ ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "benchmarks/results/tissue_solver.json"
 REFERENCE = ROOT / "scenes/reference_stress.toml"
 EXE = str(Path(sys.executable).with_name("plantgrowth"))
-PHASES = ("seconds", "seconds_cells", "seconds_solve", "seconds_growth", "seconds_io")
 COMPARED = (
     "area", "growth_rate_11", "growth_rate_22", "growth_rate_area", "u1_max", "u2_max",
     "elastic_strain_max",
@@ -53,20 +51,7 @@ COMPARED = (
 def run_once(text: str, ranks: int) -> dict:
     """One whole run: CPU, wall, step 0's phases, the medians over steps 1..n, CG iterations,
     and the summary's compared columns at every step."""
-    with tempfile.TemporaryDirectory() as tmp:
-        scene = Path(tmp) / "scene.toml"
-        scene.write_text(text)
-        mpirun = ["mpirun", "-n", str(ranks)] if ranks > 1 else []
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        start = time.perf_counter()
-        subprocess.run([*mpirun, EXE, "run", str(scene), "-o", f"{tmp}/o"], check=True,
-                       capture_output=True, env=os.environ | ENV)  # fmt: skip
-        wall = time.perf_counter() - start
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        with open(Path(tmp) / "o/summary.csv", newline="") as f:
-            rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
-        log = (Path(tmp) / "o/run.log").read_text()
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    cpu, wall, rows, log = whole_run(EXE, text, ranks)
     later = rows[1:] or rows
     return {
         "cpu": cpu, "wall": wall, "steps": len(rows),
@@ -98,6 +83,21 @@ def difference(a: dict, b: dict) -> dict:
         scale = max(abs(v) for v in y) or 1.0
         out[c] = max(abs(p - q) for p, q in zip(x, y, strict=True)) / scale
     return out
+
+
+def crossover(runs: dict, ranks: int, phase: str) -> float | None:
+    """Fine dofs where iterative's per-step ``phase`` meets direct's, on ``ranks`` ranks (log-log
+    interpolation between the measured sizes; None: no crossing among them)."""
+    points = sorted(
+        (e["direct"]["fine_dofs"], math.log(e["iterative"]["per_step"][phase]
+                                            / e["direct"]["per_step"][phase]))
+        for key, e in runs.items() if key.endswith(f"ranks={ranks}") and "direct" in e
+        and "iterative" in e
+    )  # fmt: skip
+    for (n0, d0), (n1, d1) in zip(points, points[1:], strict=False):
+        if d0 > 0 >= d1:
+            return math.exp(math.log(n0) + d0 / (d0 - d1) * (math.log(n1) - math.log(n0)))
+    return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -132,10 +132,10 @@ def main(argv: list[str] | None = None) -> int:
             for m in args.macro[1:]:
                 entry[m]["difference_from_" + args.macro[0]] = difference(entry[m], first)
             entry["load_averages"] = loads
-            record["runs"][f"{dofs:.0e} ranks={ranks}"] = entry
+            record["runs"][f"{dofs:g} ranks={ranks}"] = entry
             brief = {m: (v["per_step"]["seconds"], v["step0"]["seconds"], v["cpu"],
                          v["cg_iterations"]) for m, v in entry.items() if m in texts}  # fmt: skip
-            print(f"{dofs:.0e} ranks={ranks}", json.dumps(brief), loads[-1], flush=True)
+            print(f"{dofs:g} ranks={ranks}", json.dumps(brief), loads[-1], flush=True)
     record["reference"] = medians(reference)
     per_ref = record["reference"]["per_step"]["seconds"]
     ratios, speedups = {}, {}
@@ -147,9 +147,12 @@ def main(argv: list[str] | None = None) -> int:
                 speedups[f"{key[:-8]} {m}"] = one["per_step"]["seconds"] / entry[m]["per_step"][
                     "seconds"
                 ]
-    record |= {"ratio_to_reference": ratios, "speedup_1_to_2": speedups}
+    crossings = {f"ranks={r} {p}": crossover(record["runs"], r, p) for r in args.ranks
+                 for p in ("seconds", "seconds_solve")}  # fmt: skip
+    record |= {"ratio_to_reference": ratios, "speedup_1_to_2": speedups, "crossover": crossings}
     record["load_after"] = os.getloadavg()
-    print(json.dumps({"ratios": ratios, "speedups": speedups, "reference": per_ref}, indent=1))
+    print(json.dumps({"ratios": ratios, "speedups": speedups, "reference": per_ref,
+                      "crossover": crossings}, indent=1))  # fmt: skip
     result[args.label] = record
     OUT.write_text(json.dumps(result, indent=1) + "\n")
     return 0

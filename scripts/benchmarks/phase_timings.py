@@ -94,8 +94,8 @@ def scene_text(scene: str, t_max: float) -> str:
     return dict_to_toml(tomllib.loads((ROOT / scene).read_text()))
 
 
-def run_once(exe: str, text: str, ranks: int) -> dict:
-    """CPU and wall seconds of one whole run on ``ranks`` ranks and its phase table."""
+def whole_run(exe: str, text: str, ranks: int) -> tuple[float, float, list[dict], str]:
+    """One whole run on ``ranks`` ranks: its CPU and wall seconds, summary rows and run.log."""
     with tempfile.TemporaryDirectory() as tmp:
         scene = Path(tmp) / "scene.toml"
         scene.write_text(text)
@@ -108,7 +108,14 @@ def run_once(exe: str, text: str, ranks: int) -> dict:
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         with open(Path(tmp) / "o/summary.csv", newline="") as f:
             rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+        log = (Path(tmp) / "o/run.log").read_text()
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return cpu, wall, rows, log
+
+
+def run_once(exe: str, text: str, ranks: int) -> dict:
+    """CPU and wall seconds of one whole run on ``ranks`` ranks and its phase table."""
+    cpu, wall, rows, _ = whole_run(exe, text, ranks)
     totals = {p: sum(r[p] for r in rows) for p in PHASES}
     later = rows[1:] or rows
     per_step = {p: statistics.fmean(r[p] for r in later) for p in PHASES}
