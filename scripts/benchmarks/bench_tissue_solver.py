@@ -11,9 +11,11 @@ surrogate filled) and the median over steps 1..n of summary.csv's ``seconds_*`` 
 wall of a step on rank 0), the CG iterations of each step (run.log). Per size and rank count:
 the medians over the repeats, the largest relative difference of each solver's summary columns
 from the first solver's (``max |a - b| / max |b|`` over the steps), and the per-step ratios to
-the reference scene (the repeats' medians) and 2 ranks to 1; over the sizes, the fine dofs
-where iterative's per-step time (whole step, and solve alone) meets direct's (``crossover``:
-what sets ``solver.macro_threshold``).
+the reference scene (the repeats' medians) and 2 ranks to 1, with the load average and the
+speed-up two processes of a fixed numpy task get on the machine before and after each repeat
+(``two_core_speedup``: 2 on two free cores; the ceiling of a 2-rank run's speed-up); over the
+sizes, the fine dofs where iterative's per-step time (whole step, and solve alone) meets
+direct's (``crossover``: what sets ``solver.macro_threshold``).
 
     python scripts/benchmarks/bench_tissue_solver.py [--dofs 1e5 5e4 2e5] [--ranks 1 2]
         [--macro direct iterative] [--repeats 3] [--t-max 10] [--label NAME]
@@ -27,6 +29,7 @@ import math
 import os
 import re
 import statistics
+import subprocess
 import sys
 import tomllib
 from pathlib import Path
@@ -46,6 +49,25 @@ COMPARED = (
     "elastic_strain_max",
 )  # fmt: skip
 """Summary columns compared between the solvers (their physics, not their seconds)."""
+PROBE = """import time, numpy as np
+a = np.random.default_rng(0).standard_normal((200000, 2, 2)); a = a + a.transpose(0, 2, 1)
+start = time.perf_counter()
+for _ in range(10):
+    np.linalg.eigh(a)
+print(time.perf_counter() - start)"""
+"""A fixed compute-bound task (numpy's batched eigh, as the growth law's) timed in a process."""
+
+
+def two_core_speedup() -> float:
+    """The speed-up the machine gives two processes now: twice the probe's time alone over the
+    longer of two probes started together (2: two free cores; 1: one core's worth left)."""
+
+    def probes(n: int) -> list[float]:
+        started = [subprocess.Popen([sys.executable, "-c", PROBE], stdout=subprocess.PIPE,
+                                    text=True) for _ in range(n)]  # fmt: skip
+        return [float(p.communicate()[0]) for p in started]
+
+    return 2 * probes(1)[0] / max(probes(2))
 
 
 def run_once(text: str, ranks: int) -> dict:
@@ -121,21 +143,22 @@ def main(argv: list[str] | None = None) -> int:
         texts = {m: dict_to_toml(scaled_scene(dofs, args.t_max, {"macro": m})) for m in args.macro}
         for ranks in args.ranks:
             runs: dict[str, list[dict]] = {m: [] for m in args.macro}
-            loads = [os.getloadavg()]
+            loads, probes = [os.getloadavg()], [two_core_speedup()]
             for _ in range(args.repeats):
                 for m, text in texts.items():
                     runs[m].append(run_once(text, ranks))
                 reference.append(run_once(reference_text, 1))
                 loads.append(os.getloadavg())
+                probes.append(two_core_speedup())
             entry = {m: medians(r) for m, r in runs.items()}
             first = entry[args.macro[0]]
             for m in args.macro[1:]:
                 entry[m]["difference_from_" + args.macro[0]] = difference(entry[m], first)
-            entry["load_averages"] = loads
+            entry["load_averages"], entry["two_core_speedup"] = loads, probes
             record["runs"][f"{dofs:g} ranks={ranks}"] = entry
             brief = {m: (v["per_step"]["seconds"], v["step0"]["seconds"], v["cpu"],
                          v["cg_iterations"]) for m, v in entry.items() if m in texts}  # fmt: skip
-            print(f"{dofs:g} ranks={ranks}", json.dumps(brief), loads[-1], flush=True)
+            print(f"{dofs:g} ranks={ranks}", json.dumps(brief), loads[-1], probes, flush=True)
     record["reference"] = medians(reference)
     per_ref = record["reference"]["per_step"]["seconds"]
     ratios, speedups = {}, {}
