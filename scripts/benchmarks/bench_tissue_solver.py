@@ -18,7 +18,7 @@ sizes, the fine dofs where iterative's per-step time (whole step, and solve alon
 direct's (``crossover``: what sets ``solver.macro_threshold``).
 
     python scripts/benchmarks/bench_tissue_solver.py [--dofs 1e5 5e4 2e5] [--ranks 1 2]
-        [--macro direct iterative] [--repeats 3] [--t-max 10] [--label NAME]
+        [--macro direct iterative] [--repeats 3] [--t-max 10] [--kinematics finite] [--label NAME]
 """
 
 from __future__ import annotations
@@ -129,18 +129,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--macro", nargs="+", default=["direct", "iterative"])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--t-max", type=float, default=10.0)
+    parser.add_argument("--kinematics", choices=["linear", "finite"], default="linear")
     parser.add_argument("--label", default="now")
     args = parser.parse_args(argv)
     result = json.loads(OUT.read_text()) if OUT.is_file() else {}
     record = {
         "machine": machine_description(), "load_before": os.getloadavg(),
-        "command": " ".join(sys.argv), "repeats": args.repeats, "t_max": args.t_max, "runs": {},
+        "command": " ".join(sys.argv), "repeats": args.repeats, "t_max": args.t_max,
+        "kinematics": args.kinematics, "runs": {},
     }  # fmt: skip
     reference_text = dict_to_toml(tomllib.loads(REFERENCE.read_text()))
     run_once(reference_text, 1)  # warm-up: dolfinx's JIT cache, file caches
     reference = []
     for dofs in args.dofs:
-        texts = {m: dict_to_toml(scaled_scene(dofs, args.t_max, {"macro": m})) for m in args.macro}
+        scenes = {m: scaled_scene(dofs, args.t_max, {"macro": m}) for m in args.macro}
+        texts = {m: dict_to_toml(d | {"kinematics": args.kinematics}) for m, d in scenes.items()}
         for ranks in args.ranks:
             runs: dict[str, list[dict]] = {m: [] for m in args.macro}
             loads, probes = [os.getloadavg()], [two_core_speedup()]
