@@ -26,6 +26,7 @@ from mpi4py import MPI
 from plantgrowth.base.errors import RunError
 from plantgrowth.models import diagnostics
 from plantgrowth.models.linear import SolveReport
+from plantgrowth.models.macro.domain import macro_domain
 from plantgrowth.models.macro.problem import (
     HISTORY,
     REBUILD_GROWTH,
@@ -35,14 +36,15 @@ from plantgrowth.models.macro.problem import (
 )
 from plantgrowth.models.preconditioner_reuse import PreconditionerReuse
 from plantgrowth.models.solution_history import SolutionHistory
-from plantgrowth.scene import parse_scene
-from plantgrowth.scene.limits import MACRO_RTOL
+from plantgrowth.scene import load_scene, parse_scene
+from plantgrowth.scene.limits import MACRO_RTOL, MACRO_THRESHOLD
 from plantgrowth.scene.parts import Solver
 from plantgrowth.scene.toml_text import dict_to_toml
 
 pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
 
 PLANTGROWTH = str(Path(sys.executable).parent / "plantgrowth")
+REPO = Path(__file__).resolve().parents[1]
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 HONEYCOMB = np.array([[0.030507, 0.029324, 0.0], [0.029324, 0.030507, 0.0], [0.0, 0.0, 0.000591]])
 AGREEMENT = 1e-8
@@ -236,6 +238,32 @@ def test_auto_switches_at_the_threshold(offset, expected):
     assert problem.solver == expected
     ksp_type, pc_type = ("cg", "hypre") if expected == "iterative" else ("preonly", "lu")
     assert (problem.ksp.getType(), problem.ksp.getPC().getType()) == (ksp_type, pc_type)
+
+
+TISSUE_DOFS = 100_344
+"""The scaling study's 1e5-dof tissue, where CG + BoomerAMG took 0.37 of LU's time per step
+(docs/large_tissues.md, "The 1e5-dof tissue's solver")."""
+
+
+def test_auto_by_default_is_lu_below_the_threshold_and_cg_from_it():
+    """The default threshold: LU below it, CG from it on, CG at the 1e5-dof tissue."""
+    auto = Solver()
+    assert auto.macro_kind(MACRO_THRESHOLD - 1) == "direct"
+    assert auto.macro_kind(MACRO_THRESHOLD) == auto.macro_kind(TISSUE_DOFS) == "iterative"
+
+
+@pytest.mark.parametrize(
+    "path, preset", [("reference_stress.toml", "balanced"), ("examples/soft_disc.toml", "fine")]
+)
+def test_auto_keeps_lu_for_the_shipped_scenes(path, preset):
+    """The shipped scenes' results must not move: ``auto`` solves them by LU at every preset
+    (the reference scene, 4,340 fine dofs; the largest, the soft disc at ``fine``, 26,082: the
+    threshold lies above it, docs/large_tissues.md)."""
+    scene = load_scene(REPO / "scenes" / path).replace(**{"accuracy.preset": preset})
+    mesh = macro_domain(scene, MPI.COMM_WORLD).mesh
+    ndofs = 2 * mesh.topology.index_map(0).size_global
+    assert ndofs == {"reference_stress.toml": 4340, "examples/soft_disc.toml": 26082}[path]
+    assert scene.solver.macro_kind(ndofs) == "direct"
 
 
 def test_explicit_choice_ignores_the_threshold():

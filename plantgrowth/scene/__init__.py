@@ -97,7 +97,7 @@ inclined wall length l2 = 1)::
     [solver]                   # linear solvers: speed only, results agree to the solver tolerance
     macro = "auto"             # "direct" (LU), "iterative" (CG + AMG, true relative residual
                                # <= macro_rtol) or "auto": iterative from macro_threshold dofs on
-    macro_threshold = 200000   # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
+    macro_threshold = 30000    # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
     macro_rtol = 1e-8          # CG's stop |b - A u| / |b| (algebraic error of u <= 4 macro_rtol),
                                # [1e-14, 1e-4] (docs/large_tissues.md)
     [numerics]

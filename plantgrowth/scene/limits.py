@@ -21,9 +21,15 @@ INTEGRATORS = ("euler", "exp", "adaptive")
 MODELS = ("macro", "micro", "both")
 KINEMATICS = ("linear", "finite")
 MACRO_SOLVERS = ("auto", "direct", "iterative")
-MACRO_THRESHOLD = 200_000
-"""Fine dofs from which ``solver.macro = "auto"`` solves iteratively: where CG + GAMG's time per
-step meets LU's on the E-gradient scene, 1 rank (measured 1.96e5; scripts/benchmarks/scaling.py)."""
+MACRO_THRESHOLD = 30_000
+"""Fine dofs from which ``solver.macro = "auto"`` solves iteratively. Measured on the scaling
+study's tissue, 1 rank, median step of steps 1-10 (scripts/benchmarks/bench_tissue_solver.py,
+benchmarks/results/tissue_solver.json): CG + BoomerAMG from the last five solutions is as fast
+as LU from about 5e3 fine dofs on and 1.6-3.9 times faster from 2e4 (2.7 at 1e5, 3.9 at 2e5).
+So the threshold is the smallest round number above every shipped scene at every preset (the
+largest: soft_disc at `fine`, 26,082), whose results LU keeps bit for bit (serial = mpirun to
+round-off), not the crossover itself, which lies at the reference scene's size (4,340); docs/
+large_tissues.md, "The 1e5-dof tissue's solver"."""
 MACRO_RTOL = 1e-8
 """CG's stopping rule ``|b - A u| / |b| <= macro_rtol`` (docs/large_tissues.md, "Macro solve sized
 by accuracy"): the algebraic error it leaves is at most 4 macro_rtol in u and up to 100 macro_rtol

@@ -55,12 +55,12 @@ def corner_points(squares: np.ndarray, level: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in corners.reshape(-1, 2).tolist()]
 
 
-def surplus_weights(b: np.ndarray, count: int, weights) -> np.ndarray:
-    """Weights (n, count) of ``I_count - I_count/2`` at the angles b: the count nodes' cardinal
-    functions less those of every other node (``weights(b, count)`` gives the cardinal
-    functions of the trigonometric interpolant)."""
-    surplus = weights(b, count)
-    surplus[:, ::2] -= weights(b, count // 2)
+def surplus_weights(fine: np.ndarray, coarse: np.ndarray) -> np.ndarray:
+    """Weights (n, N) of ``I_N - I_N/2`` at n angles, from the cardinal functions of the
+    trigonometric interpolants through the N nodes (``fine``, (n, N)) and through every other
+    one of them (``coarse``, (n, N/2)): the N nodes' weights less those of every other node."""
+    surplus = fine.copy()
+    surplus[:, ::2] -= coarse
     return surplus
 
 
@@ -70,13 +70,17 @@ def grid_term(
 ) -> np.ndarray:  # fmt: skip
     """``sum_j surplus_j(b) P_level f_j(s)`` per query (n, m): node j's table
     ``node_tables[j]``, the query's grid square ``square`` (into ``squares``) and hats, the
-    exact corner values from the lattice's ``values`` ((table, point) -> packed values)."""
+    exact corner values from the lattice's ``values`` ((table, point) -> packed values).
+    Per square, one product of its queries' weights ``hats_c surplus_j`` (q, 4 N) with its
+    corners' values (4 N, m)."""
     points = corner_points(squares, level)
     table = np.array([[values[node, p] for node in node_tables] for p in points])  # (u 4, N, m)
-    table = table.reshape(len(squares), 4, len(node_tables), -1)
+    table = table.reshape(len(squares), 4 * len(node_tables), -1)
+    weights = (hats[:, :, None] * surplus[:, None, :]).reshape(len(square), -1)  # (n, 4 N)
     out = np.zeros((len(square), table.shape[-1]))
-    for u in range(len(squares)):  # a few squares: per square, 4 products (q, N) @ (N, m)
-        mine = np.flatnonzero(square == u)
-        for c in range(4):
-            out[mine] += hats[mine, c : c + 1] * (surplus[mine] @ table[u, c])
+    order = np.argsort(square, kind="stable")
+    bounds = np.searchsorted(square[order], np.arange(len(squares) + 1))
+    for u in range(len(squares)):  # a few squares
+        mine = order[bounds[u] : bounds[u + 1]]
+        out[mine] = weights[mine] @ table[u]
     return out

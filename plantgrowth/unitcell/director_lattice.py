@@ -55,7 +55,9 @@ MAX_ANGLE_LEVEL = 10
 ANGLE_STEP = H0_ANGLE / 2**MAX_ANGLE_LEVEL
 """Degrees per integer index of a node's angle."""
 FINE_NODES = 6
-"""M at L = 0: 6 nodes 30 degrees apart hold stretch tables refined to the tolerance."""
+"""M at L = 0: 6 nodes 30 degrees apart hold stretch tables refined to the tolerance. The fewest
+within the tolerance: with the same surplus grids M = 5 (odd, no Nyquist term) errs by 1.3e-3,
+M = 4 by 2.8e-3, M = 3 by 3.2e-3 (scripts/benchmarks/bench_angle_sparse.py; docs/fibres.md)."""
 SURPLUS_TERMS = ((2, 1), (4, 0))
 """The surplus terms (I_{kM} - I_{kM/2})[P_l f] as (k, l): the 2M nodes on the level-1
 stretch grid, the 4M nodes on the level-0 grid (:mod:`plantgrowth.unitcell.angle_surplus`).
@@ -86,10 +88,13 @@ def trigonometric_weights(b: np.ndarray, count: int) -> np.ndarray:
 
 def node_tolerance(tolerance: float, weight: np.ndarray) -> np.ndarray:
     """The relative tolerance a node's stretch interpolation is asked for, given its weight w in
-    the angle interpolant: ``tolerance / min(1, 2 |w|)``, at most 1. The nodes next to a query
-    (|w| >= 1/2) are asked for the tolerance itself; a node of small weight, whose error enters
-    the answer times w, is not refined for nothing."""
-    return np.minimum(tolerance / np.clip(2.0 * np.abs(weight), 1e-300, 1.0), 1.0)
+    the angle interpolant: ``tolerance / |w|``, at most 1. A node's stretch error enters the
+    answer times w, so each node's term ``|w| e`` is held to the tolerance, as the stretch
+    surrogate holds a query's estimate; a node of small weight is not refined for nothing.
+    The rule before, ``tolerance / min(1, 2 |w|)``, held the nearest nodes to the tolerance
+    itself and the others to half of it: 733 solves on the stress feedback scene against 590,
+    with its exact checks at 2.6e-4 and 2.0e-4 (docs/fibres.md)."""
+    return np.minimum(tolerance / np.clip(np.abs(weight), 1e-300, 1.0), 1.0)
 
 
 class DirectorInterpolant:
@@ -179,9 +184,13 @@ class DirectorInterpolant:
         ask_tables: list[tuple] = []
         ask_which, ask_s, tol, layout = [], [], [], []
         offset = 0
+        factors = [factor for factor, _ in SURPLUS_TERMS]
         for table, queries in groups.items():
             count = self.count(table)
-            weights = trigonometric_weights(b[queries], count)
+            cardinal = {  # each interpolant's cardinal functions at the queries, once
+                k: trigonometric_weights(b[queries], k * count) for k in (1, *factors)
+            }
+            weights = cardinal[1]
             ask_which.append(np.tile(len(ask_tables) + np.arange(count), len(queries)))
             ask_tables += [table + (j * PERIOD // count,) for j in range(count)]
             ask_s.append(np.repeat(s[queries], count, axis=0))
@@ -190,8 +199,8 @@ class DirectorInterpolant:
             offset += rows.size
             grids = []
             surpluses = [
-                angle_surplus.surplus_weights(b[queries], factor * count, trigonometric_weights)
-                for factor, _ in SURPLUS_TERMS
+                angle_surplus.surplus_weights(cardinal[factor], cardinal[factor // 2])
+                for factor in factors
             ]  # all zero at a fine node's angle: no grid asked for it (exactly, the terms are 0)
             need = np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0)
             for (factor, level), surplus in zip(SURPLUS_TERMS, surpluses, strict=True):

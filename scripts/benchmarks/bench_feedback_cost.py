@@ -9,7 +9,8 @@ CPU ratios. Then one feedback run each on the exact path (``cell_tolerance = 0``
 problem per coarse node and step, the directors projected to the nodes) and with
 ``cell_tolerance = --reference-tolerance`` (the surrogate ten times tighter, each fine cell
 answered at its own Fg and director), and their cell solves, t = 60 measures and the largest
-error of the runs' exact self-checks. Writes
+error of the runs' exact self-checks; and the cell solves of the fibred scene without feedback
+(the fixed director), of this checkout and of ``--base``. Writes
 ``benchmarks/results/feedback_cost.json`` with the machine and the load.
 
     python scripts/benchmarks/bench_feedback_cost.py [--repeats 3] \\
@@ -100,6 +101,10 @@ def main(argv: list[str] | None = None) -> int:
             r["cpu"] / p["cpu"] for p, r in zip(runs["unfibred"], runs[name], strict=True)
         )
         for name in kinds if name != "unfibred"
+    }  # fmt: skip
+    result["fixed_director"] = {  # the fibred scene without feedback: its cell solves only
+        name: run(program, scene_text(True))["cell_solves"]
+        for name, program in (("this", exe), ("base", args.base)) if program
     }  # fmt: skip
     exact = run(exe, feedback_text(0.0))
     reference = run(exe, feedback_text(args.reference_tolerance))

@@ -12,10 +12,11 @@ load average:
   the wall seconds, the start-up (wall minus the steps), summary.csv's ``seconds_*`` columns
   summed over the steps and averaged over steps 1..n (step 0 also fills the surrogate and
   factorizes), and the CPU ratio to every other checkout (median of the pairs);
-- ``profile`` (``--profile``): one run of this checkout per scene on one rank, in this process's
-  child under cProfile with a CPU clock (``time.process_time``): CPU seconds of the imports, the
-  set-up, every phase of the steps (cells, solve, growth: the rest of the step; output: fields,
-  state, summary rows; measures; the integrator) and the functions with the most own time.
+- ``profile`` (``--profile``): one run of this checkout per scene on one rank (and on each of
+  ``--profile-ranks``: every rank's profile, key ``SCENE ranks=R``), in this process's child
+  under cProfile with a CPU clock (``time.process_time``): CPU seconds of the imports, the set-up,
+  every phase of the steps (cells, solve, growth: the rest of the step; output: fields, state,
+  summary rows; measures; the integrator) and the functions with the most own time.
   cProfile's own overhead inflates Python-heavy phases: compare profiles with profiles.
 
     python scripts/benchmarks/phase_timings.py [SCENE ...] [--exe 7c43f7c=/tmp/v/bin/plantgrowth]
@@ -62,6 +63,7 @@ PROFILED = {
 CHILD = r"""
 import cProfile, importlib, json, os, pstats, sys, time
 out, profiled, argv = sys.argv[1], json.loads(sys.argv[2]), sys.argv[3:]
+out += os.environ.get("OMPI_COMM_WORLD_RANK", "")  # under mpirun: one file per rank
 profile = cProfile.Profile(time.process_time)
 profile.enable()
 from plantgrowth.cli import main
@@ -94,8 +96,8 @@ def scene_text(scene: str, t_max: float) -> str:
     return dict_to_toml(tomllib.loads((ROOT / scene).read_text()))
 
 
-def run_once(exe: str, text: str, ranks: int) -> dict:
-    """CPU and wall seconds of one whole run on ``ranks`` ranks and its phase table."""
+def whole_run(exe: str, text: str, ranks: int) -> tuple[float, float, list[dict], str]:
+    """One whole run on ``ranks`` ranks: its CPU and wall seconds, summary rows and run.log."""
     with tempfile.TemporaryDirectory() as tmp:
         scene = Path(tmp) / "scene.toml"
         scene.write_text(text)
@@ -108,7 +110,14 @@ def run_once(exe: str, text: str, ranks: int) -> dict:
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         with open(Path(tmp) / "o/summary.csv", newline="") as f:
             rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+        log = (Path(tmp) / "o/run.log").read_text()
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return cpu, wall, rows, log
+
+
+def run_once(exe: str, text: str, ranks: int) -> dict:
+    """CPU and wall seconds of one whole run on ``ranks`` ranks and its phase table."""
+    cpu, wall, rows, _ = whole_run(exe, text, ranks)
     totals = {p: sum(r[p] for r in rows) for p in PHASES}
     later = rows[1:] or rows
     per_step = {p: statistics.fmean(r[p] for r in later) for p in PHASES}
@@ -143,19 +152,24 @@ def compare(text: str, ranks: int, exes: dict[str, str], repeats: int, warm: boo
     return record
 
 
-def profile(text: str) -> dict:
-    """One run of this checkout on one rank under cProfile with a CPU clock (see the module)."""
+def profile(text: str, ranks: int = 1) -> dict:
+    """One run of this checkout under cProfile with a CPU clock (see the module); on more than
+    one rank (``mpirun``) each rank's profile, under ``per_rank`` (CPU time includes MPI's busy
+    waiting: compare functions that do not communicate)."""
     with tempfile.TemporaryDirectory() as tmp:
         scene, out = Path(tmp) / "scene.toml", Path(tmp) / "profile.json"
         scene.write_text(text)
         argv = ["-q", "run", str(scene), "-o", f"{tmp}/o"]
-        subprocess.run([sys.executable, "-c", CHILD, str(out), json.dumps(PROFILED), *argv],
-                       check=True, capture_output=True, env=os.environ | ENV, cwd=tmp)  # fmt: skip
-        result = json.loads(out.read_text())
-    p = result["phases"]
-    p["growth"] = p["step"] - p["cells"] - p["solve"]
-    p["startup"] = result["process_cpu"] - p["run_model"]  # imports (some lazy: in both), set-up
-    return result
+        mpirun = ["mpirun", "-n", str(ranks)] if ranks > 1 else []
+        command = [*mpirun, sys.executable, "-c", CHILD, str(out), json.dumps(PROFILED), *argv]
+        subprocess.run(command, check=True, capture_output=True, env=os.environ | ENV, cwd=tmp)
+        names = [out.name] if ranks == 1 else [f"{out.name}{r}" for r in range(ranks)]
+        results = [json.loads((out.parent / name).read_text()) for name in names]
+    for result in results:
+        p = result["phases"]
+        p["growth"] = p["step"] - p["cells"] - p["solve"]
+        p["startup"] = result["process_cpu"] - p["run_model"]  # imports (some lazy), set-up
+    return results[0] if ranks == 1 else {"per_rank": results}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -172,7 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         help="no warm-up run (JIT and file caches) before the repeats",
     )
     parser.add_argument("--t-max", type=float, default=5.0, help="of the tissue:DOFS scenes")
-    parser.add_argument("--profile", action="store_true", help="also a cProfile run (1 rank)")
+    parser.add_argument("--profile", action="store_true", help="also a cProfile run per scene")
+    parser.add_argument("--profile-ranks", type=int, nargs="+", default=[1], help="its ranks")
     parser.add_argument("--label", default="after")
     args = parser.parse_args(argv)
     exes = {args.this: str(Path(sys.executable).with_name("plantgrowth"))}
@@ -194,10 +209,12 @@ def main(argv: list[str] | None = None) -> int:
                 for k, v in runs.items()
             }
             print(key, json.dumps(brief), flush=True)  # fmt: skip
-        if args.profile:
-            record.setdefault("profile", {})[scene] = profile(text)
-            phases = record["profile"][scene]["phases"]
-            print(scene, "profile", json.dumps({k: round(v, 3) for k, v in phases.items()}))
+        for ranks in args.profile_ranks if args.profile else ():
+            key = scene if ranks == 1 else f"{scene} ranks={ranks}"
+            record.setdefault("profile", {})[key] = prof = profile(text, ranks)
+            for part in prof.get("per_rank", [prof]):
+                phases = {k: round(v, 3) for k, v in part["phases"].items()}
+                print(key, "profile", json.dumps(phases), flush=True)
     record["load_after"] = os.getloadavg()
     result[args.label] = record
     OUT.write_text(json.dumps(result, indent=1) + "\n")

@@ -448,8 +448,7 @@ MUTANTS = (
         "the angle surplus (I_2N + I_N) g instead of (I_2N - I_N) g: a doubling's new nodes "
         "taken against the coarser interpolant with the wrong sign (both surplus terms of the "
         "director's sparse grid)",
-        (("surplus[:, ::2] -= weights(b, count // 2)",
-          "surplus[:, ::2] += weights(b, count // 2)"),),
+        (("surplus[:, ::2] -= coarse", "surplus[:, ::2] += coarse"),),
     ),
     Mutant(
         "angle_surplus_levels_swapped", "plantgrowth/unitcell/director_lattice.py",
