@@ -17,6 +17,9 @@ before the run:
 - ``cubic``: the values at the points of a finished run's lattice (as ``prebuilt``) fitted by one
   cubic polynomial in (s1, s2) per table (least squares; its largest misfit at the points is
   logged): smooth, with the real tensors' dependence on s;
+- ``c1``: the same refinement as ``main`` (the same points, decisions and estimates), the answers
+  taken from the C1 interpolant of those points (:mod:`plantgrowth.unitcell.smooth_lattice`,
+  docs/surrogate_c1.md), rebuilt whenever a refinement added points;
 - ``lookahead``: a prototype of look-ahead refinement (issue 33's idea (a)): each query also
   asks at ``s_n + K (s_n - s_{n-1})`` (K = ``--ahead``), and the points only these extrapolated
   queries asked for are blended in over K steps (smoothstep weight); no resume state and no
@@ -56,8 +59,8 @@ FROM_STEP = 16
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", type=Path, default=SCENE)
-    parser.add_argument("--variants", nargs="+", default=["main"],
-                        choices=["main", "prebuilt", "smooth", "cubic", "lookahead"])  # fmt: skip
+    variants = ["main", "prebuilt", "smooth", "cubic", "c1", "lookahead"]
+    parser.add_argument("--variants", nargs="+", default=["main"], choices=variants)
     parser.add_argument("--squares-from", type=Path, help="state.h5 of a finished run (prebuilt)")
     parser.add_argument("--ahead", type=int, default=12, help="look-ahead and blend steps K")
     parser.add_argument("--ranks", type=int, default=1)
@@ -72,8 +75,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def parse_log(text: str) -> list[dict]:
-    """Per step: CG iterations, r0 (None without the monitor's lines) and cell solves."""
-    steps, first = [], None
+    """Per step: CG iterations, r0 (None without the monitor's lines), cell solves and the
+    largest relative difference so far of the run's exact checks of the interpolated tensors."""
+    steps, first, check = [], None, None
     for line in text.splitlines():
         monitor = re.search(r"^\s*0 KSP .*\|\|r\(i\)\|\|/\|\|b\|\| (\S+)", line)
         if monitor and first is None:
@@ -81,10 +85,13 @@ def parse_log(text: str) -> list[dict]:
         cg = re.match(r"macro solve: (\d+) CG iterations", line)
         if cg:
             iterations = int(cg[1])
+        checked = re.search(r"largest so far (\S+),", line)
+        if checked:
+            check = float(checked[1])
         step = re.match(r"step (\d+)/\d+ .*cell solves (\d+)", line)
         if step:
             steps.append({"step": int(step[1]), "cg": iterations, "r0": first,
-                          "cell_solves": int(step[2])})  # fmt: skip
+                          "cell_solves": int(step[2]), "largest_check": check})  # fmt: skip
             first = None
     return steps
 
@@ -99,6 +106,7 @@ def digest(steps: list[dict]) -> dict:
         "total_cg": sum(s["cg"] for s in steps),
         "total_cell_solves": sum(s["cell_solves"] for s in steps),
         "refining_steps": [s["step"] for s in steps if s["cell_solves"]],
+        "largest_check": steps[-1]["largest_check"] if steps else None,
     }
 
 
@@ -203,6 +211,8 @@ def child(args: argparse.Namespace) -> int:
                              answer.interpolated, answer.solves)  # fmt: skip
 
         sg.LatticeSurrogate._refine = smooth
+    elif args.child == "c1":
+        sg.LatticeSurrogate._refine = _c1(original)
     elif args.child == "lookahead":
         sg.LatticeSurrogate._refine = _lookahead(original, args.ahead)
     from plantgrowth.cli import main as cli
@@ -248,6 +258,32 @@ def _cubic(original, rows: np.ndarray):
         for k, table in enumerate(tables):
             asked = which == k
             values[asked] = _cubic_terms(s[asked]) @ self._cubic[tuple(table)]
+        return sg.Answer(values, answer.estimates, answer.interpolated, answer.solves)
+
+    return refine
+
+
+def _c1(original):
+    """The ``c1`` variant's ``_refine`` (module docstring)."""
+    import plantgrowth.unitcell.lattice as lat
+    import plantgrowth.unitcell.surrogate as sg
+    from plantgrowth.unitcell.smooth_lattice import SmoothLattice
+
+    def refine(self, tables, which, s, tolerance):
+        answer = original(self, tables, which, s, tolerance)
+        if getattr(self, "_c1_points", -1) != len(self._surplus):
+            names = {v: k for k, v in self._table_ids.items()}
+            keys = np.array(sorted(self._surplus), dtype=np.int64)
+            low, offset = lat.LOW, lat.OFFSET
+            point = [(names[k >> 42], (((k >> 21) & low) - offset, (k & low) - offset))
+                     for k in keys.tolist()]  # fmt: skip
+            self._c1 = SmoothLattice(keys, np.array([self.values[p] for p in point]))
+            self._c1_points = len(self._surplus)
+        which = np.asarray(which, dtype=np.int64)
+        s = np.asarray(s, dtype=float).reshape(len(which), 2)
+        if not len(which):
+            return answer
+        values = self._c1.evaluate(self._numbers(tables)[which], s)
         return sg.Answer(values, answer.estimates, answer.interpolated, answer.solves)
 
     return refine
