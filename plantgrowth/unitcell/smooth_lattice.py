@@ -33,7 +33,7 @@ from plantgrowth.unitcell.lattice import (
     find,
     place,
     point_key,
-)  # fmt: skip
+)
 
 DIRECTIONS = np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]])
 STENCIL = np.array([[a, b] for a in range(-1, 3) for b in range(-1, 3)])  # (16, 2)
@@ -92,6 +92,7 @@ class SmoothLattice:
         ring_keys, pick = np.unique(ring_keys, return_index=True)
         missing = ~find(known, ring_keys)[1]
         g_ids, g = ring_ids[pick][missing], ring[pick][missing]
+        values = values[order]
         total = np.zeros((len(g), values.shape[1]))
         count = np.zeros(len(g))
         for d in DIRECTIONS:
@@ -100,12 +101,12 @@ class SmoothLattice:
             two, there2 = find(known, point_key(g_ids, (g[:, 0] + 2 * d[0]) * STEP,
                                                 (g[:, 1] + 2 * d[1]) * STEP))  # fmt: skip
             ok = there1 & there2
-            total[ok] += 2.0 * values[order][one[ok]] - values[order][two[ok]]
+            total[ok] += 2.0 * values[one[ok]] - values[two[ok]]
             count += ok
         if np.any(count == 0):  # every node next to a built square's corner has a direction
             raise ValueError("a level-0 ghost node without two built points in a row")
         ghost_keys = point_key(g_ids, g[:, 0] * STEP, g[:, 1] * STEP)
-        return (np.concatenate([keys, ghost_keys]),
+        return (np.concatenate([known, ghost_keys]),
                 np.vstack([values, total / count[:, None]]))  # fmt: skip
 
     def evaluate(self, ids: np.ndarray, s: np.ndarray) -> np.ndarray:
