@@ -65,13 +65,14 @@ class SmoothLattice:
         ids = keys >> 42
         ij = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
         level = point_level(ij)
+        self.width = values.shape[1]  # m, the packed values' length
         self.levels: list[tuple[np.ndarray, np.ndarray]] = []  # per level: sorted keys, beta
         for k in range(int(level.max()) + 1 if len(keys) else 0):
             own = level == k
             if k == 0:
                 table = self._with_ghosts(ids[own], ij[own], values[own])
             else:
-                below = self._at(ids[own], ij[own] / STEP)  # exact places
+                below = self.at(ids[own], ij[own] / STEP)  # exact places
                 table = (keys[own], values[own] - below)
             order = np.argsort(table[0])
             self.levels.append((table[0][order], table[1][order]))
@@ -110,14 +111,14 @@ class SmoothLattice:
                 np.vstack([values, total / count[:, None]]))  # fmt: skip
 
     def evaluate(self, ids: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """J at n queries (tables' numbers ids (n,), stretches s (n, 2)): (n, m)."""
+        """J at n queries (tables' numbers ids (n,), stretches s (n, 2)): (n, m), by the walk
+        over every level (:meth:`at`; the reference for :class:`CellPolynomials`)."""
         ids = np.asarray(ids, dtype=np.int64)
-        return self._at(ids, place(np.asarray(s, dtype=float).reshape(len(ids), 2)))
+        return self.at(ids, place(np.asarray(s, dtype=float).reshape(len(ids), 2)))
 
-    def _at(self, ids: np.ndarray, x: np.ndarray) -> np.ndarray:
+    def at(self, ids: np.ndarray, x: np.ndarray) -> np.ndarray:
         """J at queries given by their places x (n, 2), s / H0 (:func:`lattice.place`)."""
-        m = self.levels[0][1].shape[1] if self.levels else 0
-        out = np.zeros((len(ids), m))
+        out = np.zeros((len(ids), self.width))
         for k, (keys, beta) in enumerate(self.levels):
             if not len(keys):
                 continue
