@@ -121,17 +121,25 @@ class SmoothAnswers:
         return np.array(sorted(keys), dtype=np.int64)
 
     def interpolant(self, last: int) -> CellPolynomials | None:
-        """J of the squares born up to step ``last`` (None: none), kept while they are."""
+        """J of the squares born up to step ``last`` (None: none)."""
+        return self._lattice(last)[1]
+
+    def _lattice(self, last: int) -> tuple:
+        """The squares born up to step ``last``: their count, J (None: none), sorted keys of the
+        squares and of their points, the points' bilinear surpluses, and the new points'
+        marks of :meth:`_near` (filled there); kept while no square is born up to ``last``."""
+        last = max((b for b in self.births.values() if b <= last), default=-1)
         count = sum(b <= last for b in self.births.values())
         kept = self._cache.get(last)
         if kept is None or kept[0] != count:
-            keys = np.unique(corner_keys(self._squares(last)))
-            smooth = None
+            squares = self._squares(last)
+            keys = np.unique(corner_keys(squares))
+            smooth, surplus = None, np.zeros((0, 0))
             if len(keys):
-                values = self._points(keys)[0]
+                values, surplus = self._points(keys)
                 smooth = CellPolynomials(SmoothLattice(keys, values), keys)
-            self._cache[last] = kept = (count, smooth)
-        return kept[1]
+            self._cache[last] = kept = (count, smooth, squares, keys, surplus, {})
+        return kept
 
     def answer(
         self, ids: np.ndarray, s: np.ndarray, tol: np.ndarray, bilinear: np.ndarray,
@@ -142,7 +150,7 @@ class SmoothAnswers:
         values = self.interpolant(step).evaluate(ids, s)
         active = sorted({b for b in self.births.values() if step - b < BLEND_STEPS})
         born = sorted(set(self.births.values()))
-        self._cache = {b: v for b, v in self._cache.items() if b == step or b in born}
+        self._cache = {b: v for b, v in self._cache.items() if b in born}
         for b in active:
             earlier = [a for a in born if a < b]
             if not earlier:
@@ -161,28 +169,30 @@ class SmoothAnswers:
 
     def _near(self, ids: np.ndarray, s: np.ndarray, birth: int, before: int) -> np.ndarray:
         """Which queries lie within :data:`REACH` spacings of a point new at step ``birth``."""
-        new = np.setdiff1d(corner_keys(self._squares(birth, birth)),
-                           corner_keys(self._squares(before)))  # fmt: skip
-        ij = np.column_stack([((new >> 21) & LOW) - OFFSET, (new & LOW) - OFFSET])
-        level = point_level(ij)
+        marks = self._lattice(birth)[5]
+        if not marks:
+            new = np.setdiff1d(self._lattice(birth)[3], self._lattice(before)[3])
+            ij = np.column_stack([((new >> 21) & LOW) - OFFSET, (new & LOW) - OFFSET])
+            level = point_level(ij)
+            span = np.arange(-REACH, REACH)
+            around = np.array([[a, b] for a in span for b in span])
+            for k in np.unique(level).tolist():
+                own = level == k
+                cells = (ij[own] // (STEP >> k))[:, None, :] + around[None]
+                marks[k] = np.unique(square_key((new[own] >> 42)[:, None], k,
+                                                cells * (STEP >> k)))  # fmt: skip
         near = np.zeros(len(ids), dtype=bool)
-        span = np.arange(-REACH, REACH)
-        around = np.array([[a, b] for a in span for b in span])
-        for k in np.unique(level).tolist():
-            own = level == k
-            cells = (ij[own] // (STEP >> k))[:, None, :] + around[None]
-            marked = np.unique(square_key((new[own] >> 42)[:, None], k, cells * (STEP >> k)))
+        for k, marked in marks.items():
             near |= find(marked, square_key(ids, k, cell(s, k)[0]))[1]
         return near
 
     def _gate(self, ids: np.ndarray, s: np.ndarray, tol: np.ndarray, before: int) -> np.ndarray:
         """The gate g (n,) of a birth's blend (module docstring) from the bilinear estimate e
         of the lattice of the squares born up to step ``before``."""
-        squares = self._squares(before)
+        _, _, squares, keys, surplus, _ = self._lattice(before)
         if not len(squares):
             return np.zeros(len(ids))
-        keys = np.unique(corner_keys(squares))
-        found = walk(squares, keys, self._points(keys)[1], ids, s, place(s)[:, None, :])
+        found = walk(squares, keys, surplus, ids, s, place(s)[:, None, :])
         values, change, level = found["values"][:, 0], found["change"][:, 0], found["level"]
         error = np.full(len(ids), np.inf)
         error[(level == 0) & (cell(s, 0)[1] % 1.0 == 0.0).all(axis=1)] = 0.0

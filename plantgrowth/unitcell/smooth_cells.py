@@ -89,7 +89,7 @@ class CellPolynomials:
         """The coefficients of new stop cells (keys), from J at their 4 x 4 sample points."""
         ids, level = cells >> 46, (cells >> 42) & 15
         corner = np.column_stack([((cells >> 21) & LOW) - OFFSET, (cells & LOW) - OFFSET])
-        points = (corner[:, None, :] / STEP + GRID[None] / 2.0 ** level[:, None, None])
+        points = corner[:, None, :] / STEP + GRID[None] / 2.0 ** level[:, None, None]
         samples = self.lattice.at(np.repeat(ids, 16), points.reshape(-1, 2))
         coefficients = np.einsum("ij,qjm->qim", FIT, samples.reshape(len(cells), 16, -1))
         keys = np.concatenate([self._keys, cells])

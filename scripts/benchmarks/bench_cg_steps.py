@@ -4,12 +4,15 @@ Runs a scene with the macro solve forced to CG (``solver.macro = "iterative"``),
 off unless ``--cache`` (every lattice solve shows) and PETSc's true-residual monitor on the macro
 CG. Per step: CG iterations, the initial relative residual ``r0 = |b - A x0| / |b|`` of the
 solution history's guess x0 (CG's iterations are about ``log(r0 / rtol) / log(1 / rho)``, rho
-about 0.5 here), and the cell solves. Variants, each applied in its own process by this script
-before the run:
+about 0.5 here), and the cell solves. Variants, each run in its own process:
 
-- ``main``: the surrogate as it is;
+- ``bilinear`` and ``c1``: the scene with ``accuracy.cell_interpolant`` set to that value (the
+  surrogate as the run has it; c1 is docs/surrogate_c1.md's, refinements blended in);
+
+and diagnostics that this script applies by patching the bilinear surrogate before the run:
+
 - ``prebuilt``: every square of a finished run's lattice (``--squares-from``: its state.h5, last
-  step; default: the ``main`` variant's run) built before step 0, so nothing is refined during
+  step; default: the ``bilinear`` variant's run) built before step 0, so nothing is refined during
   the run: the jumps of refinement are gone, the interpolant's kinks (C0, piecewise bilinear)
   stay;
 - ``smooth``: the surrogate's answer at s = 0 scaled by ``1 + 3 s1 + 2 s2 + 30 s1^2``, a smooth
@@ -17,15 +20,6 @@ before the run:
 - ``cubic``: the values at the points of a finished run's lattice (as ``prebuilt``) fitted by one
   cubic polynomial in (s1, s2) per table (least squares; its largest misfit at the points is
   logged): smooth, with the real tensors' dependence on s;
-- ``c1``: the same refinement as ``main`` (the same points, decisions and estimates), the answers
-  taken from the C1 interpolant of those points (:mod:`plantgrowth.unitcell.smooth_lattice`,
-  docs/surrogate_c1.md), rebuilt whenever a refinement added points;
-- ``c1blend``: ``c1`` with each refinement blended in over B steps (``--blend``, smoothstep
-  weight) for the queries whose answer before it passed main's refine test (the queries that
-  triggered it take the new answer at once); ``--early`` theta < 1 refines at estimates above
-  theta times the tolerance, and a query blends when its estimate before was within the
-  tolerance itself, so a query that starts a refinement blends too unless it was off by more
-  than the tolerance; no resume state (prototype);
 - ``lookahead``: a prototype of look-ahead refinement (issue 33's idea (a)): each query also
   asks at ``s_n + K (s_n - s_{n-1})`` (K = ``--ahead``), and the points only these extrapolated
   queries asked for are blended in over K steps (smoothstep weight); no resume state and no
@@ -34,8 +28,8 @@ before the run:
 ``--log`` parses a finished run's log instead (CG iterations and cell solves; no r0). Writes
 ``--out`` (JSON) with the machine and the load average.
 
-    python scripts/benchmarks/bench_cg_steps.py --variants main prebuilt smooth lookahead \\
-        --squares-from /tmp/main-run/state.h5 [--scene scenes/gradient_E_strain.toml] [--ranks 1]
+    python scripts/benchmarks/bench_cg_steps.py --variants bilinear c1 prebuilt smooth lookahead \\
+        --squares-from /tmp/run/state.h5 [--scene scenes/gradient_E_strain.toml] [--ranks 1]
 """
 
 from __future__ import annotations
@@ -65,13 +59,10 @@ FROM_STEP = 16
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", type=Path, default=SCENE)
-    variants = ["main", "prebuilt", "smooth", "cubic", "c1", "c1blend", "lookahead"]
-    parser.add_argument("--variants", nargs="+", default=["main"], choices=variants)
+    variants = ["bilinear", "c1", "prebuilt", "smooth", "cubic", "lookahead"]
+    parser.add_argument("--variants", nargs="+", default=["bilinear", "c1"], choices=variants)
     parser.add_argument("--squares-from", type=Path, help="state.h5 of a finished run (prebuilt)")
     parser.add_argument("--ahead", type=int, default=12, help="look-ahead and blend steps K")
-    parser.add_argument("--blend", type=int, default=4, help="c1blend: blend steps B")
-    parser.add_argument("--early", type=float, default=1.0,
-                        help="c1blend: refine threshold over the tolerance (<= 1)")  # fmt: skip
     parser.add_argument("--ranks", type=int, default=1)
     parser.add_argument("--t-max", type=float, help="time.t_max (default: the scene's)")
     parser.add_argument("--log", type=Path, help="parse this run log instead of running")
@@ -119,6 +110,16 @@ def digest(steps: list[dict]) -> dict:
     }
 
 
+def with_interpolant(text: str, interpolant: str) -> str:
+    """A scene's text with ``accuracy.cell_interpolant`` set (the scene has an [accuracy])."""
+    line = f'cell_interpolant = "{interpolant}"'
+    text, n = re.subn(r"(?m)^cell_interpolant = .*$", line, text)
+    if not n:
+        text, n = re.subn(r"(?m)^\[accuracy\]\n", f"[accuracy]\n{line}\n", text, count=1)
+    assert n == 1, "no [accuracy] table"
+    return text
+
+
 def forced_cg(scene: Path, t_max: float | None) -> str:
     """The scene's text with ``solver.macro = "iterative"`` (and ``time.t_max``)."""
     text = scene.read_text()
@@ -137,11 +138,18 @@ def final_area(outdir: Path) -> float:
 
 
 def run_variant(args: argparse.Namespace, variant: str, scene: Path, outdir: Path) -> dict:
+    if variant in ("bilinear", "c1"):
+        own = scene.with_name(f"scene_{variant}.toml")
+        own.write_text(with_interpolant(scene.read_text(), variant))
+        scene = own
+    else:  # the diagnostics patch the bilinear surrogate
+        own = scene.with_name("scene_patched.toml")
+        own.write_text(with_interpolant(scene.read_text(), "bilinear"))
+        scene = own
     command = [sys.executable, __file__, "--child", variant, "--ahead", str(args.ahead),
-               "--blend", str(args.blend), "--early", str(args.early),
                "--scene", str(scene), "-o", str(outdir)]  # fmt: skip
-    if variant in ("prebuilt", "cubic"):  # default: the main variant's lattice at its end
-        squares = args.squares_from or outdir.parent / "main" / "state.h5"
+    if variant in ("prebuilt", "cubic"):  # default: the bilinear variant's lattice at its end
+        squares = args.squares_from or outdir.parent / "bilinear" / "state.h5"
         command += ["--squares-from", str(squares)]
     if args.ranks > 1:
         command = ["/usr/bin/mpirun", "-n", str(args.ranks), *command]
@@ -173,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         steps = parse_log(args.log.read_text())
         result["variants"]["log"] = {"steps": steps} | digest(steps)
     else:
-        result["ahead"], result["blend"], result["early"] = args.ahead, args.blend, args.early
+        result["ahead"] = args.ahead
         result["t_max"] = args.t_max
         result["squares_from"] = str(args.squares_from)
         with tempfile.TemporaryDirectory(prefix="plantgrowth-bench-cg-") as tmp:
@@ -192,7 +200,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def child(args: argparse.Namespace) -> int:
-    """Inside the run's process: patch the surrogate for the variant, then run the scene."""
+    """Inside the run's process: patch the surrogate for a diagnostic variant, then run the
+    scene."""
     import plantgrowth.unitcell.surrogate as sg
 
     original = sg.LatticeSurrogate._refine
@@ -222,10 +231,6 @@ def child(args: argparse.Namespace) -> int:
                              answer.interpolated, answer.solves)  # fmt: skip
 
         sg.LatticeSurrogate._refine = smooth
-    elif args.child == "c1":
-        sg.LatticeSurrogate._refine = _c1(original)
-    elif args.child == "c1blend":
-        sg.LatticeSurrogate._refine = _c1(original, args.blend, args.early)
     elif args.child == "lookahead":
         sg.LatticeSurrogate._refine = _lookahead(original, args.ahead)
     from plantgrowth.cli import main as cli
@@ -271,76 +276,6 @@ def _cubic(original, rows: np.ndarray):
         for k, table in enumerate(tables):
             asked = which == k
             values[asked] = _cubic_terms(s[asked]) @ self._cubic[tuple(table)]
-        return sg.Answer(values, answer.estimates, answer.interpolated, answer.solves)
-
-    return refine
-
-
-def _c1(original, blend: int = 0, early: float = 1.0):
-    """The ``c1`` and ``c1blend`` variants' ``_refine`` (module docstring)."""
-    import plantgrowth.unitcell.lattice as lat
-    import plantgrowth.unitcell.surrogate as sg
-    from plantgrowth.unitcell.smooth_lattice import SmoothLattice
-
-    def smooth(self):
-        names = {v: k for k, v in self._table_ids.items()}
-        keys = np.array(sorted(self._surplus), dtype=np.int64)
-        low, offset = lat.LOW, lat.OFFSET
-        point = [(names[k >> 42], (((k >> 21) & low) - offset, (k & low) - offset))
-                 for k in keys.tolist()]  # fmt: skip
-        return SmoothLattice(keys, np.array([self.values[p] for p in point]))
-
-    def passed(self, tables, which, s, tol):
-        """Which queries the interpolant before this call's refinement answers within tol
-        (main's estimate: its deepest built square's change); None before any table."""
-        try:
-            ids = self._numbers(tables)[which]
-        except KeyError:
-            return None
-        values, _, level, _, change = self._walk(ids, s)
-        error = np.full(len(which), np.inf)
-        error[(level == 0) & (lat.cell(s, 0)[1] % 1.0 == 0.0).all(axis=1)] = 0.0
-        inside = level >= 1
-        if inside.any():
-            part = values[inside]
-            error[inside] = self.relative_difference(part - change[inside], part)
-        return error <= tol
-
-    def refine(self, tables, which, s, tolerance):
-        which = np.asarray(which, dtype=np.int64)
-        s = np.asarray(s, dtype=float).reshape(len(which), 2)
-        memory = self.__dict__.setdefault("_c1_memory", {"calls": {}, "events": []})
-        name = (tuple(tables), which.tobytes())
-        call = memory["calls"][name] = memory["calls"].get(name, 0) + 1
-        tol = np.full(len(which), self.tolerance) if tolerance is None else tolerance
-        ok = passed(self, tables, which, s, tol) if blend and len(which) else None
-        answer = original(self, tables, which, s, early * np.asarray(tol))
-        if getattr(self, "_c1_points", -1) != len(self._surplus):
-            old = getattr(self, "_c1", None)
-            self._c1, self._c1_points = smooth(self), len(self._surplus)
-            if blend and old is not None:
-                memory["events"].append((old, self._c1, name, call, ok))
-                import logging
-
-                logging.getLogger("plantgrowth").info(
-                    "c1blend: refinement at call %d: %s of %d queries failed the test before it",
-                    call, "?" if ok is None else int((~ok).sum()), len(which),
-                )  # fmt: skip
-        if not len(which):
-            return answer
-        ids = self._numbers(tables)[which]
-        values = self._c1.evaluate(ids, s)
-        for old, new, where, start, ok in list(memory["events"]):
-            x = (call - start + 1) / (blend + 1)
-            if x >= 1.0:
-                memory["events"].remove((old, new, where, start, ok))
-                continue
-            blended = np.zeros(len(which), dtype=bool) if ok is None else ok
-            if where != name:  # another call's refinement: no trigger here
-                blended = np.ones(len(which), dtype=bool)
-            weight = x * x * (3 - 2 * x)  # smoothstep: the new answer's share
-            q = np.flatnonzero(blended)
-            values[q] += (1 - weight) * (old.evaluate(ids[q], s[q]) - new.evaluate(ids[q], s[q]))
         return sg.Answer(values, answer.estimates, answer.interpolated, answer.solves)
 
     return refine
