@@ -81,7 +81,9 @@ class CellPolynomials:
         if not there.all():
             self._learn(np.unique(key[~there]))
             rows = find(self._keys, key)[0]
-        weights = np.prod(t[:, None, :] ** POWERS[None], axis=-1)  # (n, 16)
+        one = np.ones(len(t))
+        p1, p2 = (np.column_stack([one, x, x * x, x * x * x]) for x in (t[:, 0], t[:, 1]))
+        weights = (p1[:, :, None] * p2[:, None, :]).reshape(-1, 16)  # t1^a t2^b, POWERS' order
         table = self._coefficients.reshape(-1, self._coefficients.shape[2])
         return combine(weights, rows[:, None] * 16 + np.arange(16)[None], table)
 

@@ -116,6 +116,7 @@ class Answer:
     estimates: np.ndarray
     interpolated: np.ndarray
     solves: int
+    square: np.ndarray | None = None  # the deepest built square's key per query (refine's)
 
 
 Point = tuple[tuple, tuple[int, int]]  # (table, finest-lattice integer coordinates)
@@ -300,7 +301,7 @@ class LatticeSurrogate:
             self._check_growths(every)
             squares = np.unique(np.concatenate([w for w, _, _ in every]))
             if not len(squares):  # nothing built anywhere: the interpolant is final
-                return Answer(values, error, interpolated, solves)
+                return Answer(values, error, interpolated, solves, key)
             solves += self._build_squares(squares)
             fresh = np.union1d(fresh, squares)
 
@@ -423,8 +424,7 @@ class LatticeSurrogate:
             return answer
         ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
         s = np.asarray(s, dtype=float).reshape(n, 2)
-        square = self._walk(ids, s)[3]
-        values = self.smooth.answer(ids, s, tol, answer.values, square, self.step)
+        values = self.smooth.answer(ids, s, tol, answer.values, answer.square, self.step)
         return Answer(values, answer.estimates, answer.interpolated, answer.solves)
 
     def end_step(self) -> None:
