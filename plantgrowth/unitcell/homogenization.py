@@ -297,7 +297,8 @@ class Homogenizer:
         rows = state["surrogate_squares"]
         self._load([tuple(row[1 : 1 + row[0]]) for row in rows.tolist()])
         self.surrogate.restore(rows)
-        if self.surrogate.smooth is not None:
+        # c1; without births (a bilinear run's state) the squares are one birth: no blend
+        if self.surrogate.smooth is not None and "surrogate_births" in state:
             self.surrogate.restore_births(state["surrogate_births"])
         self.cache.save(self.surrogate.take_new_points())
         self.angles.restore(state.get("angle_levels", np.zeros((0, 7), dtype=np.int64)))

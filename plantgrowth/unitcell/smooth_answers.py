@@ -148,9 +148,11 @@ class SmoothAnswers:
         """The answers (n, m) at step ``step`` to queries (table numbers ids, stretches s,
         tolerances tol) whose bilinear answers and deepest built squares' keys are given."""
         values = self.interpolant(step).evaluate(ids, s)
-        active = sorted({b for b in self.births.values() if step - b < BLEND_STEPS})
         born = sorted(set(self.births.values()))
-        self._cache = {b: v for b, v in self._cache.items() if b in born}
+        active = [b for b in born if step - b < BLEND_STEPS]
+        pairs = zip(born[:-1], born[1:], strict=True)  # each birth and the one before it
+        needed = set(active) | {born[-1]} | {a for a, b in pairs if b in active}
+        self._cache = {b: v for b, v in self._cache.items() if b in needed}
         for b in active:
             earlier = [a for a in born if a < b]
             if not earlier:
