@@ -86,6 +86,21 @@ def corner_keys(squares: np.ndarray) -> np.ndarray:
     return point_key(ids[:, None], points[..., 0], points[..., 1])
 
 
+def marks(new: np.ndarray) -> dict[int, np.ndarray]:
+    """Per level k, the sorted keys of the level-k cells within :data:`REACH` of a new point
+    of level k (point keys ``new``): where J changes when they are added."""
+    ij = np.column_stack([((new >> 21) & LOW) - OFFSET, (new & LOW) - OFFSET])
+    level = point_level(ij)
+    span = np.arange(-REACH, REACH)
+    around = np.array([[a, b] for a in span for b in span])
+    out = {}
+    for k in np.unique(level).tolist():
+        own = level == k
+        cells = (ij[own] // (STEP >> k))[:, None, :] + around[None]
+        out[k] = np.unique(square_key((new[own] >> 42)[:, None], k, cells * (STEP >> k)))
+    return out
+
+
 def ratios(values: np.ndarray, voigt: slice) -> np.ndarray:
     """``lambda_min / lambda_max`` of the Voigt matrices in ``values[:, voigt]`` (n,)."""
     C = values[:, voigt].reshape(-1, 3, 3)
@@ -138,6 +153,10 @@ class SmoothAnswers:
             if len(keys):
                 values, surplus = self._points(keys)
                 smooth = CellPolynomials(SmoothLattice(keys, values), keys)
+                earlier = [b for b in self._cache if b < last]
+                older = kept or (self._cache[max(earlier)] if earlier else None)
+                if older is not None and older[1] is not None:  # its points are a subset
+                    smooth.inherit(older[1], marks(np.setdiff1d(keys, older[3])))
             self._cache[last] = kept = (count, smooth, squares, keys, surplus, {})
         return kept
 
@@ -153,6 +172,7 @@ class SmoothAnswers:
         pairs = zip(born[:-1], born[1:], strict=True)  # each birth and the one before it
         needed = set(active) | {born[-1]} | {a for a, b in pairs if b in active}
         self._cache = {b: v for b, v in self._cache.items() if b in needed}
+        terms = []  # per blending birth: it, the birth before it, its queries and gates
         for b in active:
             earlier = [a for a in born if a < b]
             if not earlier:
@@ -160,31 +180,27 @@ class SmoothAnswers:
             near = np.flatnonzero(self._near(ids, s, b, earlier[-1]))
             if len(near):
                 gate = self._gate(ids[near], s[near], tol[near], earlier[-1])
-                near, gate = near[gate > 0.0], gate[gate > 0.0]
-            if not len(near):
-                continue
+                terms.append((b, earlier[-1], near[gate > 0.0], gate[gate > 0.0]))
+        if not terms:
+            return self._guard(values, bilinear, square)
+        union = np.unique(np.concatenate([near for _, _, near, _ in terms]))
+        at = {born[-1]: values[union].copy()}  # each J needed, once, at the union's queries
+        for b, before, near, gate in terms:
+            for cut in (before, b):
+                if cut not in at:
+                    at[cut] = self.interpolant(cut).evaluate(ids[union], s[union])
+            rows = np.searchsorted(union, near)
             weight = smoothstep((step - b + 1) / (BLEND_STEPS + 1))
-            old = self.interpolant(earlier[-1]).evaluate(ids[near], s[near])
-            new = self.interpolant(b).evaluate(ids[near], s[near])
-            values[near] += ((1.0 - weight) * gate)[:, None] * (old - new)
+            values[near] += ((1.0 - weight) * gate)[:, None] * (at[before][rows] - at[b][rows])
         return self._guard(values, bilinear, square)
 
     def _near(self, ids: np.ndarray, s: np.ndarray, birth: int, before: int) -> np.ndarray:
         """Which queries lie within :data:`REACH` spacings of a point new at step ``birth``."""
-        marks = self._lattice(birth)[5]
-        if not marks:
-            new = np.setdiff1d(self._lattice(birth)[3], self._lattice(before)[3])
-            ij = np.column_stack([((new >> 21) & LOW) - OFFSET, (new & LOW) - OFFSET])
-            level = point_level(ij)
-            span = np.arange(-REACH, REACH)
-            around = np.array([[a, b] for a in span for b in span])
-            for k in np.unique(level).tolist():
-                own = level == k
-                cells = (ij[own] // (STEP >> k))[:, None, :] + around[None]
-                marks[k] = np.unique(square_key((new[own] >> 42)[:, None], k,
-                                                cells * (STEP >> k)))  # fmt: skip
+        kept = self._lattice(birth)[5]
+        if not kept:
+            kept.update(marks(np.setdiff1d(self._lattice(birth)[3], self._lattice(before)[3])))
         near = np.zeros(len(ids), dtype=bool)
-        for k, marked in marks.items():
+        for k, marked in kept.items():
             near |= find(marked, square_key(ids, k, cell(s, k)[0]))[1]
         return near
 

@@ -87,6 +87,30 @@ class CellPolynomials:
         table = self._coefficients.reshape(-1, self._coefficients.shape[2])
         return combine(weights, rows[:, None] * 16 + np.arange(16)[None], table)
 
+    def inherit(self, older: CellPolynomials, changed: dict[int, np.ndarray]) -> None:
+        """Take over the coefficients of ``older`` (a J of a subset of this one's points) on
+        the cells that meet none of the ``changed`` cells (per level l, sorted keys of the
+        level-l cells where the points added since change J): J is the same there, bit for
+        bit (the same terms in the same order; a cell no longer a stop cell is never asked)."""
+        keys = older._keys
+        ids, level = keys >> 46, (keys >> 42) & 15
+        corner = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
+        hit = np.zeros(len(keys), dtype=bool)
+        for k, marked in changed.items():
+            side = STEP >> k
+            finer = level >= k  # the entry's level-k ancestor is marked
+            hit[finer] |= find(marked, square_key(ids[finer], k, corner[finer] // side * side))[1]
+            coarse = np.flatnonzero(~finer)  # a marked level-k cell lies inside the entry
+            if len(coarse):
+                m_ids = marked >> 46
+                m_corner = np.column_stack([(marked >> 21) & LOW, marked & LOW]) - OFFSET
+                for j in np.unique(level[coarse]).tolist():
+                    big = STEP >> j
+                    inside = np.unique(square_key(m_ids, j, m_corner // big * big))
+                    own = coarse[level[coarse] == j]
+                    hit[own] |= find(inside, keys[own])[1]
+        self._keys, self._coefficients = keys[~hit], older._coefficients[~hit]
+
     def _learn(self, cells: np.ndarray) -> None:
         """The coefficients of new stop cells (keys), from J at their 4 x 4 sample points."""
         ids, level = cells >> 46, (cells >> 42) & 15
