@@ -14,11 +14,11 @@ decided at the query's current s by the surrogate's bilinear estimate e
 (:meth:`LatticeSurrogate._refine`) on the squares born before b: g = 1 for e <= tol, 0 for
 e >= :data:`GATE` tol (the query takes J_c), the smoothstep between (a drifting query's gate
 closes over steps instead of jumping). A birth's term is taken only at the queries its new
-points can change: within 5 spacings of a new point of its level (a point's kernel reaches 2 h,
-the finer surpluses it changes 1 h more, a level-0 point's ghosts 2 h_0 more). Everything
-here is a function of the shared tables (the squares, their births, the step) and the query:
-the same on every rank, and a resumed run (births and the step saved,
-:meth:`LatticeSurrogate.births`) answers as the straight one.
+points can change: within 3 spacings of a new point of its level, 5 at level 0 (a point's
+kernel reaches 2 h, the finer surpluses it changes 1 h more, a level-0 point's ghosts 2 h_0
+more: :data:`REACH`). Everything here is a function of the shared tables (the squares, their
+births, the step) and the query: the same on every rank, and a resumed run (births and the
+step saved, :meth:`LatticeSurrogate.births`) answers as the straight one.
 
 **SPD guard.** K's negative lobes make J a combination with some negative weights, so E_hom's
 positivity is not kept by construction (the bilinear answer is a convex combination). A C1
@@ -68,8 +68,11 @@ decided at each step 9 (steps 17-20: a drifting query's estimate crossing tol ju
 remaining share), smoothstep between 0.7 tol and tol 7, tol and 2 tol 7, tol and 3 tol 6; the
 largest exact check 3.5e-5 in each (tolerance 1e-3: J's errors are about a tenth of the
 bilinear estimate, docs/surrogate_c1.md)."""
-REACH = 5
-"""Spacings of its level around a new point within which a birth's term is taken."""
+REACH = (5, 3)
+"""Spacings of its level around a new point of level 0, and of a finer level, outside which
+adding it leaves J unchanged bit for bit: a level-l point's kernel reaches 2 h_l and the finer
+surpluses it changes 1 h_l more (3); a level-0 point also changes the ghosts 2 h_0 around it,
+whose kernels reach 2 h_0 more (5)."""
 SPD_FRACTION = 0.5
 """The SPD guard's bound, a fraction of the corners' smallest lambda_min / lambda_max."""
 
@@ -91,10 +94,10 @@ def marks(new: np.ndarray) -> dict[int, np.ndarray]:
     of level k (point keys ``new``): where J changes when they are added."""
     ij = np.column_stack([((new >> 21) & LOW) - OFFSET, (new & LOW) - OFFSET])
     level = point_level(ij)
-    span = np.arange(-REACH, REACH)
-    around = np.array([[a, b] for a in span for b in span])
     out = {}
     for k in np.unique(level).tolist():
+        span = np.arange(-REACH[k > 0], REACH[k > 0])
+        around = np.array([[a, b] for a in span for b in span])
         own = level == k
         cells = (ij[own] // (STEP >> k))[:, None, :] + around[None]
         out[k] = np.unique(square_key((new[own] >> 42)[:, None], k, cells * (STEP >> k)))
