@@ -21,7 +21,7 @@ INTEGRATORS = ("euler", "exp", "adaptive")
 MODELS = ("macro", "micro", "both")
 KINEMATICS = ("linear", "finite")
 MACRO_SOLVERS = ("auto", "direct", "iterative")
-CELL_INTERPOLANTS = ("auto", "bilinear", "c1")
+CELL_INTERPOLANTS = ("bilinear", "c1")
 """The surrogate's interpolants (``accuracy.cell_interpolant``, docs/surrogate_c1.md)."""
 MACRO_THRESHOLD = 200_000
 """Fine dofs from which ``solver.macro = "auto"`` solves iteratively: where CG + GAMG's time per

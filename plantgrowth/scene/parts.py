@@ -330,14 +330,14 @@ class Output:
 class Accuracy:
     """The accuracy preset the knobs came from, the cell-problem resolution (P2 elements across
     a wall), the rounding of their inputs and the surrogate's relative error (0: every distinct
-    input solved exactly) and its interpolant: "bilinear", "c1" or "auto" (c1 where the macro
-    solve is iterative: :meth:`interpolant`)."""
+    input solved exactly) and its interpolant: "bilinear" (the default) or "c1"
+    (docs/surrogate_c1.md)."""
 
     preset: str = DEFAULT_PRESET
     cell_resolution: int = knob(DEFAULT_PRESET, "accuracy", "cell_resolution")
     key_tolerance: float = 1e-6
     cell_tolerance: float = knob(DEFAULT_PRESET, "accuracy", "cell_tolerance")
-    cell_interpolant: str = "auto"
+    cell_interpolant: str = "bilinear"
 
     def __post_init__(self) -> None:
         choice("accuracy.preset", self.preset, tuple(PRESETS))
@@ -346,14 +346,6 @@ class Accuracy:
         tol = in_range("accuracy.key_tolerance", self.key_tolerance, 0.0, 1e-2, hi_open=False)
         cell = in_range("accuracy.cell_tolerance", self.cell_tolerance, 0.0, 0.1, False, False)
         set_fields(self, key_tolerance=tol, cell_tolerance=cell)
-
-    def interpolant(self, macro_solver: str) -> str:
-        """The surrogate's interpolant, "bilinear" or "c1", for a macro solve of kind
-        ``macro_solver`` ("direct" or "iterative"): "auto" is c1 on CG only (with LU the
-        bilinear kinks cost nothing and the results stay main's bit for bit)."""
-        if self.cell_interpolant != "auto":
-            return self.cell_interpolant
-        return "c1" if macro_solver == "iterative" else "bilinear"
 
 
 @dataclass(frozen=True)

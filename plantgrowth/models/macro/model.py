@@ -174,7 +174,7 @@ class MacroModel:
             scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
             problem.K is not None or self.water is not None, self.strain_averages, comm,
             scene.accuracy.cell_tolerance, water=self.water is not None,
-            interpolant=scene.accuracy.interpolant(problem.solver),
+            interpolant=scene.accuracy.cell_interpolant,
         )  # fmt: skip
         self.cells = None  # each fine cell's unit cell: kappa (water only)
         if self.water is not None:
