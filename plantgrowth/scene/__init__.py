@@ -90,6 +90,11 @@ inclined wall length l2 = 1)::
     key_tolerance = 1e-6       # cell-problem inputs are rounded to this before caching, (0, 1e-2]
     cell_tolerance = 1e-3      # (preset) surrogate's relative error of the homogenized tensors,
                                # [0, 0.1] (0: solve every distinct input exactly; surrogate.py)
+    cell_interpolant = "bilinear"  # the surrogate's answers between its lattice points:
+                               # "bilinear" (C0) or "c1" (C1, refinements blended in over 8
+                               # steps: fewer CG iterations on large tissues, but its cell phase
+                               # costs about 3x bilinear's while refinements blend, so the organ
+                               # scene runs 1.66x slower: docs/surrogate_c1.md)
     [micro]
     nx = 16                    # cells per row of the micro model, even integer in [2, 256]
                                # (with [hydraulics], the macro model's cells: 4 / nx x [cell])

@@ -21,6 +21,8 @@ INTEGRATORS = ("euler", "exp", "adaptive")
 MODELS = ("macro", "micro", "both")
 KINEMATICS = ("linear", "finite")
 MACRO_SOLVERS = ("auto", "direct", "iterative")
+CELL_INTERPOLANTS = ("bilinear", "c1")
+"""The surrogate's interpolants (``accuracy.cell_interpolant``, docs/surrogate_c1.md)."""
 MACRO_THRESHOLD = 30_000
 """Fine dofs from which ``solver.macro = "auto"`` solves iteratively. Measured on the scaling
 study's tissue, 1 rank, median step of steps 1-10 (scripts/benchmarks/bench_tissue_solver.py,

@@ -20,6 +20,7 @@ from plantgrowth.scene.field_names import close_fields
 from plantgrowth.scene.fields import AnyField, ExprField, Field
 from plantgrowth.scene.limits import (
     BIG,
+    CELL_INTERPOLANTS,
     DEFAULT_OUTPUT,
     EDGES,
     FG0_RANGE,
@@ -329,15 +330,18 @@ class Output:
 class Accuracy:
     """The accuracy preset the knobs came from, the cell-problem resolution (P2 elements across
     a wall), the rounding of their inputs and the surrogate's relative error (0: every distinct
-    input solved exactly)."""
+    input solved exactly) and its interpolant: "bilinear" (the default) or "c1"
+    (docs/surrogate_c1.md)."""
 
     preset: str = DEFAULT_PRESET
     cell_resolution: int = knob(DEFAULT_PRESET, "accuracy", "cell_resolution")
     key_tolerance: float = 1e-6
     cell_tolerance: float = knob(DEFAULT_PRESET, "accuracy", "cell_tolerance")
+    cell_interpolant: str = "bilinear"
 
     def __post_init__(self) -> None:
         choice("accuracy.preset", self.preset, tuple(PRESETS))
+        choice("accuracy.cell_interpolant", self.cell_interpolant, CELL_INTERPOLANTS)
         integer("accuracy.cell_resolution", self.cell_resolution, 1, MAX_RESOLUTION)
         tol = in_range("accuracy.key_tolerance", self.key_tolerance, 0.0, 1e-2, hi_open=False)
         cell = in_range("accuracy.cell_tolerance", self.cell_tolerance, 0.0, 0.1, False, False)

@@ -19,7 +19,9 @@ TABLES = {
     "loads": EDGES,
     "supports": (*EDGES, "bottom"),
     "output": ("fields", "every", "precision"),
-    "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
+    "accuracy": (
+        "preset", "cell_resolution", "key_tolerance", "cell_tolerance", "cell_interpolant",
+    ),
     "micro": ("nx", "resolution"),
     "solver": ("macro", "macro_threshold", "macro_rtol"),
     "numerics": ("on_instability",),

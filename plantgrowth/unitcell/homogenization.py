@@ -116,6 +116,7 @@ class Homogenizer:
             rounded input exactly).
         water: the run has water fluxes (pressure and strain_averages are then True): the
             surrogate's accuracy checks also log the errors of b and 1/M (:func:`water_errors`).
+        interpolant: the surrogate's, "bilinear" or "c1" (``accuracy.cell_interpolant``).
     """
 
     def __init__(
@@ -127,6 +128,7 @@ class Homogenizer:
         comm: MPI.Comm,
         cell_tolerance: float = 0.0,
         water: bool = False,
+        interpolant: str = "bilinear",
     ) -> None:
         self.resolution = resolution
         self.water = water
@@ -148,7 +150,8 @@ class Homogenizer:
                 slice(a, b) for a, b in zip(bounds[3:-1], bounds[4:], strict=True)
             ]  # E_hom and the optional pieces; phi_w and P2 depend on the geometry only
             self.surrogate = surrogate.LatticeSurrogate(
-                self._solve_stretch, cell_tolerance, segments, comm, self.scheduler, _mesh_group
+                self._solve_stretch, cell_tolerance, segments, comm, self.scheduler, _mesh_group,
+                interpolant, voigt=slice(0, 9),
             )
             self.angles = director_lattice.DirectorInterpolant(
                 self._evaluate, self.surrogate.relative_difference, cell_tolerance, comm,
@@ -270,6 +273,11 @@ class Homogenizer:
             self.surrogate.add(self.cache.load(table))
             self._loaded.add(table)
 
+    def end_step(self) -> None:
+        """A time step ended (the c1 surrogate's blends advance)."""
+        if self.surrogate is not None:
+            self.surrogate.end_step()
+
     def state(self) -> dict[str, np.ndarray]:
         """What a resumed run needs to answer as the uninterrupted one (the surrogate's
         refined squares and angle node counts; the same on every rank), {} without one. Empty
@@ -277,6 +285,8 @@ class Homogenizer:
         if self.surrogate is None:
             return {}
         state = {"surrogate_squares": self.surrogate.squares(), "angle_levels": self.angles.state()}
+        if self.surrogate.smooth is not None:  # c1: the squares' births and the step count
+            state["surrogate_births"] = self.surrogate.births()
         return {name: rows for name, rows in state.items() if len(rows)}
 
     def restore(self, state: dict[str, np.ndarray]) -> None:
@@ -287,6 +297,9 @@ class Homogenizer:
         rows = state["surrogate_squares"]
         self._load([tuple(row[1 : 1 + row[0]]) for row in rows.tolist()])
         self.surrogate.restore(rows)
+        # c1; without births (a bilinear run's state) the squares are one birth: no blend
+        if self.surrogate.smooth is not None and "surrogate_births" in state:
+            self.surrogate.restore_births(state["surrogate_births"])
         self.cache.save(self.surrogate.take_new_points())
         self.angles.restore(state.get("angle_levels", np.zeros((0, 7), dtype=np.int64)))
 

@@ -63,7 +63,9 @@ from plantgrowth.base.tensors import det2
 from plantgrowth.unitcell.lattice import (
     CHUNK,
     H0,
+    LOW,
     MAX_LEVEL,
+    OFFSET,
     OFFSETS,
     STEP,
     StopSquares,
@@ -75,6 +77,7 @@ from plantgrowth.unitcell.lattice import (
     walk,
 )
 from plantgrowth.unitcell.scheduler import CellScheduler
+from plantgrowth.unitcell.smooth_answers import EARLY, SmoothAnswers
 
 log = logging.getLogger("plantgrowth")
 
@@ -113,6 +116,7 @@ class Answer:
     estimates: np.ndarray
     interpolated: np.ndarray
     solves: int
+    square: np.ndarray | None = None  # the deepest built square's key per query (refine's)
 
 
 Point = tuple[tuple, tuple[int, int]]  # (table, finest-lattice integer coordinates)
@@ -150,6 +154,11 @@ class LatticeSurrogate:
         scheduler: deals the lattice solves to the ranks (default: a new one on ``comm``).
         group: the solver (mesh) a table's points are solved on, ``group(table)`` (default:
             the table less its last entry, nu).
+        interpolant: "bilinear" (I, this module) or "c1" (J with refinements blended in and
+            started at :data:`~plantgrowth.unitcell.smooth_answers.EARLY` times the tolerance:
+            :mod:`plantgrowth.unitcell.smooth_answers`); the estimates are I's either way.
+        voigt: the packed slice of E_hom's Voigt matrix, which c1's SPD guard checks (None:
+            no guard).
     """
 
     def __init__(
@@ -160,6 +169,8 @@ class LatticeSurrogate:
         comm: MPI.Comm,
         scheduler: CellScheduler | None = None,
         group: Callable[[tuple], Hashable] = lambda table: table[:-1],
+        interpolant: str = "bilinear",
+        voigt: slice | None = None,
     ) -> None:
         self._solve = solve
         self._group = group
@@ -175,6 +186,10 @@ class LatticeSurrogate:
         self._points_index: tuple[np.ndarray, np.ndarray] | None = None
         self._squares_index: np.ndarray | None = None
         self._stops = StopSquares()  # I at the corners of the stop squares met
+        self.step = 0  # steps ended (:meth:`end_step`): the c1 blend's clock
+        self.smooth = None if interpolant == "bilinear" else SmoothAnswers(
+            self._lattice_points, self.relative_difference, voigt
+        )  # fmt: skip
 
     def add(self, values: dict[Point, np.ndarray]) -> None:
         """Lattice values known from elsewhere (the on-disk cache; the same on every rank):
@@ -286,7 +301,7 @@ class LatticeSurrogate:
             self._check_growths(every)
             squares = np.unique(np.concatenate([w for w, _, _ in every]))
             if not len(squares):  # nothing built anywhere: the interpolant is final
-                return Answer(values, error, interpolated, solves)
+                return Answer(values, error, interpolated, solves, key)
             solves += self._build_squares(squares)
             fresh = np.union1d(fresh, squares)
 
@@ -330,6 +345,8 @@ class LatticeSurrogate:
                 if is_new:
                     self._surplus.setdefault(k, value - below)
             self._built.add(int(squares[q]))
+            if self.smooth is not None:
+                self.smooth.births.setdefault(int(squares[q]), self.step)
         self._points_index = self._squares_index = None
         self._stops.drop(squares)
         return solves
@@ -395,8 +412,48 @@ class LatticeSurrogate:
     ) -> Answer:  # fmt: skip
         """Collective: :meth:`refine` for this rank's n queries (0 too), then the frozen
         interpolant's answers and their estimates (:meth:`_walk`), taken from refine's last
-        pass (it ran on the frozen interpolant: recomputing them gave the same bits)."""
-        return self._refine(tables, which, s, tolerance)
+        pass (it ran on the frozen interpolant: recomputing them gave the same bits). On the
+        c1 path the answers are :class:`~plantgrowth.unitcell.smooth_answers.SmoothAnswers`'s
+        (refined at EARLY times the tolerance, the estimates still I's)."""
+        if self.smooth is None:
+            return self._refine(tables, which, s, tolerance)
+        n = len(which)
+        tol = np.full(n, self.tolerance) if tolerance is None else np.asarray(tolerance)
+        answer = self._refine(tables, which, s, EARLY * tol)
+        if not n:
+            return answer
+        ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
+        s = np.asarray(s, dtype=float).reshape(n, 2)
+        values = self.smooth.answer(ids, s, tol, answer.values, answer.square, self.step)
+        return Answer(values, answer.estimates, answer.interpolated, answer.solves)
+
+    def end_step(self) -> None:
+        """A time step ended: the c1 path's blends advance by one step."""
+        self.step += 1
+
+    def births(self) -> np.ndarray:
+        """The c1 path's resume state: one row per square of :meth:`squares` (same order),
+        its birth step, then one row holding the step count ((q + 1, 1) int64)."""
+        births = [self.smooth.births[k] for k in sorted(self._built)]
+        return np.array([*births, self.step], dtype=np.int64).reshape(-1, 1)
+
+    def restore_births(self, rows: np.ndarray) -> None:
+        """Set the squares' births and the step count from :meth:`births`'s rows (after
+        :meth:`restore` of the same state's squares)."""
+        keys = sorted(self._built)
+        births = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if len(births) != len(keys) + 1:
+            raise RunError("the saved surrogate state does not match its squares")
+        self.smooth.births = dict(zip(keys, births[:-1].tolist(), strict=True))
+        self.step = int(births[-1])
+
+    def _lattice_points(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact values and surpluses (P, m) of built lattice points (point keys (P,))."""
+        names = {v: k for k, v in self._table_ids.items()}
+        points = [(names[k >> 42], (((k >> 21) & LOW) - OFFSET, (k & LOW) - OFFSET))
+                  for k in np.asarray(keys).tolist()]  # fmt: skip
+        values = np.array([self.values[p] for p in points])
+        return values, np.array([self._surplus[k] for k in np.asarray(keys).tolist()])
 
     def squares(self) -> np.ndarray:
         """The built squares, what a resumed run needs to rebuild the interpolant: one row a

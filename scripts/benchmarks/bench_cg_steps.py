@@ -4,12 +4,15 @@ Runs a scene with the macro solve forced to CG (``solver.macro = "iterative"``),
 off unless ``--cache`` (every lattice solve shows) and PETSc's true-residual monitor on the macro
 CG. Per step: CG iterations, the initial relative residual ``r0 = |b - A x0| / |b|`` of the
 solution history's guess x0 (CG's iterations are about ``log(r0 / rtol) / log(1 / rho)``, rho
-about 0.5 here), and the cell solves. Variants, each applied in its own process by this script
-before the run:
+about 0.5 here), and the cell solves. Variants, each run in its own process:
 
-- ``main``: the surrogate as it is;
+- ``bilinear`` and ``c1``: the scene with ``accuracy.cell_interpolant`` set to that value (the
+  surrogate as the run has it; c1 is docs/surrogate_c1.md's, refinements blended in);
+
+and diagnostics that this script applies by patching the bilinear surrogate before the run:
+
 - ``prebuilt``: every square of a finished run's lattice (``--squares-from``: its state.h5, last
-  step; default: the ``main`` variant's run) built before step 0, so nothing is refined during
+  step; default: the ``bilinear`` variant's run) built before step 0, so nothing is refined during
   the run: the jumps of refinement are gone, the interpolant's kinks (C0, piecewise bilinear)
   stay;
 - ``smooth``: the surrogate's answer at s = 0 scaled by ``1 + 3 s1 + 2 s2 + 30 s1^2``, a smooth
@@ -25,8 +28,8 @@ before the run:
 ``--log`` parses a finished run's log instead (CG iterations and cell solves; no r0). Writes
 ``--out`` (JSON) with the machine and the load average.
 
-    python scripts/benchmarks/bench_cg_steps.py --variants main prebuilt smooth lookahead \\
-        --squares-from /tmp/main-run/state.h5 [--scene scenes/gradient_E_strain.toml] [--ranks 1]
+    python scripts/benchmarks/bench_cg_steps.py --variants bilinear c1 prebuilt smooth lookahead \\
+        --squares-from /tmp/run/state.h5 [--scene scenes/gradient_E_strain.toml] [--ranks 1]
 """
 
 from __future__ import annotations
@@ -56,8 +59,8 @@ FROM_STEP = 16
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", type=Path, default=SCENE)
-    parser.add_argument("--variants", nargs="+", default=["main"],
-                        choices=["main", "prebuilt", "smooth", "cubic", "lookahead"])  # fmt: skip
+    variants = ["bilinear", "c1", "prebuilt", "smooth", "cubic", "lookahead"]
+    parser.add_argument("--variants", nargs="+", default=["bilinear", "c1"], choices=variants)
     parser.add_argument("--squares-from", type=Path, help="state.h5 of a finished run (prebuilt)")
     parser.add_argument("--ahead", type=int, default=12, help="look-ahead and blend steps K")
     parser.add_argument("--ranks", type=int, default=1)
@@ -72,8 +75,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def parse_log(text: str) -> list[dict]:
-    """Per step: CG iterations, r0 (None without the monitor's lines) and cell solves."""
-    steps, first = [], None
+    """Per step: CG iterations, r0 (None without the monitor's lines), cell solves and the
+    largest relative difference so far of the run's exact checks of the interpolated tensors."""
+    steps, first, check = [], None, None
     for line in text.splitlines():
         monitor = re.search(r"^\s*0 KSP .*\|\|r\(i\)\|\|/\|\|b\|\| (\S+)", line)
         if monitor and first is None:
@@ -81,10 +85,13 @@ def parse_log(text: str) -> list[dict]:
         cg = re.match(r"macro solve: (\d+) CG iterations", line)
         if cg:
             iterations = int(cg[1])
+        checked = re.search(r"largest so far (\S+),", line)
+        if checked:
+            check = float(checked[1])
         step = re.match(r"step (\d+)/\d+ .*cell solves (\d+)", line)
         if step:
             steps.append({"step": int(step[1]), "cg": iterations, "r0": first,
-                          "cell_solves": int(step[2])})  # fmt: skip
+                          "cell_solves": int(step[2]), "largest_check": check})  # fmt: skip
             first = None
     return steps
 
@@ -99,7 +106,18 @@ def digest(steps: list[dict]) -> dict:
         "total_cg": sum(s["cg"] for s in steps),
         "total_cell_solves": sum(s["cell_solves"] for s in steps),
         "refining_steps": [s["step"] for s in steps if s["cell_solves"]],
+        "largest_check": steps[-1]["largest_check"] if steps else None,
     }
+
+
+def with_interpolant(text: str, interpolant: str) -> str:
+    """A scene's text with ``accuracy.cell_interpolant`` set (the scene has an [accuracy])."""
+    line = f'cell_interpolant = "{interpolant}"'
+    text, n = re.subn(r"(?m)^cell_interpolant = .*$", line, text)
+    if not n:
+        text, n = re.subn(r"(?m)^\[accuracy\]\n", f"[accuracy]\n{line}\n", text, count=1)
+    assert n == 1, "no [accuracy] table"
+    return text
 
 
 def forced_cg(scene: Path, t_max: float | None) -> str:
@@ -120,10 +138,18 @@ def final_area(outdir: Path) -> float:
 
 
 def run_variant(args: argparse.Namespace, variant: str, scene: Path, outdir: Path) -> dict:
+    if variant in ("bilinear", "c1"):
+        own = scene.with_name(f"scene_{variant}.toml")
+        own.write_text(with_interpolant(scene.read_text(), variant))
+        scene = own
+    else:  # the diagnostics patch the bilinear surrogate
+        own = scene.with_name("scene_patched.toml")
+        own.write_text(with_interpolant(scene.read_text(), "bilinear"))
+        scene = own
     command = [sys.executable, __file__, "--child", variant, "--ahead", str(args.ahead),
                "--scene", str(scene), "-o", str(outdir)]  # fmt: skip
-    if variant in ("prebuilt", "cubic"):  # default: the main variant's lattice at its end
-        squares = args.squares_from or outdir.parent / "main" / "state.h5"
+    if variant in ("prebuilt", "cubic"):  # default: the bilinear variant's lattice at its end
+        squares = args.squares_from or outdir.parent / "bilinear" / "state.h5"
         command += ["--squares-from", str(squares)]
     if args.ranks > 1:
         command = ["/usr/bin/mpirun", "-n", str(args.ranks), *command]
@@ -155,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
         steps = parse_log(args.log.read_text())
         result["variants"]["log"] = {"steps": steps} | digest(steps)
     else:
-        result["ahead"], result["t_max"] = args.ahead, args.t_max
+        result["ahead"] = args.ahead
+        result["t_max"] = args.t_max
         result["squares_from"] = str(args.squares_from)
         with tempfile.TemporaryDirectory(prefix="plantgrowth-bench-cg-") as tmp:
             root = args.keep or Path(tmp)
@@ -173,7 +200,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def child(args: argparse.Namespace) -> int:
-    """Inside the run's process: patch the surrogate for the variant, then run the scene."""
+    """Inside the run's process: patch the surrogate for a diagnostic variant, then run the
+    scene."""
     import plantgrowth.unitcell.surrogate as sg
 
     original = sg.LatticeSurrogate._refine

@@ -40,13 +40,19 @@ def smooth(table: tuple, U: np.ndarray) -> np.ndarray:
     return np.array([2 * np.exp(a) + b, np.sin(3 * b) + 1.5, c**3, 1 + a * b, 2 + np.cos(4 * a)])
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def lattice_arguments(description: str) -> argparse.ArgumentParser:
+    """The options of the analytic lattice benchmarks: queries, their spread, the tolerance
+    and the timing repeats."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--cells", type=int, default=4140)
     parser.add_argument("--spread", type=float, default=0.15)
     parser.add_argument("--tolerance", type=float, default=1e-3)
     parser.add_argument("--repeats", type=int, default=21)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = lattice_arguments(__doc__.split("\n\n")[0]).parse_args(argv)
     lat = LatticeSurrogate(smooth, args.tolerance, [slice(0, 5)], MPI.COMM_SELF)
     s = np.random.default_rng(0).uniform(-args.spread, args.spread, (args.cells, 2))
     ids = np.zeros(len(s), dtype=np.int64)

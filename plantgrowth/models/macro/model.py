@@ -174,6 +174,7 @@ class MacroModel:
             scene.accuracy.cell_resolution, scene.accuracy.key_tolerance,
             problem.K is not None or self.water is not None, self.strain_averages, comm,
             scene.accuracy.cell_tolerance, water=self.water is not None,
+            interpolant=scene.accuracy.cell_interpolant,
         )  # fmt: skip
         self.cells = None  # each fine cell's unit cell: kappa (water only)
         if self.water is not None:
@@ -283,8 +284,9 @@ class MacroModel:
     def end_step(self, dt: float) -> None:
         """The fibre director's feedback over dt from the step just solved (its cue at the
         step's start, docs/fibres.md); with water, dt is also the step the next solve advances
-        the water by."""
+        the water by; the surrogate's step count (its blends) advances."""
         self._water_dt, self._remaining = dt, 0.0
+        self.homogenizer.end_step()
         self._time += dt
         if self.water_out is not None:
             self.water_out.ledger.close()
