@@ -150,7 +150,8 @@ def test_distributed_files_equal_the_serial_run_files(mpi_tmp_path):
     meshes are equal (the canonical order does not depend on the ranks), every step file's
     datasets and the state equal the serial ones without any reordering, to the parallel
     solve's round-off (LU: ~1e-14 relative, measured) carried into float32 (at most one
-    rounding flip: 2 ulp of the dataset's largest entry) and float64 (1e-10 relative)."""
+    rounding flip: 2 ulp of the dataset's largest entry) and float64 (1e-10 relative); the
+    kept LU factors' floor (the round-off a fresh solve left) is round-off in both."""
     sc = parse_scene(SCENE)
     both = shared(mpi_tmp_path / "both")
     run_model(MacroModel(sc, rectangle_mesh(sc, WORLD), WORLD), sc, both, WORLD)
@@ -173,6 +174,11 @@ def test_distributed_files_equal_the_serial_run_files(mpi_tmp_path):
             for key in datasets:
                 x, y = a[key][...], b[key][...]
                 assert x.shape == y.shape and x.dtype == y.dtype, key
+                if key.endswith("lu_floor"):  # the residual a fresh LU left: round-off, whose
+                    # value depends on the ranks' factorization (5.5e-15 / 6.7e-15 measured),
+                    # so each run's must be round-off, not the other's
+                    assert x.max() < 1e-12 and y.max() < 1e-12, (key, x, y)
+                    continue
                 scale = max(np.abs(y).max(), 1e-300)
                 tolerance = 2 * ULP32 * scale if y.dtype == np.float32 else 1e-10 * scale
                 np.testing.assert_allclose(x, y, rtol=0, atol=tolerance, err_msg=str(key))
