@@ -39,18 +39,23 @@ def refill(A: PETSc.Mat, scale: np.ndarray) -> None:
     fresh.destroy()
 
 
-@pytest.mark.mpi  # scripts/README.md, "Tests": also on 2 ranks (MUMPS's factors)
-def test_kept_factors_refine_to_a_fresh_solve_and_refactor_when_the_matrix_moved():
-    n = 40
-    scale = np.ones(n)
-    A = laplacian(scale, n)
-    ksp = lu_solver(A, MPI.COMM_WORLD, "test_factor_reuse_", serial="petsc")
+def kept_factors(A: PETSc.Mat, prefix: str) -> tuple[FactorReuse, PETSc.Vec, PETSc.Vec]:
+    """A FactorReuse over A's LU solver (one placeholder coefficient), b = 1 and x."""
+    ksp = lu_solver(A, MPI.COMM_WORLD, prefix, serial="petsc")
     coefficient = fem.Function(
         fem.FunctionSpace(mesh.create_unit_interval(MPI.COMM_WORLD, 2), ("DG", 0))
     )
-    factors = FactorReuse(ksp, (coefficient,))
     b, x = A.createVecLeft(), A.createVecRight()
     b.set(1.0)
+    return FactorReuse(ksp, (coefficient,)), b, x
+
+
+def test_kept_factors_refine_to_a_fresh_solve_and_refactor_when_the_matrix_moved():
+    """Serial: under mpirun every solve factorizes (FactorReuse.solve; the next test)."""
+    n = 40
+    scale = np.ones(n)
+    A = laplacian(scale, n)
+    factors, b, x = kept_factors(A, "test_factor_reuse_")
     factors.solve(A, b, x)
     assert factors.factorizations == 1 and factors.floor < 1e-13
     # a change of 1e-6: the kept factors contract the error by about 1e-6 a correction
@@ -111,3 +116,16 @@ def test_a_resumed_run_factorizes_the_straight_runs_matrix_and_repeats_it(tmp_pa
     rows, expected = summary(cut), summary(whole)
     assert len(rows) == len(expected) == 7
     assert rows[-1] == expected[-1]  # as written: every digit
+
+
+@pytest.mark.mpi
+@pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="the distributed LU only")
+def test_under_mpirun_every_solve_factorizes():
+    """Two 2-rank runs' LU round-off differs (their floors by about 1 %), so kept factors would
+    make them refactorize at different steps: under mpirun each solve factorizes afresh."""
+    n = 40
+    A = laplacian(np.ones(n), n)
+    factors, b, x = kept_factors(A, "test_factor_reuse_mpi_")
+    factors.solve(A, b, x)
+    factors.solve(A, b, x)  # the same matrix: kept factors would serve it serially
+    assert factors.factorizations == 2

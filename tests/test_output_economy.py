@@ -109,6 +109,10 @@ def assert_same_datasets(got: Path, expected: Path, rtol: float) -> None:
     found, wanted = datasets(got), datasets(expected)
     assert found.keys() == wanted.keys()
     for name, value in wanted.items():
+        if name.endswith("lu_floor"):  # the residual a fresh LU left: round-off, not a result
+            # (two 2-rank runs' differ by about 1 %), so each must be round-off
+            assert found[name].max() < 1e-12 and value.max() < 1e-12, name
+            continue
         assert_close(found[name], value, rtol, f"{expected.name}:{name}")
 
 

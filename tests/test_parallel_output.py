@@ -179,6 +179,8 @@ def test_distributed_files_equal_the_serial_run_files(mpi_tmp_path):
                     # so each run's must be round-off, not the other's
                     assert x.max() < 1e-12 and y.max() < 1e-12, (key, x, y)
                     continue
+                if key.endswith(("lu_Fg", "lu_C")):  # what the kept factors were made from:
+                    continue  # serially an earlier step's, under mpirun this step's (FactorReuse)
                 scale = max(np.abs(y).max(), 1e-300)
                 tolerance = 2 * ULP32 * scale if y.dtype == np.float32 else 1e-10 * scale
                 np.testing.assert_allclose(x, y, rtol=0, atol=tolerance, err_msg=str(key))

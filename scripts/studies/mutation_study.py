@@ -665,7 +665,8 @@ def export_tree(tree: Path) -> str:
 
 def make_venv(venv: Path, tree: Path) -> Path:
     """The copy's venv: system site packages, the copy in editable mode, meshio (version from
-    the copy's scripts/install.sh). Returns its python."""
+    the copy's scripts/install.sh) and the Jupyter kernel "plantgrowth" as install.sh makes it.
+    Returns its python."""
     python = venv / "bin" / "python"
     if not python.exists():
         subprocess.run(
@@ -679,6 +680,13 @@ def make_venv(venv: Path, tree: Path) -> Path:
     probe = [str(python), "-c", f"import meshio; assert meshio.__version__ == '{version[1]}'"]
     if subprocess.run(probe, capture_output=True).returncode != 0:
         subprocess.run([*pip, f"meshio=={version[1]}"], check=True)
+    kernel = venv / "share/jupyter/kernels/plantgrowth/kernel.json"
+    if not kernel.exists():  # tests/test_tutorial.py runs the tutorial in it (install.sh, 3c)
+        install = ["-m", "ipykernel", "install", "--sys-prefix", "--name", "plantgrowth",
+                   "--display-name", "Python (plantgrowth)"]  # fmt: skip
+        env = {**os.environ, "PYDEVD_DISABLE_FILE_VALIDATION": "1"}
+        subprocess.run([str(python), "-Xfrozen_modules=off", *install, "--env",
+                        "PYDEVD_DISABLE_FILE_VALIDATION", "1"], check=True, env=env)  # fmt: skip
     if not (venv / "bin" / "plantgrowth").exists():
         raise SystemExit(f"the venv {venv} has no plantgrowth script after pip install -e")
     return python
