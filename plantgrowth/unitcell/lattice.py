@@ -22,6 +22,8 @@ square and the interpolant, so it is the same on every rank.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 H0 = 0.1
@@ -199,6 +201,36 @@ class StopSquares:
                 found["base"][q], found["level"][q], found["square"][q],
             )  # fmt: skip
         self._index = None
+
+    def learn(
+        self, squares: np.ndarray, keys: np.ndarray, surplus: np.ndarray, ids: np.ndarray,
+        s: np.ndarray,
+    ) -> None:  # fmt: skip
+        """Walk queries (ids, s) to their stop squares on the lattice (sorted built squares'
+        keys, sorted point keys and their surpluses), then each new stop square's centre to I
+        and S's term at its corners (:func:`walk`), and keep them."""
+        nowhere = np.empty((len(s), 0, 2))  # no targets: the stop levels only (no products)
+        stop = walk(squares, keys, surplus, ids, s, nowhere)["stop"]
+        stops, pick = np.unique(square_key(ids, stop, cell(s, stop)[0]), return_index=True)
+        _, level, corner = square_corners(stops)
+        step = (STEP >> level)[:, None]
+        corners = corner[:, None, :] + OFFSETS[None] * step[:, None, :]
+        centre = (corner + 0.5 * step) * (H0 / STEP)
+        self.add(walk(squares, keys, surplus, ids[pick], centre, corners / STEP), stops)
+
+    def through(
+        self, lattice: Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]],
+        ids: np.ndarray, s: np.ndarray, strict: bool = False,
+    ) -> dict[str, np.ndarray]:  # fmt: skip
+        """:meth:`answer` for queries (ids, s): one lookup of each query's stop square, the
+        ones not met before learnt first (:meth:`learn`) from ``lattice()``, the squares,
+        point keys and surpluses."""
+        rows, t = self.lookup(ids, s)
+        miss = rows < 0
+        if miss.any():  # new entries renumber the rows: look up again
+            self.learn(*lattice(), ids[miss], s[miss])
+            rows, t = self.lookup(ids, s)
+        return self.answer(rows, t, s, strict)
 
     def _table(self) -> tuple[np.ndarray, ...]:
         """Sorted keys, corner rows (4 E, 2 m), and per entry its corner flags, Q_0's corners'

@@ -39,13 +39,12 @@ from plantgrowth.unitcell.lattice import (
     OFFSET,
     OFFSETS,
     STEP,
+    StopSquares,
     cell,
     find,
-    place,
     point_key,
     square_corners,
     square_key,
-    walk,
 )
 from plantgrowth.unitcell.smooth_cells import CellPolynomials
 from plantgrowth.unitcell.smooth_lattice import SmoothLattice, point_level
@@ -144,8 +143,9 @@ class SmoothAnswers:
 
     def _lattice(self, last: int) -> tuple:
         """The squares born up to step ``last``: their count, J (None: none), sorted keys of the
-        squares and of their points, the points' bilinear surpluses, and the new points'
-        marks of :meth:`_near` (filled there); kept while no square is born up to ``last``."""
+        squares and of their points, the points' bilinear surpluses, the new points' marks of
+        :meth:`_near` (filled there) and the bilinear interpolant's stop squares (:meth:`_gate`);
+        kept while no square is born up to ``last``."""
         last = max((b for b in self.births.values() if b <= last), default=-1)
         count = sum(b <= last for b in self.births.values())
         kept = self._cache.get(last)
@@ -160,7 +160,7 @@ class SmoothAnswers:
                 older = kept or (self._cache[max(earlier)] if earlier else None)
                 if older is not None and older[1] is not None:  # its points are a subset
                     smooth.inherit(older[1], marks(np.setdiff1d(keys, older[3])))
-            self._cache[last] = kept = (count, smooth, squares, keys, surplus, {})
+            self._cache[last] = kept = (count, smooth, squares, keys, surplus, {}, StopSquares())
         return kept
 
     def answer(
@@ -186,15 +186,19 @@ class SmoothAnswers:
                 terms.append((b, earlier[-1], near[gate > 0.0], gate[gate > 0.0]))
         if not terms:
             return self._guard(values, bilinear, square)
-        union = np.unique(np.concatenate([near for _, _, near, _ in terms]))
-        at = {born[-1]: values[union].copy()}  # each J needed, once, at the union's queries
+        wanted: dict[int, list[np.ndarray]] = {}  # each J needed, at the queries needing it
+        for b, before, near, _ in terms:
+            wanted.setdefault(before, []).append(near)
+            wanted.setdefault(b, []).append(near)
+        at = {}
+        for cut, nears in wanted.items():
+            where = np.unique(np.concatenate(nears))
+            at[cut] = where, (values[where] if cut == born[-1]
+                              else self.interpolant(cut).evaluate(ids[where], s[where]))
         for b, before, near, gate in terms:
-            for cut in (before, b):
-                if cut not in at:
-                    at[cut] = self.interpolant(cut).evaluate(ids[union], s[union])
-            rows = np.searchsorted(union, near)
             weight = smoothstep((step - b + 1) / (BLEND_STEPS + 1))
-            values[near] += ((1.0 - weight) * gate)[:, None] * (at[before][rows] - at[b][rows])
+            old, new = (j[np.searchsorted(where, near)] for where, j in (at[before], at[b]))
+            values[near] += ((1.0 - weight) * gate)[:, None] * (old - new)
         return self._guard(values, bilinear, square)
 
     def _near(self, ids: np.ndarray, s: np.ndarray, birth: int, before: int) -> np.ndarray:
@@ -209,12 +213,13 @@ class SmoothAnswers:
 
     def _gate(self, ids: np.ndarray, s: np.ndarray, tol: np.ndarray, before: int) -> np.ndarray:
         """The gate g (n,) of a birth's blend (module docstring) from the bilinear estimate e
-        of the lattice of the squares born up to step ``before``."""
-        _, _, squares, keys, surplus, _ = self._lattice(before)
+        of the lattice of the squares born up to step ``before``, from its stop squares (the walk's
+        to rounding, :mod:`~plantgrowth.unitcell.lattice`)."""
+        _, _, squares, keys, surplus, _, stops = self._lattice(before)
         if not len(squares):
             return np.zeros(len(ids))
-        found = walk(squares, keys, surplus, ids, s, place(s)[:, None, :])
-        values, change, level = found["values"][:, 0], found["change"][:, 0], found["level"]
+        found = stops.through(lambda: (squares, keys, surplus), ids, s)
+        values, change, level = found["values"], found["change"], found["level"]
         error = np.full(len(ids), np.inf)
         error[(level == 0) & (cell(s, 0)[1] % 1.0 == 0.0).all(axis=1)] = 0.0
         inside = level >= 1

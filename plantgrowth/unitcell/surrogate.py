@@ -74,7 +74,6 @@ from plantgrowth.unitcell.lattice import (
     point_key,
     square_corners,
     square_key,
-    walk,
 )
 from plantgrowth.unitcell.scheduler import CellScheduler
 from plantgrowth.unitcell.smooth_answers import EARLY, SmoothAnswers
@@ -381,30 +380,16 @@ class LatticeSurrogate:
             m = self._points_table()[1].shape[1]
             empty = np.zeros((0, m))
             return empty, np.zeros(0, dtype=bool), np.full(0, -1), np.zeros(0, np.int64), empty
-        rows, t = self._stops.lookup(ids, s)
-        miss = rows < 0
-        if miss.any():  # new entries renumber the rows: look up again
-            self._learn(ids[miss], s[miss])
-            rows, t = self._stops.lookup(ids, s)
-        found = self._stops.answer(rows, t, s, strict)
+        found = self._stops.through(self._lattice_tables, ids, s, strict)
         return (found["values"], ~found["on_point"], found["level"], found["square"],
                 found["change"])  # fmt: skip
 
-    def _learn(self, ids: np.ndarray, s: np.ndarray) -> None:
-        """Walk the queries to their stop squares, then each new stop square's centre to I and
-        S's term at its corners (:func:`~plantgrowth.unitcell.lattice.walk`)."""
+    def _lattice_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sorted built squares' keys, sorted point keys and their surpluses (for the walks
+        of :meth:`~plantgrowth.unitcell.lattice.StopSquares.learn`)."""
         if self._squares_index is None:
             self._squares_index = np.array(sorted(self._built), dtype=np.int64)
-        keys, surplus = self._points_table()
-        nowhere = np.empty((len(s), 0, 2))  # no targets: the stop levels only (no products)
-        stop = walk(self._squares_index, keys, surplus, ids, s, nowhere)["stop"]
-        stops, pick = np.unique(square_key(ids, stop, cell(s, stop)[0]), return_index=True)
-        _, level, corner = square_corners(stops)
-        step = (STEP >> level)[:, None]
-        corners = corner[:, None, :] + OFFSETS[None] * step[:, None, :]
-        centre = (corner + 0.5 * step) * (H0 / STEP)
-        found = walk(self._squares_index, keys, surplus, ids[pick], centre, corners / STEP)
-        self._stops.add(found, stops)
+        return (self._squares_index, *self._points_table())
 
     def evaluate(
         self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray,

@@ -3,20 +3,23 @@
 
 Two surrogates, ``bilinear`` and ``c1``, are refined by bench_stop_squares.py's smooth analytic
 map of U, half of ``--cells`` queries (uniform in |s_i| <= ``--spread``) at step 0, the other
-half at step 1 (so c1 has a refinement to blend in). Then, alternated ``--repeats`` times, one
-``evaluate`` of every query on each surrogate (no point is added: a step without refinement,
-the same public call the run makes): ``bilinear`` (the stop squares), ``c1_blending`` (step 1:
-the step-1 refinement blends in) and ``c1`` (B steps later: settled, the cached cell
-polynomials; interleaved with ``bilinear_2``, the bilinear calls again). The first c1 call
-after the blends end is timed apart (``c1_first``: it fits every stop cell's coefficients).
-Medians of the seconds and their ratios to the bilinear calls they alternated with; the
-largest and median relative error of each against the exact map at ``--check`` fresh queries
-(asked with an infinite tolerance, so nothing is refined); the largest relative difference
-of c1 from the exact values at the built points. Writes ``benchmarks/results/c1_lookup.json``
-(or ``--out``) with the machine and the load.
+half at step 1 (so c1 has a refinement to blend in); with ``--births N`` > 1, all the queries
+drifting outwards (stretches scaled by (b + 1) / (N + 1) at step b = 0..N), so that N
+refinements blend at once (the organ's case: 6; ``c1_blending`` is then step N's call). Then,
+alternated ``--repeats`` times, one ``evaluate`` of every query on each surrogate (no point is
+added: a step without refinement, the same public call the run makes): ``bilinear`` (the stop
+squares), ``c1_blending`` (step 1: the step-1 refinement blends in) and ``c1`` (B steps later:
+settled, the cached cell polynomials; interleaved with ``bilinear_2``, the bilinear calls
+again). The first c1 call after the blends end is timed apart (``c1_first``: it fits every stop
+cell's coefficients). Medians of the seconds and their ratios to the bilinear calls they
+alternated with; the largest and median relative error of each against the exact map at
+``--check`` fresh queries (asked with an infinite tolerance, so nothing is refined); the
+largest relative difference of c1 from the exact values at the built points. Writes
+``benchmarks/results/c1_lookup.json`` (or ``--out``) with the machine and the load.
 
     python scripts/benchmarks/bench_c1_lookup.py [--cells 4140] [--repeats 21]
     python scripts/benchmarks/bench_c1_lookup.py --cells 500000 --repeats 5 --out X.json
+    python scripts/benchmarks/bench_c1_lookup.py --cells 250000 --births 6 --repeats 3 --out X.json
 """
 
 from __future__ import annotations
@@ -57,21 +60,26 @@ def timed(call) -> tuple[float, np.ndarray]:
 def main(argv: list[str] | None = None) -> int:
     parser = lattice_arguments(__doc__.split("\n\n")[0])
     parser.add_argument("--check", type=int, default=20000)
+    parser.add_argument("--births", type=int, default=1)
+    parser.add_argument("--label", default="")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks/results/c1_lookup.json")
     args = parser.parse_args(argv)
     rng = np.random.default_rng(0)
     s = rng.uniform(-args.spread, args.spread, (args.cells, 2))
     ids = np.zeros(len(s), dtype=np.int64)
-    half = len(s) // 2
     lats = {
         kind: LatticeSurrogate(smooth, args.tolerance, [slice(0, 5)], MPI.COMM_SELF,
                                interpolant=kind)  # fmt: skip
         for kind in ("bilinear", "c1")
     }
     for lat in lats.values():
-        lat.evaluate(TABLE, ids[:half], s[:half])
-        lat.end_step()
-        lat.evaluate(TABLE, ids, s)
+        for birth in range(args.births + 1):
+            if birth:
+                lat.end_step()
+            if args.births == 1:
+                lat.evaluate(TABLE, ids[: len(s) // (2 - birth)], s[: len(s) // (2 - birth)])
+            else:
+                lat.evaluate(TABLE, ids, s * (birth + 1) / (args.births + 1))
     bilinear, c1 = lats["bilinear"], lats["c1"]
 
     def ask(lat: LatticeSurrogate) -> np.ndarray:
@@ -105,9 +113,10 @@ def main(argv: list[str] | None = None) -> int:
         np.array([c1.values[TABLE[0], tuple(p)] for p in ij.tolist()]),
     )
     result = {
-        "machine": machine_description(), "load_before": load_before,
+        "label": args.label, "machine": machine_description(), "load_before": load_before,
         "load_after": os.getloadavg(), "cells": args.cells, "spread": args.spread,
-        "tolerance": args.tolerance, "repeats": args.repeats, "points": len(ij),
+        "births": args.births, "tolerance": args.tolerance, "repeats": args.repeats,
+        "points": len(ij),
         "seconds": times, "median_seconds": medians, "c1_first_seconds": first,
         "median_ratio_to_bilinear": ratios,
         "largest_relative_error": {k: float(v.max()) for k, v in errors.items()},
