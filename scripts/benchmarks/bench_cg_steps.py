@@ -76,9 +76,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def parse_log(text: str) -> list[dict]:
     """Per step: CG iterations, r0 (None without the monitor's lines), cell solves and the
-    largest relative difference so far of the run's exact checks of the interpolated tensors."""
+    largest relative difference so far of the run's exact checks of the interpolated tensors
+    (from the run's output, or its run.log)."""
     steps, first, check = [], None, None
     for line in text.splitlines():
+        line = re.sub(r"^\d{4}-\d\d-\d\d [\d:,]+ ", "", line)  # run.log's time stamps
         monitor = re.search(r"^\s*0 KSP .*\|\|r\(i\)\|\|/\|\|b\|\| (\S+)", line)
         if monitor and first is None:
             first = float(monitor[1])  # a repeated solve (rebuilt preconditioner): the first
@@ -101,7 +103,7 @@ def digest(steps: list[dict]) -> dict:
     late = [s for s in steps if s["step"] >= FROM_STEP]
     return {
         "cg_per_step": [s["cg"] for s in steps],
-        "max_cg_from_step_16": max(s["cg"] for s in late),
+        "max_cg_from_step_16": max((s["cg"] for s in late), default=None),
         "steps_over_6_from_step_16": [s["step"] for s in late if s["cg"] > 6],
         "total_cg": sum(s["cg"] for s in steps),
         "total_cell_solves": sum(s["cell_solves"] for s in steps),
