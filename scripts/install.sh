@@ -26,7 +26,7 @@ APT_PACKAGES=(
     python3-dolfinx-mpc
     python3-gmsh
     python3-h5py
-    python3-h5py-mpi  # under mpirun, h5py loads this MPI build: the ranks write their outputs together
+    python3-h5py-mpi  # under mpirun, h5py loads this MPI build (the runs write without MPI-IO)
     python3-petsc4py
     python3-mpi4py
     python3-pytest

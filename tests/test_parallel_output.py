@@ -21,7 +21,7 @@ from plantgrowth.base import gather
 from plantgrowth.base.blocks import Block, CanonicalBlocks, block_offsets
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import rectangle_mesh
-from plantgrowth.runner import output
+from plantgrowth.runner import h5_blocks
 from plantgrowth.runner.output import FieldSeries, Schedule, StateFile
 from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import parse_scene
@@ -89,17 +89,16 @@ def test_every_rank_writes_its_own_block_and_nothing_is_gathered(mpi_tmp_path, m
     series = FieldSeries(outdir, V1, [u, F], Schedule(1, 1))
     state = StateFile(outdir, WORLD)
     written: list[tuple[str, int, int, int]] = []
-    write_block = output._write_block
+    payload = h5_blocks._payload
 
-    def recording(f, name, block, dtype, compressed, comm):
-        key = f"{Path(f.file.filename).name}:{f.name}/{name}"
-        written.append((key, block.start, len(block.values), block.total))
-        write_block(f, name, block, dtype, compressed, comm)
+    def recording(d, size):
+        written.append((d.name, d.block.start, len(d.block.values), d.block.total))
+        return payload(d, size)
 
     def no_gather(self, values):
         raise AssertionError("a MeshGather gather while writing")
 
-    monkeypatch.setattr(output, "_write_block", recording)
+    monkeypatch.setattr(h5_blocks, "_payload", recording)
     monkeypatch.setattr(gather.MeshGather, "_collect", no_gather)
     series.write(0, 0.0)
     state.write(0, 0.0, {"u": series.blocks.function(u)})
@@ -186,10 +185,32 @@ def test_distributed_files_equal_the_serial_run_files(mpi_tmp_path):
                 np.testing.assert_allclose(x, y, rtol=0, atol=tolerance, err_msg=str(key))
 
 
-def test_without_parallel_h5py_a_distributed_run_stops_with_a_named_error(monkeypatch):
-    """h5py without MPI on more than one rank: RunError naming the package; one rank runs."""
-    monkeypatch.setattr(output.h5py, "get_config", lambda: type("C", (), {"mpi": False})())
-    output.check_parallel_h5py(MPI.COMM_SELF)
-    if WORLD.size > 1:
-        with pytest.raises(output.RunError, match="python3-h5py-mpi"):
-            output.check_parallel_h5py(WORLD)
+def test_a_deflated_chunk_is_the_one_hdf5_writes(tmp_path):
+    """The bytes a rank writes for its chunk (shuffle, then deflate) are HDF5's own for the
+    same chunk, an edge chunk (padded) included: any HDF5 reader reads them."""
+    values = (np.arange(21.0).reshape(7, 3) ** 1.5).astype(np.float32)
+    with h5py.File(tmp_path / "h.h5", "w") as f:
+        f.create_dataset("x", data=values, chunks=(4, 3), **h5_blocks.FIELD_FILTERS)
+    with h5py.File(tmp_path / "h.h5", "r") as f:
+        for start in (0, 4):
+            _, raw = f["x"].id.read_direct_chunk((start, 0))
+            assert raw == h5_blocks.deflated(values[start : start + 4], 4), start
+
+
+def test_a_rank_without_rows_writes_nothing_and_the_file_is_whole(mpi_tmp_path):
+    """Datasets of one row (the other ranks' blocks empty), compressed and contiguous, and an
+    empty one: read back equal on every rank count; links and attributes as laid out."""
+    one = np.array([[1.5, -2.0]])
+    datasets = [
+        h5_blocks.Dataset("a/x", Block.split(one, WORLD), np.dtype(np.float32), True),
+        h5_blocks.Dataset("a/y", Block.split(one, WORLD), np.dtype(np.float64), False),
+        h5_blocks.Dataset("e", Block.split(np.zeros((0, 3)), WORLD), np.dtype(np.float64), False),
+    ]
+    layout = h5_blocks.H5Layout(links={"b/y": "a/y"}, attrs={"/": {"step": 3}, "a": {"t": 0.5}})
+    path = mpi_tmp_path / "one.h5"
+    h5_blocks.write_blocks(path, mpi_tmp_path / ".one.h5.tmp", datasets, layout, WORLD)
+    with h5py.File(path, "r") as f:
+        np.testing.assert_array_equal(f["a/x"][...], one.astype(np.float32))
+        np.testing.assert_array_equal(f["b/y"][...], one)
+        assert f["e"].shape == (0, 3) and f.attrs["step"] == 3 and f["a"].attrs["t"] == 0.5
+    assert not (mpi_tmp_path / ".one.h5.tmp").exists()

@@ -4,9 +4,10 @@ moves the rank's owned values there: what a collective HDF5 write needs (issue 2
 The canonical order is :mod:`plantgrowth.base.gather`'s (nodes sorted by their coordinates,
 cells by their sorted node numbers), so a file written this way holds the same arrays whatever
 the number of ranks. Rank r holds rows ``[offsets[r], offsets[r + 1])`` with
-``offsets[r] = floor(r n / size)``; one MPI Alltoallv per field moves each owned row from the
-rank that computed it to the rank whose block holds it: every rank sends and receives about
-n / size rows, and no rank receives them all.
+``offsets[r] = min(r ceil(n / size), n)``: blocks of equal length but the last, so that each is
+one chunk of a compressed dataset (:mod:`plantgrowth.runner.h5_blocks`). One MPI Alltoallv per
+field moves each owned row from the rank that computed it to the rank whose block holds it:
+every rank sends and receives about n / size rows, and no rank receives them all.
 """
 
 from __future__ import annotations
@@ -43,8 +44,8 @@ class Block:
 
 
 def block_offsets(n: int, size: int) -> np.ndarray:
-    """The first row of every rank's block, and n: ``floor(r n / size)``, r = 0..size."""
-    return np.arange(size + 1, dtype=np.int64) * n // size
+    """The first row of every rank's block, and n: ``min(r ceil(n / size), n)``, r = 0..size."""
+    return np.minimum(np.arange(size + 1, dtype=np.int64) * -(-n // size), n)
 
 
 class _Exchange:

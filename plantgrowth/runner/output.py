@@ -19,10 +19,11 @@ Fields are written at t = 0, every ``output.every``-th step and at the last step
 loads) with gzip and shuffle filters; the state, written after every step, keeps float64 so
 that a resumed run continues exactly. Every file is written under a temporary name and renamed
 when complete, so a run killed at any moment (even SIGKILL) leaves every written step readable.
-Step files and state are written collectively (issue 23, item 2): each rank writes its block
-of the canonical order (:mod:`plantgrowth.base.blocks`) through HDF5's MPI-IO driver (Debian's
-``python3-h5py-mpi``), the same arrays whatever the ranks, nothing gathered to one rank; rank 0
-writes the XDMF indexes, CSVs and meshes. Only these names are ever removed (:func:`run_files`).
+Step files and state are written by all ranks together (issue 23, item 2): each rank compresses
+and writes its block of the canonical order (:mod:`plantgrowth.base.blocks`) into a file rank 0
+lays out (:mod:`plantgrowth.runner.h5_blocks`), the same arrays whatever the ranks, nothing
+gathered to one rank; rank 0 writes the XDMF indexes, CSVs and meshes. Only these names are
+ever removed (:func:`run_files`).
 """
 
 from __future__ import annotations
@@ -41,8 +42,8 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from plantgrowth.base.blocks import Block, CanonicalBlocks
-from plantgrowth.base.errors import RunError
 from plantgrowth.models.step import SideMesh
+from plantgrowth.runner.h5_blocks import Dataset, H5Layout, write_blocks
 from plantgrowth.runner.xdmf import (
     ATTRIBUTE_TYPES,
     STEP_DIR,
@@ -59,10 +60,6 @@ OUTPUT_FILES = (
 )  # fmt: skip
 _TEMPORARY = tuple(f".{name}.tmp" for name in OUTPUT_FILES)  # a kill during an atomic write
 _STEP_FILE = re.compile(r"\.?step_\d{6,}\.h5(\.tmp)?")  # a step file or its temporary name
-FIELD_FILTERS = {"compression": "gzip", "compression_opts": 1, "shuffle": True}
-"""How field datasets are compressed: gzip after byte shuffling (HDF5's built-in filters, which
-every HDF5 reader has), level 1 with one chunk per dataset: measured here, higher levels save
-under 5% and take up to 3x as long."""
 
 
 def run_files(directory: Path) -> list[Path]:
@@ -143,59 +140,14 @@ def last_summary_step(path: Path) -> int | None:
     return steps[-1] if steps else None
 
 
-def check_parallel_h5py(comm: MPI.Comm) -> None:
-    """Raise RunError unless h5py can write collectively on ``comm`` (one rank always can)."""
-    if comm.size > 1 and not h5py.get_config().mpi:
-        raise RunError(
-            f"h5py is built without MPI, so {comm.size} ranks cannot write their outputs: "
-            "install Debian's python3-h5py-mpi (scripts/install.sh does), or run on one rank"
-        )
-
-
 @contextmanager
-def _atomic_h5(path: Path, comm: MPI.Comm = MPI.COMM_SELF) -> Iterator[h5py.File]:
-    """An HDF5 file written under a temporary name and renamed into place when complete;
-    collective on ``comm`` (more than one rank: HDF5's MPI-IO driver)."""
+def _atomic_h5(path: Path) -> Iterator[h5py.File]:
+    """An HDF5 file written by this rank under a temporary name and renamed into place when
+    complete."""
     tmp = temporary_path(path)
-    parallel = {"driver": "mpio", "comm": comm} if comm.size > 1 else {}
-    with h5py.File(tmp, "w", **parallel) as f:
+    with h5py.File(tmp, "w") as f:
         yield f
-    comm.Barrier()  # every rank's part is in the closed file
-    if comm.rank == 0:
-        os.replace(tmp, path)
-    comm.Barrier()  # a later write of the same name starts after the rename
-
-
-_COLLECTIVE = h5py.h5p.create(h5py.h5p.DATASET_XFER)
-if h5py.get_config().mpi:
-    _COLLECTIVE.set_dxpl_mpio(h5py.h5fd.MPIO_COLLECTIVE)
-
-
-def _write_block(
-    f: h5py.File, name: str, block: Block, dtype: np.dtype, compressed: bool, comm: MPI.Comm
-) -> None:
-    """Create the dataset ``name`` (collective) and write this rank's rows of it. Compressed:
-    one chunk per rank's block (HDF5's parallel filters need collective writes, which also
-    take the ranks whose block is empty)."""
-    values = np.ascontiguousarray(block.values, dtype=dtype)
-    tail = values.shape[1:]
-    shape = (block.total, *tail)
-    chunks = ((block.total + comm.size - 1) // comm.size, *tail) if compressed else None
-    filters = FIELD_FILTERS if compressed else {}
-    if comm.size == 1:  # created with its data: one write, no selection
-        f.create_dataset(name, data=values, chunks=chunks, **filters)
-        return
-    dataset = f.create_dataset(name, shape=shape, dtype=dtype, chunks=chunks, **filters)
-    rows, zeros = len(values), (0,) * len(tail)
-    memory = h5py.h5s.create_simple((max(rows, 1), *tail))
-    space = dataset.id.get_space()
-    if rows:
-        space.select_hyperslab((block.start, *zeros), (rows, *tail))
-    else:
-        space.select_none()
-        memory.select_none()
-        values = np.zeros((1, *tail), dtype=dtype)
-    dataset.id.write(memory, space, values, dxpl=_COLLECTIVE)
+    os.replace(tmp, path)
 
 
 @dataclass(frozen=True)
@@ -222,7 +174,6 @@ class StateFile:
     """
 
     def __init__(self, outdir: Path, comm: MPI.Comm) -> None:
-        check_parallel_h5py(comm)
         self.path = outdir / "state.h5"
         self.comm = comm
         self._previous: tuple[int, float, dict[str, Block]] | None = None  # this rank's blocks
@@ -232,16 +183,18 @@ class StateFile:
         in the same order on every rank)."""
         current = (step, t, state)
         written: dict[int, str] = {}  # a block given again (the same object): linked
-        with _atomic_h5(self.path, self.comm) as f:
-            for s, s_t, blocks in [x for x in (self._previous, current) if x is not None]:
-                group = f.create_group(f"step_{s:06d}")
-                group.attrs["t"] = s_t
-                for key, block in blocks.items():
-                    if id(block) in written:  # an HDF5 hard link: the data once in the file
-                        group[key] = f[written[id(block)]]
-                        continue
-                    _write_block(group, key, block, block.values.dtype, False, self.comm)
-                    written[id(block)] = f"{group.name}/{key}"
+        datasets, layout = [], H5Layout()
+        for s, s_t, blocks in [x for x in (self._previous, current) if x is not None]:
+            group = f"step_{s:06d}"
+            layout.attrs[group] = {"t": s_t}
+            for key, block in blocks.items():
+                name = f"{group}/{key}"
+                if id(block) in written:  # an HDF5 hard link: the data once in the file
+                    layout.links[name] = written[id(block)]
+                    continue
+                datasets.append(Dataset(name, block, block.values.dtype, False))
+                written[id(block)] = name
+        write_blocks(self.path, temporary_path(self.path), datasets, layout, self.comm)
         self._previous = current
 
     def steps(self) -> list[int]:
@@ -289,7 +242,6 @@ class FieldSeries:
         self.dtype = np.dtype(precision)
         self.side = side if side is not None and side.fields else None
         self.comm = V1.mesh.comm
-        check_parallel_h5py(self.comm)
         self.blocks = CanonicalBlocks(V1)
         points, triangles = self.blocks.points, self.blocks.triangles
         self.steps: list[tuple[int, float]] = []
@@ -358,11 +310,13 @@ class FieldSeries:
         for name, (_, components) in self.side.fields.items() if self.side else ():
             v = np.reshape(self.side.values[name], (-1, components))
             blocks[f"{self.side.prefix}/{name}"] = Block.split(v, self.comm)
-        with _atomic_h5(step_file(self.outdir, step), self.comm) as f:
-            f.attrs["step"], f.attrs["t"] = step, t
-            for name, block in blocks.items():
-                padded = Block(pad(block.values), block.start, block.total)
-                _write_block(f, name, padded, self.dtype, True, self.comm)
+        datasets = [
+            Dataset(name, Block(pad(block.values), block.start, block.total), self.dtype, True)
+            for name, block in blocks.items()
+        ]  # fmt: skip
+        layout = H5Layout(attrs={"/": {"step": step, "t": t}})
+        path = step_file(self.outdir, step)
+        write_blocks(path, temporary_path(path), datasets, layout, self.comm)
         if self.comm.rank != 0:
             return
         self.steps = [(s, tt) for s, tt in self.steps if s < step] + [(step, t)]
