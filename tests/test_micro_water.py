@@ -107,7 +107,11 @@ def every_edge(conductance: float, potential: float = 0.0) -> list[dict]:
 # models/refinement.py) moved it by up to 1e-10 relative (u1_max; the solve's forward error, its
 # condition number 6e7 times round-off), and on branch i33-ref, whose closed-form growth law
 # (positive part, expm; no eigh) moved steps 1-2 by up to 2.3e-11 (u1_max) and 4.6e-14 (area);
-# nothing in [hydraulics] has moved it
+# nothing in [hydraulics] has moved it. Compared to 1e-9 relative, not bit for bit: another
+# machine's BLAS rounds differently (a fresh machine's run moved area by 3.5e-14 at step 2), and
+# the solve's forward error bounds what round-off can move (condition number 6e7 times eps:
+# 1.3e-8; measured moves 4.6e-14 to 1e-10 above); 1e-9 is ten times the largest measured move
+ACROSS_MACHINES = 1e-9
 MAIN_SUMMARY = {
     "area": [17.666575329426596, 17.949068074951395, 18.236067486070613],
     "growth_rate_11": [0.007917685442411046, 0.007917701346147703, 0.007917716027086626],
@@ -120,10 +124,10 @@ MAIN_SUMMARY = {
 
 
 @pytest.mark.skip_in_parallel  # main's numbers are serial (mpirun: the test below)
-def test_a_scene_without_hydraulics_runs_as_on_main_bit_for_bit(tmp_path):
+def test_a_scene_without_hydraulics_runs_as_on_main(tmp_path):
     rows = summary(run(tmp_path, "plain", scene_data()))
     for key, values in MAIN_SUMMARY.items():
-        assert [r[key] for r in rows] == values, key
+        assert [r[key] for r in rows] == pytest.approx(values, rel=ACROSS_MACHINES), key
     assert "turgor_mean" not in rows[0]
 
 
