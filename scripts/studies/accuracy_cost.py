@@ -37,9 +37,10 @@ translation fixed by the pinned origin is not part of the tissue's shape). Cost:
 seconds of the whole process (imports and set-up included; robust to other load on the
 machine), and its wall seconds. Writes
 ``benchmarks/results/accuracy_cost.json`` after every run (a rerun reuses the runs already
-there with the same scene text and resolved knobs; ``--redo NAME`` repeats some; two
-processes may share the file: each merges its runs in under a lock); the sampled u fields are
-kept in ``results/accuracy_cost/`` (not committed), which a rerun needs.
+there with the same scene text and resolved knobs; ``--redo NAME`` repeats some, ``--redo``
+alone all; two processes may share the file: each merges its runs in under a lock); the
+sampled u fields are kept in ``results/accuracy_cost/`` (not committed): a scene's errors are
+summarized once every run of it has its fields there (a new machine: ``--redo``).
 
     python scripts/studies/accuracy_cost.py [--scenes S ...] [--only NAME ...] [--redo NAME ...]
     python scripts/studies/accuracy_cost.py --summarize   # errors again from the stored runs
@@ -295,7 +296,10 @@ def summarize(stem: str, runs: dict[str, dict], samples: Path) -> dict:
     """Errors of every run against the reference; the reference's estimated error; the knob
     whose refinement removes most of the shipped scene's error; the check of main's
     reference values."""
-    fields = {n: np.load(samples / f"{n}.npy") for n, r in runs.items() if r["exit"] == 0}
+    done = [n for n, r in runs.items() if r["exit"] == 0]
+    if not all((samples / f"{n}.npy").is_file() for n in done):
+        return {}  # a map being re-run on a new machine: summarized once every field is there
+    fields = {n: np.load(samples / f"{n}.npy") for n in done}
     extrapolated = extrapolated_reference(runs, fields)
     if extrapolated is None:
         return {}
@@ -361,7 +365,8 @@ def save_run(out: Path, stem: str, scene: str, run_name: str, record: dict | Non
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", nargs="*", default=list(SCENES))
-    parser.add_argument("--redo", nargs="*", default=[], help="run names to repeat")
+    parser.add_argument("--redo", nargs="*", default=None,
+                        help="run names to repeat (none given: every run)")
     parser.add_argument("--only", nargs="*", default=None, help="run only these names")
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--summarize", action="store_true", help="re-summarize only, no runs")
@@ -386,7 +391,8 @@ def main(argv: list[str] | None = None) -> int:
             data = json.loads(args.out.read_text()) if args.out.exists() else {"scenes": {}}
             old = data["scenes"].get(path.stem, {}).get("runs", {}).get(run_name)
             same = old and old["scene_text"] == text and old.get("resolved") == knobs
-            if same and run_name not in args.redo:
+            redo = args.redo is not None and (not args.redo or run_name in args.redo)
+            if same and not redo:
                 continue
             with tempfile.TemporaryDirectory() as tmp:
                 load = os.getloadavg()[0]
