@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.base.blocks import Block
+from plantgrowth.base.blocks import Block, block_offsets
 
 DEFLATE_LEVEL = 1
 """gzip level of the field datasets: measured here, higher levels save under 5% and take up to
@@ -58,9 +58,9 @@ class H5Layout:
 
 
 def chunk_rows(total: int, size: int) -> int:
-    """Rows of one chunk of a compressed dataset: one rank's block (``ceil(total / size)``, the
-    blocks of :func:`plantgrowth.base.blocks.block_offsets`), at least 1."""
-    return max(-(-total // size), 1)
+    """Rows of one chunk of a compressed dataset: one rank's block (the first of
+    :func:`plantgrowth.base.blocks.block_offsets`, all but the last as long), at least 1."""
+    return max(int(block_offsets(total, size)[1]), 1)
 
 
 def deflated(values: np.ndarray, rows: int) -> bytes:

@@ -298,10 +298,12 @@ class MacroProblem:
         array[dofmap.list.array[: self.n_cells]] = values.reshape(self.n_cells, -1)
         function.x.scatter_forward()
 
-    def cell_values(self, function: fem.Function) -> np.ndarray:
-        """Per-cell values (n_cells, bs) of a DG0 function."""
+    def cell_values(self, function: fem.Function, array: np.ndarray | None = None) -> np.ndarray:
+        """Per-cell values (n_cells, bs) of a DG0 function, or of ``array`` in its dof order (a
+        copy of its values)."""
         dofmap = function.function_space.dofmap
-        return function.x.array.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
+        values = function.x.array if array is None else array
+        return values.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
 
     def factorized_cells(self) -> tuple[dict[str, np.ndarray], float] | None:
         """The coefficients per cell of the matrix whose LU factors are kept (``lu_Fg``,
@@ -310,11 +312,8 @@ class MacroProblem:
         kept = None if self.factors is None else self.factors.factorized()
         if kept is None:
             return None
-        cells = {}
-        for name, f, array in zip(("lu_Fg", "lu_C"), (self.Fg, self.C), kept[0], strict=True):
-            dofmap = f.function_space.dofmap
-            cells[name] = array.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
-        return cells, kept[1]
+        named = zip(("lu_Fg", "lu_C"), (self.Fg, self.C), kept[0], strict=True)
+        return {name: self.cell_values(f, array) for name, f, array in named}, kept[1]
 
     def restore_factors(self, state: dict[str, np.ndarray], index: np.ndarray) -> None:
         """Collective: factorize the matrix of the saved :meth:`factorized_cells` (a resumed
