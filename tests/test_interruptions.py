@@ -37,6 +37,7 @@ from mpi4py import MPI
 from plantgrowth.cli import main
 from plantgrowth.models.linear import SolveReport
 from plantgrowth.models.macro import problem as macro_problem
+from plantgrowth.runner.output import StateFile
 from plantgrowth.scene.limits import MACRO_RTOL
 
 pytestmark = pytest.mark.mpi  # scripts/README.md, "Tests": every test also runs on 2 ranks
@@ -124,12 +125,16 @@ def written(every: int) -> list[int]:
 
 
 def state_steps(outdir: Path) -> list[int]:
-    with h5py.File(outdir / "state.h5", "r") as f:
-        return sorted(int(name.split("_")[1]) for name in f)
+    """The steps state.h5 and state_previous.h5 hold."""
+    return StateFile(outdir, MPI.COMM_SELF).steps()
+
+
+def saved_state(outdir: Path, step: int) -> dict[str, np.ndarray]:
+    return StateFile(outdir, MPI.COMM_SELF).read(step)
 
 
 def check_readable(outdir: Path, every: int = 1) -> list[int]:
-    """Every visible step file, both XDMF indexes, summary.csv and state.h5 are consistent and
+    """Every visible step file, both XDMF indexes, summary.csv and the state are consistent and
     readable; returns the completed steps (those with a summary row)."""
     rows = [int(r["step"]) for r in summary_rows(outdir)]
     assert rows == list(range(len(rows))) and rows, f"summary.csv rows {rows}"
@@ -142,10 +147,10 @@ def check_readable(outdir: Path, every: int = 1) -> list[int]:
     assert state_steps(outdir)[-1] in (rows[-1], rows[-1] - 1)
     with h5py.File(outdir / "fields.h5", "r") as f:
         centroids = f["Mesh/geometry"][...][f["Mesh/topology"][...]].mean(axis=1)
-    with h5py.File(outdir / "state.h5", "r") as f:
-        # the state's cells in the order of the mesh in fields.h5, as the fields are
-        mismatch = np.abs(f[f"step_{state_steps(outdir)[-1]:06d}/midpoints"][...] - centroids)
-        assert mismatch.max() < 1e-9, f"cells not in fields.h5's order ({mismatch.max():.3g})"
+    # the state's cells in the order of the mesh in fields.h5, as the fields are
+    midpoints = saved_state(outdir, state_steps(outdir)[-1])["midpoints"]
+    mismatch = np.abs(midpoints - centroids)
+    assert mismatch.max() < 1e-9, f"cells not in fields.h5's order ({mismatch.max():.3g})"
     for step in steps:
         with h5py.File(outdir / "fields" / f"step_{step:06d}.h5", "r") as f:
             assert f.attrs["step"] == step and f.attrs["t"] == step * 1.0
@@ -185,10 +190,9 @@ def final_fields(outdir: Path) -> dict[str, np.ndarray]:
     node / cell coordinates (the serial and parallel runs number them differently)."""
     with h5py.File(outdir / "fields.h5", "r") as f:
         nodes = f["Mesh/geometry"][...]
-    with h5py.File(outdir / "state.h5", "r") as f:
-        state = f[f"step_{N_STEPS:06d}"]
-        midpoints = state["midpoints"][...]
-        values = {f"state/{k}": _sorted_by(midpoints, state[k][...]) for k in ("Fg", "G")}
+    state = saved_state(outdir, N_STEPS)
+    midpoints = state["midpoints"]
+    values = {f"state/{k}": _sorted_by(midpoints, state[k]) for k in ("Fg", "G")}
     with h5py.File(outdir / "fields" / f"step_{N_STEPS:06d}.h5", "r") as f:
         values["u"] = _sorted_by(nodes, f["u"][...].astype(float))
         values["Fg"] = _sorted_by(midpoints, f["Fg"][...].astype(float))
@@ -310,7 +314,7 @@ def test_sigkill_with_output_every_resumes_to_the_same_written_steps(
 def test_resume_after_a_kill_between_step_file_and_summary_row(scene_file, reference, tmp_path):
     """SIGKILL can land after a step's HDF5 file is renamed into place and before its summary
     row is appended (check_readable allows that state). Simulated deterministically: drop the
-    last row of a killed run (state.h5 keeps the step before too). The resumed run must still
+    last row of a killed run (state_previous.h5 keeps the step before). The resumed run must still
     have one row per step."""
     outdir = _kill_and_check(scene_file, tmp_path, 1)
     steps = step_files(outdir)
@@ -459,8 +463,8 @@ def test_failed_solve_exits_3_naming_step_time_and_cause(tmp_path_factory, monke
 def test_resume_with_the_adaptive_integrator(mpi_tmp_path):
     """--resume redoes the last step's advance with the scene's integrator: with 'adaptive'
     (sub-steps, extra solves) the resumed run equals the uninterrupted one. The interruption is
-    simulated by deleting the last step's file and summary row (state.h5 keeps the step before,
-    so the run continues from step 1)."""
+    simulated by deleting the last step's file and summary row (state_previous.h5 keeps the step
+    before, so the run continues from step 1)."""
     scene = mpi_tmp_path / "adaptive.toml"
     if MPI.COMM_WORLD.rank == 0:
         scene.write_text(

@@ -121,7 +121,8 @@ def assert_same_fields_and_state(outdir: Path, reference: Path, steps: list[int]
     for step in steps:
         path = Path("fields") / f"step_{step:06d}.h5"
         assert_same_datasets(outdir / path, reference / path, ULP32 + RTOL)
-    assert_same_datasets(outdir / "state.h5", reference / "state.h5", RTOL)
+    for name in ("state.h5", "state_previous.h5"):
+        assert_same_datasets(outdir / name, reference / name, RTOL)
 
 
 def assert_same_outputs(outdir: Path, reference: Path) -> None:
@@ -214,8 +215,9 @@ def test_every_writes_t0_each_kth_and_the_last_step_and_every_row(runs):
     assert indexed_times(outdir / "fields.xdmf") == [0.0, 4.0, 8.0, 10.0]
     assert indexed_times(outdir / "coarse.xdmf") == [0.0, 4.0, 8.0, 10.0]
     assert [r["step"] for r in summary(outdir)] == list(range(11))
-    with h5py.File(outdir / "state.h5", "r") as f:
-        assert sorted(f) == ["step_000009", "step_000010"]
+    for name, step in (("state.h5", 10), ("state_previous.h5", 9)):  # each step's state once
+        with h5py.File(outdir / name, "r") as f:
+            assert sorted(f) == [f"step_{step:06d}"]
 
 
 @pytest.mark.mpi
@@ -346,11 +348,12 @@ def test_extending_a_run_writes_the_steps_of_an_uninterrupted_one(runs, tmp_path
 
 
 def test_resume_without_a_state_starts_again_at_t0(runs, tmp_path_factory, capsys):
-    """A directory with no state.h5 (e.g. written before it existed) is rerun from t = 0."""
+    """A directory with no state (e.g. written before it existed) is rerun from t = 0."""
     directory = shared_dir(tmp_path_factory, "no_state")
     outdir = run(directory, "rerun", scene_text())
     if RANK0:
         (outdir / "state.h5").unlink()
+        (outdir / "state_previous.h5").unlink()
     MPI.COMM_WORLD.Barrier()
     code, _, err = call(["run", directory / "rerun.toml", "--resume", outdir], capsys)
     assert code == 0, err

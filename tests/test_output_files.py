@@ -106,7 +106,7 @@ def test_output_directory_holds_the_run_files(good_run):
     _, outdir = good_run
     names = {p.name for p in outdir.iterdir()}
     assert names == {"fields.xdmf", "coarse.xdmf", "fields.h5", "fields", "state.h5",
-                     "summary.csv", "scene.toml", "run.log"}  # fmt: skip
+                     "state_previous.h5", "summary.csv", "scene.toml", "run.log"}  # fmt: skip
     assert not [n for n in names if n.startswith(".")]  # the write probe is gone
 
 

@@ -120,8 +120,8 @@ def test_every_rank_writes_its_own_block_and_nothing_is_gathered(mpi_tmp_path, m
 
 
 def test_state_keeps_the_previous_steps_blocks_and_whole_arrays(mpi_tmp_path):
-    """Two steps in state.h5, each as written; an array every rank holds (Block.whole) is
-    written once, by rank 0."""
+    """The last two steps saved (state_previous.h5, state.h5), each as written; an array every
+    rank holds (Block.whole) is written once, by rank 0."""
     state = StateFile(mpi_tmp_path, WORLD)
     whole = np.arange(12.0).reshape(3, 2, 2)
     split = np.arange(10.0 * WORLD.size)
@@ -133,6 +133,35 @@ def test_state_keeps_the_previous_steps_blocks_and_whole_arrays(mpi_tmp_path):
         saved = state.read(step)
         np.testing.assert_array_equal(saved["Fg"], step * whole)
         np.testing.assert_array_equal(saved["x"], step * split)
+
+
+def test_each_steps_state_is_written_once_and_a_resume_keeps_its_step(mpi_tmp_path):
+    """After every write state.h5 holds the new step alone and state_previous.h5 the step before
+    (the file state.h5 was: renamed, not written again); a run resumed from the previous step
+    keeps it as the previous one when it writes its next step again; a run started afresh
+    leaves no previous state of an earlier run."""
+
+    def write(state, step):
+        state.write(step, step * 0.5, {"x": Block.split(step * split, WORLD)})
+
+    def groups(name):
+        if not (mpi_tmp_path / name).is_file():
+            return []
+        with h5py.File(mpi_tmp_path / name, "r") as f:
+            return sorted(f)
+
+    split = np.arange(10.0 * WORLD.size)
+    state = StateFile(mpi_tmp_path, WORLD)
+    for step in (1, 2, 3):
+        write(state, step)
+    assert (groups("state_previous.h5"), groups("state.h5")) == (["step_000002"], ["step_000003"])
+    resumed = StateFile(mpi_tmp_path, WORLD)  # summary.csv lost step 3's row: from step 2
+    np.testing.assert_array_equal(resumed.read(2)["x"], 2 * split)
+    write(resumed, 3)
+    assert resumed.steps() == [2, 3]
+    assert (groups("state_previous.h5"), groups("state.h5")) == (["step_000002"], ["step_000003"])
+    write(StateFile(mpi_tmp_path, WORLD), 0)  # afresh: no previous step
+    assert StateFile(mpi_tmp_path, WORLD).steps() == [0]
 
 
 SCENE = {
@@ -166,7 +195,7 @@ def test_distributed_files_equal_the_serial_run_files(mpi_tmp_path):
     with h5py.File(both / "fields.h5", "r") as a, h5py.File(alone / "fields.h5", "r") as b:
         np.testing.assert_array_equal(a["Mesh/topology"][...], b["Mesh/topology"][...])
         np.testing.assert_allclose(a["Mesh/geometry"][...], b["Mesh/geometry"][...], atol=1e-14)
-    for name in [*names, Path("state.h5")]:
+    for name in [*names, Path("state.h5"), Path("state_previous.h5")]:
         with h5py.File(both / name, "r") as a, h5py.File(alone / name, "r") as b:
             datasets = dataset_names(b)
             assert datasets
@@ -199,18 +228,18 @@ def test_a_deflated_chunk_is_the_one_hdf5_writes(tmp_path):
 
 def test_a_rank_without_rows_writes_nothing_and_the_file_is_whole(mpi_tmp_path):
     """Datasets of one row (the other ranks' blocks empty), compressed and contiguous, and an
-    empty one: read back equal on every rank count; links and attributes as laid out."""
+    empty one: read back equal on every rank count; attributes as laid out."""
     one = np.array([[1.5, -2.0]])
     datasets = [
         h5_blocks.Dataset("a/x", Block.split(one, WORLD), np.dtype(np.float32), True),
         h5_blocks.Dataset("a/y", Block.split(one, WORLD), np.dtype(np.float64), False),
         h5_blocks.Dataset("e", Block.split(np.zeros((0, 3)), WORLD), np.dtype(np.float64), False),
     ]
-    layout = h5_blocks.H5Layout(links={"b/y": "a/y"}, attrs={"/": {"step": 3}, "a": {"t": 0.5}})
+    layout = h5_blocks.H5Layout(attrs={"/": {"step": 3}, "a": {"t": 0.5}})
     path = mpi_tmp_path / "one.h5"
     h5_blocks.write_blocks(path, mpi_tmp_path / ".one.h5.tmp", datasets, layout, WORLD)
     with h5py.File(path, "r") as f:
         np.testing.assert_array_equal(f["a/x"][...], one.astype(np.float32))
-        np.testing.assert_array_equal(f["b/y"][...], one)
+        np.testing.assert_array_equal(f["a/y"][...], one)
         assert f["e"].shape == (0, 3) and f.attrs["step"] == 3 and f["a"].attrs["t"] == 0.5
     assert not (mpi_tmp_path / ".one.h5.tmp").exists()

@@ -112,8 +112,9 @@ def build_parser() -> argparse.ArgumentParser:
         parents=[_QUIET],
         help="run a scene (also under mpirun)",
         description="Run the simulation a scene describes; writes DIR/fields.xdmf (+ .h5; "
-        "macro runs also DIR/coarse.xdmf: E_hom at the coarse nodes), DIR/state.h5 (for "
-        "--resume), DIR/summary.csv, DIR/scene.toml (the resolved scene) and DIR/run.log.",
+        "macro runs also DIR/coarse.xdmf: E_hom at the coarse nodes), DIR/state.h5 and "
+        "DIR/state_previous.h5 (for --resume), DIR/summary.csv, DIR/scene.toml (the resolved "
+        "scene) and DIR/run.log.",
     )
     run.add_argument("scene", type=Path, help="scene TOML file")
     run.add_argument(

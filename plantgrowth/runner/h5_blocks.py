@@ -4,7 +4,7 @@ A dataset is either contiguous (float64 state) or compressed (fields: HDF5's byt
 deflate, one chunk per rank's block). Every rank first prepares its bytes: a compressed block
 is shuffled and deflated by the rank that holds it, so the ranks compress in parallel. Rank 0
 then lays the file out alone: the datasets, a placeholder of the right length for every
-rank's chunk (:meth:`h5py.h5d.DatasetID.write_direct_chunk`), the links and attributes; it
+rank's chunk (:meth:`h5py.h5d.DatasetID.write_direct_chunk`) and the attributes; it
 closes the file and sends every rank where its bytes go (the chunk's byte offset, or the
 contiguous dataset's offset plus the block's first row). Each rank then writes its bytes there
 with ``os.pwrite``: the bytes of a chunk written this way are the bytes HDF5's own filters give
@@ -50,10 +50,9 @@ class Dataset:
 
 @dataclass
 class H5Layout:
-    """What rank 0 lays out besides the datasets: hard links (path -> an earlier dataset's
-    path) and attributes (of the file, or of a group: path -> {name: value})."""
+    """What rank 0 lays out besides the datasets: attributes (of the file, or of a group:
+    path -> {name: value})."""
 
-    links: dict[str, str] = field(default_factory=dict)
     attrs: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
@@ -117,7 +116,7 @@ def _payload(d: Dataset, size: int) -> bytes | memoryview:
 def _lay_out(
     tmp: Path, datasets: list[Dataset], layout: H5Layout, lengths: list[list[int]], size: int
 ) -> list:
-    """Rank 0: the file with every dataset, link and attribute, each rank's chunks as
+    """Rank 0: the file with every dataset and attribute, each rank's chunks as
     placeholders of their lengths; per dataset, where its bytes go (compressed: the byte
     offset of each rank's chunk; contiguous: the dataset's)."""
     offsets: list = []
@@ -143,8 +142,6 @@ def _lay_out(
                     dataset.id.write_direct_chunk(corner, bytes(lengths[rank][i]))
                     where[rank] = dataset.id.get_chunk_info_by_coord(corner).byte_offset
             offsets.append(where)
-        for name, target in layout.links.items():
-            f[name] = f[target]
         for name, attrs in layout.attrs.items():
             group = f if name == "/" else f.require_group(name)
             for key, value in attrs.items():
