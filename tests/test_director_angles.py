@@ -123,6 +123,34 @@ def test_node_count_is_refined_to_the_tolerance_and_is_one_per_table(tolerance):
     assert count <= (24 if tolerance > 1e-4 else 48)
 
 
+def test_a_director_on_a_node_asks_that_node_alone():
+    """The other nodes' cardinal functions are 0 at a node (and the surplus terms' weights), so
+    a query whose director is on the node 90 (or 270, the same axis) asks that node's table
+    alone, at its stretch, and is answered by it exactly; a query off the node, in the same
+    call, still asks all M. Before, every query asked every fine node (those of weight 0 at
+    tolerance 1): 24 solves on a fibred reference scene (rotation-free growth) instead of 4."""
+    asked: dict[tuple, set] = {}  # stretch -> the tables asked there
+
+    def recording(tables, which, s_asked, tolerance) -> Answer:
+        which = np.asarray(which, dtype=np.int64)
+        for t, point in zip(which.tolist(), np.reshape(s_asked, (-1, 2)).tolist(), strict=True):
+            asked.setdefault(tuple(point), set()).add(tables[t])
+        return fake_evaluate(tables, which, s_asked, tolerance)
+
+    angles = director_lattice.DirectorInterpolant(
+        recording, difference, 1e-3, MPI.COMM_SELF, ExactValues()
+    )
+    s = np.array([[0.05, 0.01], [-0.02, 0.03], [0.01, -0.04]])
+    b = np.array([90.0, 270.0, 100.0])
+    answer = angles([FIBRED], np.zeros(3, dtype=np.int64), s, b)
+    count = angles.count(FIBRED)
+    node = FIBRED + (director_lattice.PERIOD // 2,)  # 90 degrees
+    fine = {FIBRED + (j * director_lattice.PERIOD // count,) for j in range(count)}
+    assert asked[tuple(s[0])] == asked[tuple(s[1])] == {node}
+    assert asked[tuple(s[2])] == fine
+    np.testing.assert_array_equal(answer.values[:2], director_map(np.full(2, 90.0), s[:2]))
+
+
 def curved_map(b: np.ndarray, s: np.ndarray) -> np.ndarray:
     """The director map with an angle dependence that varies with the stretch (exp(3 s1)):
     the angle surpluses are then not linear in s, so the coarse grids' bilinear interpolants

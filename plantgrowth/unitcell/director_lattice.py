@@ -177,10 +177,11 @@ class DirectorInterpolant:
         groups: dict[tuple, np.ndarray], plain: np.ndarray,
     ) -> tuple[Answer, list[tuple]]:  # fmt: skip
         """One collective evaluation of the fibred tables' M nodes at their queries' stretches
-        (each to its :func:`node_tolerance`), of the grid squares' builders of every node of
-        the surplus terms (:data:`SURPLUS_TERMS`) and of the isotropic queries. Returns the
-        answer and, per fibred table, its queries (q,), their weights (q, M), their rows in the
-        answer (q, M) and the surplus terms' grids."""
+        (each to its :func:`node_tolerance`; a node whose weight at a query is 0 is not asked
+        there), of the grid squares' builders of every node of the surplus terms
+        (:data:`SURPLUS_TERMS`) and of the isotropic queries. Returns the answer and, per
+        fibred table, its queries (q,), their weights (q, M), their rows in the answer (q, M)
+        and the surplus terms' grids."""
         ask_tables: list[tuple] = []
         ask_which, ask_s, tol, layout = [], [], [], []
         offset = 0
@@ -191,12 +192,17 @@ class DirectorInterpolant:
                 k: trigonometric_weights(b[queries], k * count) for k in (1, *factors)
             }
             weights = cardinal[1]
-            ask_which.append(np.tile(len(ask_tables) + np.arange(count), len(queries)))
+            # a node of weight 0 (every other node, for a director on a node) is not asked:
+            # its row is any of the table's (times 0 in the answer)
+            used = weights != 0.0
+            query, node = np.nonzero(used)
+            ask_which.append(len(ask_tables) + node)
             ask_tables += [table + (j * PERIOD // count,) for j in range(count)]
-            ask_s.append(np.repeat(s[queries], count, axis=0))
-            tol.append(node_tolerance(self.tolerance, weights).ravel())
-            rows = offset + np.arange(len(queries) * count).reshape(len(queries), count)
-            offset += rows.size
+            ask_s.append(s[queries[query]])
+            tol.append(node_tolerance(self.tolerance, weights[used]))
+            rows = np.full(weights.shape, offset)
+            rows[used] = offset + np.arange(len(query))
+            offset += len(query)
             grids = []
             surpluses = [
                 angle_surplus.surplus_weights(cardinal[factor], cardinal[factor // 2])

@@ -422,6 +422,14 @@ MUTANTS = (
         (("weights = np.sin(count * d) * np.cos(d) / (count * safe)",
           "weights = np.sin(count * d) / (count * safe)"),),
     ),
+    Mutant(
+        "director_small_weights_skipped", "plantgrowth/unitcell/director_lattice.py", "factor",
+        "the fine nodes of small weight (|l_j(b)| <= 1e-3) not asked, as those of weight 0 are, "
+        "so their terms take another node's answer: the director's angle dependence near a "
+        "node cut off (issue 33's last stop asks every node of nonzero weight)",
+        (("used = weights != 0.0\n            query, node = np.nonzero(used)",
+          "used = np.abs(weights) > 1e-3\n            query, node = np.nonzero(used)"),),
+    ),
     # --- issue 33, this stop: stop squares, the angle's sparse grid, refinement, AMG reuse ------
     Mutant(
         "lattice_place_per_level", "plantgrowth/unitcell/lattice.py", "wrong scale",
