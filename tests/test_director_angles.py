@@ -244,3 +244,73 @@ def test_the_2M_nodes_surplus_is_exact_on_the_level1_grid():
           f"{difference(only_fine, exact).max():.2g}")  # fmt: skip
     assert difference(answer.values, exact).max() <= ROUND_OFF
     assert difference(only_fine, exact).max() > 0.1
+
+
+def test_the_near_node_blend_is_a_c1_step_in_the_distance_to_the_nearest_node():
+    """0 within NEAR_NODE[0] node spacings of a node (on either side, and across 0 = 180), 1
+    beyond NEAR_NODE[1], increasing in between with zero slope at both ends (C1)."""
+    count, spacing = 6, 30.0
+    low, high = (spacing * x for x in director_lattice.NEAR_NODE)
+    b = np.array([90.0, 90.0 - 0.9 * low, 0.5 * low, 180.0 - 0.5 * low, 90.0 + 1.1 * high, 105.0])
+    nearest, blend = director_lattice.near_node_blend(b, count)
+    assert nearest.tolist() == [3, 3, 0, 0, 3, 4]  # 105 is a midpoint: either; round-half-even
+    assert blend.tolist() == [0.0, 0.0, 0.0, 0.0, 1.0, 1.0]
+    inside = 90.0 + np.linspace(low, high, 201)
+    step = director_lattice.near_node_blend(inside, count)[1]
+    assert step[0] < ROUND_OFF and step[-1] > 1.0 - ROUND_OFF and np.all(np.diff(step) > 0.0)
+    slope = np.diff(step) / np.diff(inside)
+    assert slope[0] < 0.02 * slope.max() and slope[-1] < 0.02 * slope.max()
+
+
+def test_a_director_near_a_node_asks_that_node_and_the_level0_grid_and_is_continuous():
+    """Within NEAR_NODE[0] of node 90 a query asks node 90's table at its own stretch, the other
+    nodes only at the level-0 grid's builders, and none of the surplus grids' new nodes; its
+    answer is A_k = S_k + (I_M - I_k)[P_0 f], which for a map linear in s (P_0 exact) is I_M f
+    itself (round-off). Across the blend zone, for a map whose angle dependence varies with s
+    (P_0 not exact, so A_k and A differ), the answer changes from sample to sample by no more
+    than the exact map does plus 1e-3 of the tolerance (1e-6 relative): no jump where A_k gives
+    way to A (a step at mid-zone in place of the C1 blend fails this: checked)."""
+    spacing = 30.0
+    low, high = (spacing * x for x in director_lattice.NEAR_NODE)
+    asked: dict[tuple, set] = {}
+
+    def recording(f):
+        def evaluate(tables, which, s_asked, tolerance) -> Answer:
+            which = np.asarray(which, dtype=np.int64)
+            for t, point in zip(which.tolist(), np.reshape(s_asked, (-1, 2)).tolist(),
+                                strict=True):  # fmt: skip
+                asked.setdefault(tuple(point), set()).add(tables[t])
+            return fake_evaluate(tables, which, s_asked, tolerance, f)
+
+        return evaluate
+
+    s = np.array([[0.034, 0.012], [-0.021, 0.047]])
+    b = np.array([90.0 + 0.5 * low, 90.0 - 0.8 * low])
+    angles = director_lattice.DirectorInterpolant(
+        recording(director_map), difference, 1e-3, MPI.COMM_SELF, ExactValues()
+    )
+    answer = angles([FIBRED], np.zeros(2, dtype=np.int64), s, b)
+    count = angles.count(FIBRED)
+    node = FIBRED + (director_lattice.PERIOD // 2,)
+    assert asked[tuple(s[0])] == asked[tuple(s[1])] == {node}
+    builders = {(0.0, 0.0), (-0.1, 0.0)}  # the level-0 squares' lower-left corners
+    assert asked.keys() == {tuple(s[0]), tuple(s[1])} | builders
+    nodes = {FIBRED + (j * director_lattice.PERIOD // count,) for j in range(count)}
+    assert all(asked[p] == nodes for p in builders)
+    fine = np.array([director_map(np.full(2, a), s) for a in np.arange(count) * 180.0 / count])
+    I_M = np.einsum("qj,jqm->qm", director_lattice.trigonometric_weights(b, count), fine)
+    np.testing.assert_allclose(answer.values, I_M, rtol=ROUND_OFF)
+
+    b = 90.0 + np.linspace(0.5 * low, 1.5 * high, 401)
+    s = np.tile([[0.034, 0.012]], (len(b), 1))
+    angles = director_lattice.DirectorInterpolant(
+        recording(curved_map), difference, 1e-3, MPI.COMM_SELF, ExactValues(curved_map)
+    )
+    values = angles([FIBRED], np.zeros(len(b), dtype=np.int64), s, b).values
+    exact = curved_map(b, s)
+    scale = np.linalg.norm(exact, axis=1)[:-1]
+    moved = np.linalg.norm(np.diff(values, axis=0), axis=1) / scale
+    exact_moved = np.linalg.norm(np.diff(exact, axis=0), axis=1) / scale
+    assert np.all(moved <= exact_moved + 1e-6)
+    print(f"largest change {moved.max():.2g}, the exact map's {exact_moved.max():.2g}")
+    assert difference(values, exact).max() <= 1e-3

@@ -32,6 +32,17 @@ goes up while the largest estimate over its queries (all ranks) exceeds the tole
 once raised in a call, while it exceeds ``KEEP`` times it (the gap of
 :mod:`plantgrowth.unitcell.surrogate`).
 
+Near a fine node b_k (within ``NEAR_NODE[1]`` of the spacing ``180 / M``) the answer is
+
+    A_k(b, s) = S_k(s) + (I_M - I_k)[P_0 f](b, s),
+
+node k's own table plus the angle interpolant's change on the M nodes' level-0 stretch grid
+(I_k: the constant at node k), blended into A with a C1 step in the distance to the node (A
+alone beyond ``NEAR_NODE[1]``, A_k alone within ``NEAR_NODE[0]``). A_k is A's first-order term
+in b - b_k with the other nodes' tables and the surplus terms, all of weight O(b - b_k), taken
+on the coarse grid: a director a hair off a node (a fixed director turned by the growth's
+rotation) asks one stretch table instead of M and none of the surplus grids.
+
 The cardinal functions change sign, so E_hom is no longer a non-negative combination of SPD
 tensors; it stays SPD because it is within the tolerance (1e-3 relative) of the exact tensors,
 whose smallest eigenvalue is about 1e-2 of their norm (the honeycomb's G12 / E1).
@@ -68,6 +79,13 @@ LEVEL_CAP = 4
 """Largest L a table is refined to: M = 96 fine nodes (1.9 degrees apart, 384 on the level-0
 grid); every query asks every fine node, so an estimate that does not converge (a map that is
 not smooth in the angle) must not take the count on to 12 288."""
+NEAR_NODE = (1.0 / 1200.0, 1.0 / 600.0)
+"""Distances to the nearest fine node, in fine-node spacings (0.025 and 0.05 degrees at M = 6),
+between which the near-node form A_k (module docstring) is blended into A. Measured on the fibred
+gradient scene with a fixed director (scenes/gradient_E_strain.toml, fibre_stiffness 5,
+fibre_angle 90; its directors 0.002 degrees off node 90 at the median, 0.028 at most): A_k
+within 2.8e-5 of A over all 252,540 queries of the 61 steps, 3% of the 1e-3 tolerance; the
+difference is first order in the distance, so about 5e-5 at 0.05 degrees (docs/fibres.md)."""
 PERIOD = round(180.0 / ANGLE_STEP)
 """Node indices per 180 degrees (index PERIOD is index 0)."""
 
@@ -84,6 +102,16 @@ def trigonometric_weights(b: np.ndarray, count: int) -> np.ndarray:
     weights = np.sin(count * d) * np.cos(d) / (count * safe)
     weights[hit] = np.arange(count)[None, :] == (node[hit, None] % count)
     return weights
+
+
+def near_node_blend(b: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per angle b (n,): the nearest of ``count`` equispaced nodes and the weight of A in the
+    blend with the near-node form (module docstring): 0 within ``NEAR_NODE[0]`` node spacings
+    of it, 1 beyond ``NEAR_NODE[1]``, the C1 step ``3 t^2 - 2 t^3`` in between."""
+    x = np.asarray(b, dtype=float) / (180.0 / count)
+    node = np.round(x)
+    t = np.clip((np.abs(x - node) - NEAR_NODE[0]) / (NEAR_NODE[1] - NEAR_NODE[0]), 0.0, 1.0)
+    return node.astype(np.int64) % count, t * t * (3.0 - 2.0 * t)
 
 
 def node_tolerance(tolerance: float, weight: np.ndarray) -> np.ndarray:
@@ -192,9 +220,11 @@ class DirectorInterpolant:
                 k: trigonometric_weights(b[queries], k * count) for k in (1, *factors)
             }
             weights = cardinal[1]
-            # a node of weight 0 (every other node, for a director on a node) is not asked:
-            # its row is any of the table's (times 0 in the answer)
-            used = weights != 0.0
+            nearest, blend = near_node_blend(b[queries], count)
+            own = np.arange(count)[None, :] == nearest[:, None]
+            # asked: the nodes of nonzero weight, only the nearest one where A is not blended
+            # in; a node not asked has as its row any of the table's (times 0, or unused)
+            used = (weights != 0.0) & ((blend > 0.0)[:, None] | own)
             query, node = np.nonzero(used)
             ask_which.append(len(ask_tables) + node)
             ask_tables += [table + (j * PERIOD // count,) for j in range(count)]
@@ -208,7 +238,7 @@ class DirectorInterpolant:
                 angle_surplus.surplus_weights(cardinal[factor], cardinal[factor // 2])
                 for factor in factors
             ]  # all zero at a fine node's angle: no grid asked for it (exactly, the terms are 0)
-            need = np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0)
+            need = np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0) & (blend > 0.0)
             for (factor, level), surplus in zip(SURPLUS_TERMS, surpluses, strict=True):
                 nodes = [table + (j * PERIOD // (factor * count),) for j in range(factor * count)]
                 squares, square, hats = angle_surplus.grid_squares(s[queries[need]], level)
@@ -219,7 +249,19 @@ class DirectorInterpolant:
                 tol.append(np.ones(len(nodes) * len(build)))  # the corners are what is wanted
                 offset += len(nodes) * len(build)
                 grids.append((nodes, squares, level, square, hats, surplus[need]))
-            layout.append((queries, weights, rows, need, grids))
+            far = (blend < 1.0) & ((weights != 0.0) & ~own).any(axis=1)
+            near = None  # the near-node form's grid: the M nodes' level-0 squares
+            if far.any():
+                nodes = [table + (j * PERIOD // count,) for j in range(count)]
+                squares, square, hats = angle_surplus.grid_squares(s[queries[far]], 0)
+                build = angle_surplus.builders(squares, 0)
+                ask_which.append(np.repeat(len(ask_tables) + np.arange(count), len(build)))
+                ask_tables += nodes
+                ask_s.append(np.tile(build, (count, 1)))
+                tol.append(np.ones(count * len(build)))
+                offset += count * len(build)
+                near = (far, nodes, squares, square, hats, (weights - own)[far])
+            layout.append((queries, weights, rows, need, grids, nearest, blend, near))
         ask_which.append(len(ask_tables) + which[plain])
         ask_tables += list(tables)
         ask_s.append(s[plain])
@@ -243,7 +285,7 @@ class DirectorInterpolant:
         values[plain] = answer.values[start:]
         estimates[plain] = answer.estimates[start:]
         interpolated[plain] = answer.interpolated[start:]
-        for queries, weights, rows, need, grids in layout:
+        for queries, weights, rows, need, grids, nearest, blend, near in layout:
             value = np.einsum("qj,qjm->qm", weights, answer.values[rows])
             terms = [np.zeros_like(value) for _ in grids]
             coarse = np.zeros_like(value)
@@ -258,13 +300,32 @@ class DirectorInterpolant:
                 coarse[need] = angle_surplus.grid_term(
                     first, squares, level, square, hats, surplus, self._values
                 )  # the first surplus term on the last term's (coarser) grid
-            values[queries] = value + sum(terms)
-            estimates[queries] = np.maximum(
-                self._difference(values[queries] - terms[-1], values[queries]),
-                self._difference(values[queries] - terms[0] + coarse, values[queries]),
+            full = value + sum(terms)
+            # near a node the angle's terms are O(distance to it): no estimate asks for more M
+            estimates[queries] = (blend > 0.0) * np.maximum(
+                self._difference(full - terms[-1], full),
+                self._difference(full - terms[0] + coarse, full),
             )
+            values[queries] = self._blend(full, answer.values, rows, nearest, blend, near)
             used = weights != 0.0
             interpolated[queries] = (
                 (used.sum(axis=1) > 1) | (used & answer.interpolated[rows]).any(axis=1) | need
             )
         return values, estimates, interpolated
+
+    def _blend(
+        self, full: np.ndarray, answers: np.ndarray, rows: np.ndarray, nearest: np.ndarray,
+        blend: np.ndarray, near: tuple | None,
+    ) -> np.ndarray:  # fmt: skip
+        """A (``full``) blended with the near-node form A_k = S_k + (I_M - I_k)[P_0 f] by the
+        weights ``blend`` (module docstring): A where the weight is 1, A_k where it is 0."""
+        if (blend == 1.0).all():
+            return full
+        own = answers[rows[np.arange(len(rows)), nearest]]  # S_k (a copy)
+        if near is not None:
+            far, nodes, squares, square, hats, change = near
+            own[far] += angle_surplus.grid_term(
+                nodes, squares, 0, square, hats, change, self._values
+            )
+        w = blend[:, None]
+        return np.where(w == 1.0, full, np.where(w == 0.0, own, w * full + (1.0 - w) * own))

@@ -427,8 +427,16 @@ MUTANTS = (
         "the fine nodes of small weight (|l_j(b)| <= 1e-3) not asked, as those of weight 0 are, "
         "so their terms take another node's answer: the director's angle dependence near a "
         "node cut off (issue 33's last stop asks every node of nonzero weight)",
-        (("used = weights != 0.0\n            query, node = np.nonzero(used)",
-          "used = np.abs(weights) > 1e-3\n            query, node = np.nonzero(used)"),),
+        (("used = (weights != 0.0) & ((blend > 0.0)[:, None] | own)",
+          "used = (np.abs(weights) > 1e-3) & ((blend > 0.0)[:, None] | own)"),),
+    ),
+    Mutant(
+        "director_near_node_step", "plantgrowth/unitcell/director_lattice.py", "wrong average",
+        "the near-node form A_k and the sparse grid's A switched by a step at mid-zone instead of "
+        "blended by the C1 step 3 t^2 - 2 t^3: the answer jumps by |A - A_k| where a director "
+        "crosses it (issue 33's last stop)",
+        (("    return node.astype(np.int64) % count, t * t * (3.0 - 2.0 * t)",
+          "    return node.astype(np.int64) % count, (t > 0.5).astype(float)"),),
     ),
     # --- issue 33, this stop: stop squares, the angle's sparse grid, refinement, AMG reuse ------
     Mutant(
