@@ -77,8 +77,8 @@ Measured for the reference cell at E_f/E = 5, s in [0, 0.15] x [-0.015, 0.04], b
 scripts/benchmarks/bench_angle_sparse.py)."""
 LEVEL_CAP = 4
 """Largest L a table is refined to: M = 96 fine nodes (1.9 degrees apart, 384 on the level-0
-grid); every query asks every fine node, so an estimate that does not converge (a map that is
-not smooth in the angle) must not take the count on to 12 288."""
+grid); every query away from a node asks every fine node, so an estimate that does not
+converge (a map that is not smooth in the angle) must not take the count on to 12 288."""
 NEAR_NODE = (1.0 / 1200.0, 1.0 / 600.0)
 """Distances to the nearest fine node, in fine-node spacings (0.025 and 0.05 degrees at M = 6),
 between which the near-node form A_k (module docstring) is blended into A. Measured on the fibred
