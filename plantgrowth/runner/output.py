@@ -55,12 +55,12 @@ from plantgrowth.runner.xdmf import (
     series_xml,
 )
 
-OUTPUT_FILES = (
-    "fields.xdmf", "coarse.xdmf", "cells.xdmf", "fields.h5", "state.h5", "state_previous.h5",
-    "summary.csv", "cells.csv", "scene.toml", "run.log",
-)  # fmt: skip
 PREVIOUS_STATE = "state_previous.h5"
 """The state of the step before state.h5's (:class:`StateFile`)."""
+OUTPUT_FILES = (
+    "fields.xdmf", "coarse.xdmf", "cells.xdmf", "fields.h5", "state.h5", PREVIOUS_STATE,
+    "summary.csv", "cells.csv", "scene.toml", "run.log",
+)  # fmt: skip
 _TEMPORARY = tuple(f".{name}.tmp" for name in OUTPUT_FILES)  # a kill during an atomic write
 _STEP_FILE = re.compile(r"\.?step_\d{6,}\.h5(\.tmp)?")  # a step file or its temporary name
 

@@ -241,7 +241,7 @@ class MacroModel:
 
     def _factor_blocks(self) -> dict[str, Block]:
         """Collective: the kept LU factors' coefficients (``lu_Fg``, ``lu_C``) and floor as state
-        blocks, the same objects while the factors are (StateFile writes them once)."""
+        blocks, made once per factorization (the canonical blocks' exchange, not every step)."""
         factors = self.problem.factors
         if factors is None or factors.floor is None:
             return {}
