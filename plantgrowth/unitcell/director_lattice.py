@@ -212,10 +212,23 @@ class DirectorInterpolant:
         and the surplus terms' grids."""
         ask_tables: list[tuple] = []
         ask_which, ask_s, tol, layout = [], [], [], []
-        offset = 0
+
+        def ask_grid(nodes: list[tuple], stretches: np.ndarray, level: int) -> tuple:
+            """Ask every node at the builders of the level-``level`` grid squares holding the
+            stretches (their corners are what is wanted: tolerance 1); returns the squares,
+            each stretch's square and its hats (:func:`angle_surplus.grid_squares`)."""
+            squares, square, hats = angle_surplus.grid_squares(stretches, level)
+            build = angle_surplus.builders(squares, level)
+            ask_which.append(np.repeat(len(ask_tables) + np.arange(len(nodes)), len(build)))
+            ask_tables.extend(nodes)
+            ask_s.append(np.tile(build, (len(nodes), 1)))
+            tol.append(np.ones(len(nodes) * len(build)))
+            return squares, square, hats
+
         factors = [factor for factor, _ in SURPLUS_TERMS]
         for table, queries in groups.items():
             count = self.count(table)
+            fine = [table + (j * PERIOD // count,) for j in range(count)]
             cardinal = {  # each interpolant's cardinal functions at the queries, once
                 k: trigonometric_weights(b[queries], k * count) for k in (1, *factors)
             }
@@ -226,13 +239,13 @@ class DirectorInterpolant:
             # in; a node not asked has as its row any of the table's (times 0, or unused)
             used = (weights != 0.0) & ((blend > 0.0)[:, None] | own)
             query, node = np.nonzero(used)
+            offset = sum(len(w) for w in ask_which)  # the rows asked before these
             ask_which.append(len(ask_tables) + node)
-            ask_tables += [table + (j * PERIOD // count,) for j in range(count)]
+            ask_tables.extend(fine)
             ask_s.append(s[queries[query]])
             tol.append(node_tolerance(self.tolerance, weights[used]))
             rows = np.full(weights.shape, offset)
             rows[used] = offset + np.arange(len(query))
-            offset += len(query)
             grids = []
             surpluses = [
                 angle_surplus.surplus_weights(cardinal[factor], cardinal[factor // 2])
@@ -241,29 +254,15 @@ class DirectorInterpolant:
             need = np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0) & (blend > 0.0)
             for (factor, level), surplus in zip(SURPLUS_TERMS, surpluses, strict=True):
                 nodes = [table + (j * PERIOD // (factor * count),) for j in range(factor * count)]
-                squares, square, hats = angle_surplus.grid_squares(s[queries[need]], level)
-                build = angle_surplus.builders(squares, level)
-                ask_which.append(np.repeat(len(ask_tables) + np.arange(len(nodes)), len(build)))
-                ask_tables += nodes
-                ask_s.append(np.tile(build, (len(nodes), 1)))
-                tol.append(np.ones(len(nodes) * len(build)))  # the corners are what is wanted
-                offset += len(nodes) * len(build)
+                squares, square, hats = ask_grid(nodes, s[queries[need]], level)
                 grids.append((nodes, squares, level, square, hats, surplus[need]))
             far = (blend < 1.0) & ((weights != 0.0) & ~own).any(axis=1)
             near = None  # the near-node form's grid: the M nodes' level-0 squares
             if far.any():
-                nodes = [table + (j * PERIOD // count,) for j in range(count)]
-                squares, square, hats = angle_surplus.grid_squares(s[queries[far]], 0)
-                build = angle_surplus.builders(squares, 0)
-                ask_which.append(np.repeat(len(ask_tables) + np.arange(count), len(build)))
-                ask_tables += nodes
-                ask_s.append(np.tile(build, (count, 1)))
-                tol.append(np.ones(count * len(build)))
-                offset += count * len(build)
-                near = (far, nodes, squares, square, hats, (weights - own)[far])
+                near = (far, fine, *ask_grid(fine, s[queries[far]], 0), (weights - own)[far])
             layout.append((queries, weights, rows, need, grids, nearest, blend, near))
         ask_which.append(len(ask_tables) + which[plain])
-        ask_tables += list(tables)
+        ask_tables.extend(tables)
         ask_s.append(s[plain])
         tol.append(np.full(len(plain), self.tolerance))
         answer = self._evaluate(
