@@ -235,9 +235,8 @@ def test_a_rank_without_rows_writes_nothing_and_the_file_is_whole(mpi_tmp_path):
         h5_blocks.Dataset("a/y", Block.split(one, WORLD), np.dtype(np.float64), False),
         h5_blocks.Dataset("e", Block.split(np.zeros((0, 3)), WORLD), np.dtype(np.float64), False),
     ]
-    layout = h5_blocks.H5Layout(attrs={"/": {"step": 3}, "a": {"t": 0.5}})
     path = mpi_tmp_path / "one.h5"
-    h5_blocks.write_blocks(path, mpi_tmp_path / ".one.h5.tmp", datasets, layout, WORLD)
+    h5_blocks.write_blocks(path, datasets, {"/": {"step": 3}, "a": {"t": 0.5}}, WORLD)
     with h5py.File(path, "r") as f:
         np.testing.assert_array_equal(f["a/x"][...], one.astype(np.float32))
         np.testing.assert_array_equal(f["a/y"][...], one)

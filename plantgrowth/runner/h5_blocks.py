@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import os
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
@@ -48,12 +48,9 @@ class Dataset:
     compressed: bool
 
 
-@dataclass
-class H5Layout:
-    """What rank 0 lays out besides the datasets: attributes (of the file, or of a group:
-    path -> {name: value})."""
-
-    attrs: dict[str, dict[str, float]] = field(default_factory=dict)
+def temporary_path(path: Path) -> Path:
+    """Where an atomic write of ``path`` puts its content before renaming it into place."""
+    return path.with_name(f".{path.name}.tmp")
 
 
 def chunk_rows(total: int, size: int) -> int:
@@ -73,14 +70,16 @@ def deflated(values: np.ndarray, rows: int) -> bytes:
 
 
 def write_blocks(
-    path: Path, tmp: Path, datasets: list[Dataset], layout: H5Layout, comm: MPI.Comm
+    path: Path, datasets: list[Dataset], attrs: dict[str, dict[str, float]], comm: MPI.Comm
 ) -> None:
-    """Write the file ``path`` (as ``tmp``, renamed to ``path`` when complete): collective,
-    every rank gives the same datasets in the same order, each with its block."""
+    """Write the file ``path`` (as :func:`temporary_path`, renamed to ``path`` when complete):
+    collective, every rank gives the same datasets in the same order, each with its block;
+    ``attrs``: the attributes of the file (``"/"``) or of a group, path -> {name: value}."""
+    tmp = temporary_path(path)
     payloads = [_payload(d, comm.size) for d in datasets]
     lengths = comm.gather([len(p) if d.compressed else 0
                            for d, p in zip(datasets, payloads, strict=True)])  # fmt: skip
-    offsets = _lay_out(tmp, datasets, layout, lengths, comm.size) if comm.rank == 0 else None
+    offsets = _lay_out(tmp, datasets, attrs, lengths, comm.size) if comm.rank == 0 else None
     offsets = comm.bcast(offsets, root=0)
     if any(len(p) for p in payloads):
         fd = os.open(tmp, os.O_WRONLY)
@@ -114,8 +113,9 @@ def _payload(d: Dataset, size: int) -> bytes | memoryview:
 
 
 def _lay_out(
-    tmp: Path, datasets: list[Dataset], layout: H5Layout, lengths: list[list[int]], size: int
-) -> list:
+    tmp: Path, datasets: list[Dataset], attrs: dict[str, dict[str, float]],
+    lengths: list[list[int]], size: int,
+) -> list:  # fmt: skip
     """Rank 0: the file with every dataset and attribute, each rank's chunks as
     placeholders of their lengths; per dataset, where its bytes go (compressed: the byte
     offset of each rank's chunk; contiguous: the dataset's)."""
@@ -142,8 +142,8 @@ def _lay_out(
                     dataset.id.write_direct_chunk(corner, bytes(lengths[rank][i]))
                     where[rank] = dataset.id.get_chunk_info_by_coord(corner).byte_offset
             offsets.append(where)
-        for name, attrs in layout.attrs.items():
+        for name, values in attrs.items():
             group = f if name == "/" else f.require_group(name)
-            for key, value in attrs.items():
+            for key, value in values.items():
                 group.attrs[key] = value
     return offsets

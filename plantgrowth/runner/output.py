@@ -44,7 +44,7 @@ from mpi4py import MPI
 
 from plantgrowth.base.blocks import Block, CanonicalBlocks
 from plantgrowth.models.step import SideMesh
-from plantgrowth.runner.h5_blocks import Dataset, H5Layout, write_blocks
+from plantgrowth.runner.h5_blocks import Dataset, temporary_path, write_blocks
 from plantgrowth.runner.xdmf import (
     ATTRIBUTE_TYPES,
     STEP_DIR,
@@ -61,7 +61,8 @@ OUTPUT_FILES = (
     "fields.xdmf", "coarse.xdmf", "cells.xdmf", "fields.h5", "state.h5", PREVIOUS_STATE,
     "summary.csv", "cells.csv", "scene.toml", "run.log",
 )  # fmt: skip
-_TEMPORARY = tuple(f".{name}.tmp" for name in OUTPUT_FILES)  # a kill during an atomic write
+# a kill during an atomic write leaves these
+_TEMPORARY = tuple(temporary_path(Path(name)).name for name in OUTPUT_FILES)
 _STEP_FILE = re.compile(r"\.?step_\d{6,}\.h5(\.tmp)?")  # a step file or its temporary name
 
 
@@ -102,11 +103,6 @@ def prepare_directory(directory: Path, comm: MPI.Comm, keep: bool = False) -> No
     error = comm.bcast(error, root=0)
     if error:
         raise OSError(error)
-
-
-def temporary_path(path: Path) -> Path:
-    """Where an atomic write of ``path`` puts its content before renaming it into place."""
-    return path.with_name(f".{path.name}.tmp")
 
 
 def atomic_write_text(path: Path, text: str, durable: bool = True) -> None:
@@ -194,10 +190,9 @@ class StateFile:
             elif self._kept is None:
                 self.previous_path.unlink(missing_ok=True)
         group = f"step_{step:06d}"
-        layout = H5Layout(attrs={group: {"t": t}})
         datasets = [Dataset(f"{group}/{key}", block, block.values.dtype, False)
                     for key, block in state.items()]  # fmt: skip
-        write_blocks(self.path, temporary_path(self.path), datasets, layout, self.comm)
+        write_blocks(self.path, datasets, {group: {"t": t}}, self.comm)
         self._kept = self.path
 
     def _saved(self) -> dict[int, Path]:
@@ -323,9 +318,8 @@ class FieldSeries:
             Dataset(name, Block(pad(block.values), block.start, block.total), self.dtype, True)
             for name, block in blocks.items()
         ]  # fmt: skip
-        layout = H5Layout(attrs={"/": {"step": step, "t": t}})
-        path = step_file(self.outdir, step)
-        write_blocks(path, temporary_path(path), datasets, layout, self.comm)
+        attrs = {"/": {"step": step, "t": t}}
+        write_blocks(step_file(self.outdir, step), datasets, attrs, self.comm)
         if self.comm.rank != 0:
             return
         self.steps = [(s, tt) for s, tt in self.steps if s < step] + [(step, t)]
