@@ -222,7 +222,8 @@ def test_the_2M_nodes_surplus_is_exact_on_the_level1_grid():
     each other's grids (the larger one on level 0) the answer misses by P_0's error."""
     rng = np.random.default_rng(3)
     points = np.array([[0.05, 0.0], [0.0, 0.05], [0.05, 0.05], [0.15, -0.05]])
-    b = rng.uniform(0.0, 180.0, 10 * len(points))
+    # angles 1.5 degrees or more from the fine nodes: A, not the near-node form, answers there
+    b = rng.uniform(1.5, 28.5, 10 * len(points)) + 30.0 * rng.integers(0, 6, 10 * len(points))
     s = np.repeat(points, 10, axis=0)
 
     def evaluate(tables, which, s_asked, tolerance) -> Answer:
@@ -246,32 +247,39 @@ def test_the_2M_nodes_surplus_is_exact_on_the_level1_grid():
     assert difference(only_fine, exact).max() > 0.1
 
 
-def test_the_near_node_blend_is_a_c1_step_in_the_distance_to_the_nearest_node():
-    """0 within NEAR_NODE[0] node spacings of a node (on either side, and across 0 = 180), 1
-    beyond NEAR_NODE[1], increasing in between with zero slope at both ends (C1)."""
-    count, spacing = 6, 30.0
-    low, high = (spacing * x for x in director_lattice.NEAR_NODE)
+@pytest.mark.parametrize("tolerance", [1e-2, 1e-3, 1e-4])
+def test_the_near_node_blend_is_a_c1_step_in_the_distance_to_the_nearest_node(tolerance):
+    """0 within the zone's first distance of a node (on either side, and across 0 = 180), 1
+    beyond its second, increasing in between with zero slope at both ends (C1); the zone is
+    proportional to the tolerance (A_k's error is linear in the distance)."""
+    count = 6
+    low, high = director_lattice.near_node_zone(tolerance, count)
+    tenth = director_lattice.near_node_zone(0.1 * tolerance, count)
+    assert np.allclose(tenth, [0.1 * low, 0.1 * high], rtol=ROUND_OFF)
+    assert high <= 30.0 * director_lattice.NEAR_NODE_WIDEST  # at most that much of the spacing
+    widest = director_lattice.near_node_zone(10.0 * tolerance, 2 * count)
+    assert widest[1] <= 15.0 * director_lattice.NEAR_NODE_WIDEST * (1.0 + ROUND_OFF)
     b = np.array([90.0, 90.0 - 0.9 * low, 0.5 * low, 180.0 - 0.5 * low, 90.0 + 1.1 * high, 105.0])
-    nearest, blend = director_lattice.near_node_blend(b, count)
+    nearest, blend = director_lattice.near_node_blend(b, count, tolerance)
     assert nearest.tolist() == [3, 3, 0, 0, 3, 4]  # 105 is a midpoint: either; round-half-even
     assert blend.tolist() == [0.0, 0.0, 0.0, 0.0, 1.0, 1.0]
     inside = 90.0 + np.linspace(low, high, 201)
-    step = director_lattice.near_node_blend(inside, count)[1]
+    step = director_lattice.near_node_blend(inside, count, tolerance)[1]
     assert step[0] < ROUND_OFF and step[-1] > 1.0 - ROUND_OFF and np.all(np.diff(step) > 0.0)
     slope = np.diff(step) / np.diff(inside)
     assert slope[0] < 0.02 * slope.max() and slope[-1] < 0.02 * slope.max()
 
 
 def test_a_director_near_a_node_asks_that_node_and_the_level0_grid_and_is_continuous():
-    """Within NEAR_NODE[0] of node 90 a query asks node 90's table at its own stretch, the other
-    nodes only at the level-0 grid's builders, and none of the surplus grids' new nodes; its
+    """Within the near-node zone's first distance of node 90 a query asks node 90's table at
+    its own stretch, the other nodes only at the level-0 grid's builders, and none of the
+    surplus grids' new nodes; its
     answer is A_k = S_k + (I_M - I_k)[P_0 f], which for a map linear in s (P_0 exact) is I_M f
     itself (round-off). Across the blend zone, for a map whose angle dependence varies with s
     (P_0 not exact, so A_k and A differ), the answer changes from sample to sample by no more
     than the exact map does plus 1e-3 of the tolerance (1e-6 relative): no jump where A_k gives
     way to A (a step at mid-zone in place of the C1 blend fails this: checked)."""
-    spacing = 30.0
-    low, high = (spacing * x for x in director_lattice.NEAR_NODE)
+    low, high = director_lattice.near_node_zone(1e-3, 6)
     asked: dict[tuple, set] = {}
 
     def recording(f):

@@ -32,13 +32,13 @@ goes up while the largest estimate over its queries (all ranks) exceeds the tole
 once raised in a call, while it exceeds ``KEEP`` times it (the gap of
 :mod:`plantgrowth.unitcell.surrogate`).
 
-Near a fine node b_k (within ``NEAR_NODE[1]`` of the spacing ``180 / M``) the answer is
+Near a fine node b_k (within the second distance of :func:`near_node_zone`) the answer is
 
     A_k(b, s) = S_k(s) + (I_M - I_k)[P_0 f](b, s),
 
 node k's own table plus the angle interpolant's change on the M nodes' level-0 stretch grid
 (I_k: the constant at node k), blended into A with a C1 step in the distance to the node (A
-alone beyond ``NEAR_NODE[1]``, A_k alone within ``NEAR_NODE[0]``). A_k is A's first-order term
+alone beyond the zone, A_k alone within its first distance). A_k is A's first-order term
 in b - b_k with the other nodes' tables and the surplus terms, all of weight O(b - b_k), taken
 on the coarse grid: a director a hair off a node (a fixed director turned by the growth's
 rotation) asks one stretch table instead of M and none of the surplus grids.
@@ -79,13 +79,16 @@ LEVEL_CAP = 4
 """Largest L a table is refined to: M = 96 fine nodes (1.9 degrees apart, 384 on the level-0
 grid); every query away from a node asks every fine node, so an estimate that does not
 converge (a map that is not smooth in the angle) must not take the count on to 12 288."""
-NEAR_NODE = (1.0 / 1200.0, 1.0 / 600.0)
-"""Distances to the nearest fine node, in fine-node spacings (0.025 and 0.05 degrees at M = 6),
-between which the near-node form A_k (module docstring) is blended into A. Measured on the fibred
-gradient scene with a fixed director (scenes/gradient_E_strain.toml, fibre_stiffness 5,
-fibre_angle 90; its directors 0.002 degrees off node 90 at the median, 0.028 at most): A_k
-within 2.8e-5 of A over all 252,540 queries of the 61 steps, 3% of the 1e-3 tolerance; the
-difference is first order in the distance, so about 5e-5 at 0.05 degrees (docs/fibres.md)."""
+NEAR_NODE = (0.05, 0.1)
+"""Distances to the nearest fine node (degrees) at a tolerance of 1e-3, between which the
+near-node form A_k (module docstring) is blended into A; they scale with the tolerance
+(:func:`near_node_zone`). A_k's error is first order in the distance d: 2.0e-3 d (degrees) at
+most, 13% of the exact map's own change, on the reference cell at E_f/E = 5 with M = 6
+(scripts/benchmarks/bench_near_node.py, benchmarks/results/near_node.json: 1.0e-4 at 0.05
+degrees, 2.0e-4 at 0.1). So A_k alone errs by at most a tenth of the tolerance, and in the
+blend zone its share (1 - w) of at most 2e-4 keeps that bound. The fibred gradient scene with
+a fixed director (fibre_angle 90) turns its directors off node 90 by 0.028 degrees at most
+over its 61 steps: A_k answers every query, no surplus grid is asked (docs/fibres.md)."""
 PERIOD = round(180.0 / ANGLE_STEP)
 """Node indices per 180 degrees (index PERIOD is index 0)."""
 
@@ -104,13 +107,31 @@ def trigonometric_weights(b: np.ndarray, count: int) -> np.ndarray:
     return weights
 
 
-def near_node_blend(b: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+NEAR_NODE_WIDEST = 1.0 / 30.0
+"""The widest zone's outer distance, in spacings of the fine nodes (1 degree at M = 6, the
+zone of a tolerance of 1e-2): A_k is A's first-order term, not an answer across the spacing."""
+
+
+def near_node_zone(tolerance: float, count: int) -> tuple[float, float]:
+    """The distances to one of ``count`` fine nodes (degrees) within which the near-node form
+    answers alone and beyond which A does: :data:`NEAR_NODE` times ``tolerance / 1e-3`` (A_k's
+    error is linear in the distance, so a tenth of any tolerance at the first), scaled down
+    to at most :data:`NEAR_NODE_WIDEST` of the spacing."""
+    scale = min(tolerance / 1e-3, NEAR_NODE_WIDEST * 180.0 / count / NEAR_NODE[1])
+    return NEAR_NODE[0] * scale, NEAR_NODE[1] * scale
+
+
+def near_node_blend(
+    b: np.ndarray, count: int, tolerance: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Per angle b (n,): the nearest of ``count`` equispaced nodes and the weight of A in the
-    blend with the near-node form (module docstring): 0 within ``NEAR_NODE[0]`` node spacings
-    of it, 1 beyond ``NEAR_NODE[1]``, the C1 step ``3 t^2 - 2 t^3`` in between."""
-    x = np.asarray(b, dtype=float) / (180.0 / count)
+    blend with the near-node form (module docstring): 0 within the first distance of
+    :func:`near_node_zone` of it, 1 beyond the second, the C1 step ``3 t^2 - 2 t^3`` between."""
+    spacing = 180.0 / count
+    x = np.asarray(b, dtype=float) / spacing
     node = np.round(x)
-    t = np.clip((np.abs(x - node) - NEAR_NODE[0]) / (NEAR_NODE[1] - NEAR_NODE[0]), 0.0, 1.0)
+    low, high = near_node_zone(tolerance, count)
+    t = np.clip((np.abs(x - node) * spacing - low) / (high - low), 0.0, 1.0)
     return node.astype(np.int64) % count, t * t * (3.0 - 2.0 * t)
 
 
@@ -233,7 +254,7 @@ class DirectorInterpolant:
                 k: trigonometric_weights(b[queries], k * count) for k in (1, *factors)
             }
             weights = cardinal[1]
-            nearest, blend = near_node_blend(b[queries], count)
+            nearest, blend = near_node_blend(b[queries], count, self.tolerance)
             own = np.arange(count)[None, :] == nearest[:, None]
             # asked: the nodes of nonzero weight, only the nearest one where A is not blended
             # in; a node not asked has as its row any of the table's (times 0, or unused)

@@ -28,6 +28,7 @@ import itertools
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -94,16 +95,23 @@ def biquadratic(corners: dict, s: np.ndarray) -> np.ndarray:
     )  # fmt: skip
 
 
-def main() -> int:
-    start = time.perf_counter()
+def fibred_cell() -> tuple[Callable, Callable, np.ndarray, np.random.Generator]:
+    """The reference fibred cell's exact packed values ``f(angle, s)`` (one cell solve), the
+    surrogate's relative difference, 8 random stretches in the feedback scene's range and the
+    generator that drew them (seed 0)."""
     homogenizer = Homogenizer(RESOLUTION, 1e-6, True, True, MPI.COMM_SELF, cell_tolerance=1.0)
-    difference = homogenizer.surrogate.relative_difference
 
     def f(angle: float, s: np.ndarray) -> np.ndarray:
         return homogenizer._solve_exact(GEOMETRY, NU, stretch(s), (STIFFNESS, float(angle)))
 
     rng = np.random.default_rng(0)
     stretches = np.column_stack([rng.uniform(0, 0.15, 8), rng.uniform(-0.015, 0.04, 8)])
+    return f, homogenizer.surrogate.relative_difference, stretches, rng
+
+
+def main() -> int:
+    start = time.perf_counter()
+    f, difference, stretches, rng = fibred_cell()
     angles = rng.uniform(65.0, 120.0, 10)
     every = sorted({round(a, 9) for count in COUNTS for a in nodes(count)})
     grid0 = {c: {a: f(a, np.array(c) * H0) for a in every}
