@@ -88,3 +88,20 @@ def mpi_tmp_path(request, tmp_path_factory):
         path = tmp_path_factory.mktemp(name)
     path = comm.bcast(path, root=0)
     return path
+
+
+@pytest.fixture
+def surrogate_lookups(monkeypatch):
+    """The number of queries of each stop-square lookup pass of the stretch surrogate
+    (``LatticeSurrogate._found``), in call order; the list fills as the test runs."""
+    from plantgrowth.unitcell import surrogate
+
+    counts: list[int] = []
+    original = surrogate.LatticeSurrogate._found
+
+    def counting(self, ids, s, strict=False):
+        counts.append(len(ids))
+        return original(self, ids, s, strict)
+
+    monkeypatch.setattr(surrogate.LatticeSurrogate, "_found", counting)
+    return counts

@@ -176,18 +176,11 @@ def test_ranks_share_the_lattice_and_agree_with_one_rank():
         np.testing.assert_allclose(a, b, rtol=0, atol=ROUND_OFF * np.abs(b).max())
 
 
-def test_each_rank_refines_only_its_block_of_queries(monkeypatch):
+def test_each_rank_refines_only_its_block_of_queries(surrogate_lookups):
     """No serial work that grows with the tissue: each rank interpolates its own contiguous
     block of the queries (12 queries: 6 per rank on 2 ranks), and the answer it returns is
     still the whole one."""
-    rows: list[int] = []
-    original = surrogate.LatticeSurrogate._walk
-
-    def counting(self, ids, s, strict=False):
-        rows.append(len(ids))
-        return original(self, ids, s, strict)
-
-    monkeypatch.setattr(surrogate.LatticeSurrogate, "_walk", counting)
+    rows = surrogate_lookups
     Fg = random_growth(np.random.default_rng(7), 12, spread=0.15)
     args = (np.repeat(GEOMETRY, 12, 0), np.ones(12), np.full(12, 0.3), Fg)
     result = homogenizer(1e-3, MPI.COMM_WORLD).homogenize(*args)

@@ -203,6 +203,35 @@ def test_a_refinement_inside_a_cached_square_renews_it_and_its_neighbours():
     assert_cached_is_walked(lat, grid, ROUNDING)
 
 
+
+def test_a_refining_pass_looks_up_again_only_the_queries_its_new_hats_reach(surrogate_lookups):
+    """A call whose queries refine the lattice makes more than one pass; after the first, a
+    pass looks up only the queries that the new points' hats reach, and the call's answers are
+    a fresh pass's over every query on the final lattice (new stop squares, learnt anew):
+    values and estimates to ROUNDING (another stop square's bilinear form), deepest squares
+    and interpolated flags identical. A pass that keeps the answers of queries the new hats
+    reach returns the answers of the lattice before (checked)."""
+    lat = lattice()
+    rng = np.random.default_rng(11)
+    cells = rng.uniform(-0.3, 0.3, (2000, 2))
+    ask(lat, cells)  # a lattice built for these queries, then they move a little (a step)
+    looked_up = surrogate_lookups
+    looked_up.clear()
+    queries = np.vstack([cells + rng.uniform(-1e-3, 1e-3, cells.shape),
+                         rng.uniform(0.3, 0.45, (20, 2))])  # fmt: skip
+    answer = ask(lat, queries)
+    print(f"queries looked up per pass: {looked_up}")
+    assert looked_up[0] == len(queries) and len(looked_up) >= 3
+    assert all(0 < rows < len(queries) for rows in looked_up[1:])
+    lat._stops = lattice_walk.StopSquares()
+    fresh = lat._pass(np.zeros(len(queries), dtype=np.int64), queries, None, np.zeros(0))
+    scale = np.abs(fresh["values"]).max(axis=1)
+    assert (np.abs(answer.values - fresh["values"]).max(axis=1) <= ROUNDING * scale).all()
+    np.testing.assert_allclose(answer.estimates, fresh["error"], rtol=0, atol=ROUNDING)
+    np.testing.assert_array_equal(answer.square, fresh["square"])
+    np.testing.assert_array_equal(answer.interpolated, ~fresh["on_point"])
+
+
 def test_queries_next_to_lattice_lines_stay_in_nested_squares():
     """Cells a hair off a lattice line (the near-homogeneous cells of gradient_nu_stress,
     s = (6.4e-10, -3.9e-11), and the like next to a level-3 line): each query's squares nest

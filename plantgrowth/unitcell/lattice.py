@@ -162,6 +162,28 @@ def walk(
             "square": square, "stop": stop, "base": base}  # fmt: skip
 
 
+def supports(built: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per built square (keys): its table number and the closed box (lower and upper corners,
+    finest integers) that the hats of its new points cover, the square's parent (the square
+    itself at level 0) widened by the square's spacing h on every side."""
+    table, level, corner = square_corners(np.asarray(built, dtype=np.int64))
+    h = (STEP >> level)[:, None]
+    span = np.where(level[:, None] > 0, 2 * h, h)  # the parent's side (level 0: its own)
+    low = corner // span * span - h
+    return table, low, low + span + 2 * h
+
+
+def touched(built: np.ndarray, ids: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Whether each query (table numbers ids (n,), stretches s (n, 2)) lies in the box of a
+    built square's new hats (:func:`supports`): only there can building the squares ``built``
+    change the interpolant, the deepest built square or whether the query is a built point."""
+    x = place(s) * STEP  # exact: a power of 2
+    out = np.zeros(len(ids), dtype=bool)
+    for table, low, high in zip(*supports(built), strict=True):
+        out |= (ids == table) & np.all((x >= low) & (x <= high), axis=1)
+    return out
+
+
 class StopSquares:
     """I and the estimate's term at the corners of the stop squares met so far (module
     docstring); the owner drops the entries a refinement may change (:meth:`drop`)."""
@@ -180,11 +202,7 @@ class StopSquares:
         keys = np.array(list(self._entries), dtype=np.int64)
         table, level, corner = square_corners(keys)
         width = (STEP >> level)[:, None]
-        b_table, b_level, b_corner = square_corners(np.asarray(built, dtype=np.int64))
-        h = (STEP >> b_level)[:, None]
-        span = np.where(b_level[:, None] > 0, 2 * h, h)  # the parent's side (level 0: its own)
-        low = b_corner // span * span - h
-        high = low + span + 2 * h
+        b_table, low, high = supports(built)
         meets = (table[:, None] == b_table[None]) & np.all(
             (corner[:, None, :] <= high[None]) & (corner[:, None, :] + width[:, None] >= low[None]),
             axis=-1,

@@ -74,6 +74,7 @@ from plantgrowth.unitcell.lattice import (
     point_key,
     square_corners,
     square_key,
+    touched,
 )
 from plantgrowth.unitcell.scheduler import CellScheduler
 from plantgrowth.unitcell.smooth_answers import EARLY, SmoothAnswers
@@ -279,17 +280,11 @@ class LatticeSurrogate:
         fresh = np.zeros(0, dtype=np.int64)  # squares built in this call
         solves = 0
         grown = np.zeros(n, dtype=np.int64)  # passes in which each query asked for a square
+        found, squares = None, np.zeros(0, dtype=np.int64)
         while True:
-            values, interpolated, level, key, change = self._walk(ids, s)
-            error = np.full(n, np.inf)
-            inside = level >= 1  # level 0 has no estimate: its children are built first,
-            on_corner = (level == 0) & (cell(s, 0)[1] % 1.0 == 0.0).all(axis=1)
-            error[on_corner] = 0.0  # unless the query is a corner: answered exactly
-            if inside.all():
-                error = self.relative_difference(values - change, values)
-            elif inside.any():
-                part = values[inside]
-                error[inside] = self.relative_difference(part - change[inside], part)
+            found = self._pass(ids, s, found, squares)
+            values, interpolated = found["values"], ~found["on_point"]
+            level, key, error = found["level"], found["square"], found["error"]
             going = np.isin(key, fresh) & (error > KEEP * tol)
             grow = (level < 0) | ((level < MAX_LEVEL) & ((error > tol) | going))
             child = level[grow] + 1
@@ -303,6 +298,44 @@ class LatticeSurrogate:
                 return Answer(values, error, interpolated, solves, key)
             solves += self._build_squares(squares)
             fresh = np.union1d(fresh, squares)
+
+    def _pass(
+        self, ids: np.ndarray, s: np.ndarray, last: dict[str, np.ndarray] | None,
+        built: np.ndarray,
+    ) -> dict[str, np.ndarray]:  # fmt: skip
+        """One pass of :meth:`_refine`: the frozen interpolant's answers at the queries (as
+        :meth:`~plantgrowth.unitcell.lattice.StopSquares.through`) and their estimates
+        ``error`` (inf: no estimate yet, the query's level-0 square is S). A query outside
+        the new hats of the squares ``built`` since the ``last`` pass
+        (:func:`~plantgrowth.unitcell.lattice.touched`) keeps its last answer: I, S and S's
+        term are unchanged there (a new lookup gives the same to rounding, 5e-16 relative:
+        another stop square's bilinear form). The others are looked up again (all of them
+        after a pass on a lattice without points). On the organ scene's refining steps the
+        squares built drop the stop squares of every query, but their hats reach few."""
+        if last is None or not last["values"].shape[1]:
+            last, again = None, np.arange(len(ids))
+        else:
+            again = np.flatnonzero(touched(built, ids, s))
+            if not len(again):
+                return last
+        found = self._found(ids[again], s[again])
+        level, values, change = found["level"], found["values"], found["change"]
+        error = np.full(len(again), np.inf)
+        inside = level >= 1  # level 0 has no estimate: its children are built first,
+        on_corner = (level == 0) & (cell(s[again], 0)[1] % 1.0 == 0.0).all(axis=1)
+        error[on_corner] = 0.0  # unless the query is a corner: answered exactly
+        if inside.all():
+            error = self.relative_difference(values - change, values)
+        elif inside.any():
+            part = values[inside]
+            error[inside] = self.relative_difference(part - change[inside], part)
+        found["error"] = error
+        if last is None:
+            return found
+        merged = {name: array.copy() for name, array in last.items()}
+        for name, array in found.items():
+            merged[name][again] = array
+        return merged
 
     def _check_growths(self, every: list[tuple[np.ndarray, ...]]) -> None:
         """Raise RunError on every rank if a query on any rank (its table numbers and
@@ -376,13 +409,18 @@ class LatticeSurrogate:
         ``|term| / |I(s)|`` per segment; for a smooth f the error left is about a third of it).
         One lookup of each query's stop square (:class:`~plantgrowth.unitcell.lattice.
         StopSquares`); the stop squares not met before are found by walks first."""
-        if not len(ids):  # a rank without queries (perhaps without stop squares yet)
-            m = self._points_table()[1].shape[1]
-            empty = np.zeros((0, m))
-            return empty, np.zeros(0, dtype=bool), np.full(0, -1), np.zeros(0, np.int64), empty
-        found = self._stops.through(self._lattice_tables, ids, s, strict)
+        found = self._found(ids, s, strict)
         return (found["values"], ~found["on_point"], found["level"], found["square"],
                 found["change"])  # fmt: skip
+
+    def _found(self, ids: np.ndarray, s: np.ndarray, strict: bool = False) -> dict[str, np.ndarray]:
+        """:meth:`~plantgrowth.unitcell.lattice.StopSquares.through` on the lattice, for n >= 0
+        queries."""
+        if not len(ids):  # a rank without queries (perhaps without stop squares yet)
+            empty = np.zeros((0, self._points_table()[1].shape[1]))
+            return {"values": empty, "change": empty, "on_point": np.zeros(0, dtype=bool),
+                    "level": np.full(0, -1), "square": np.zeros(0, np.int64)}  # fmt: skip
+        return self._stops.through(self._lattice_tables, ids, s, strict)
 
     def _lattice_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sorted built squares' keys, sorted point keys and their surpluses (for the walks
