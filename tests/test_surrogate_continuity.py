@@ -232,6 +232,32 @@ def test_a_refining_pass_looks_up_again_only_the_queries_its_new_hats_reach(surr
     np.testing.assert_array_equal(answer.interpolated, ~fresh["on_point"])
 
 
+def test_learning_stop_squares_walks_one_query_per_square_below_the_deepest(monkeypatch):
+    """20,001 queries along a line, none in a known stop square, are walked to their stop
+    squares as one query per square of the level below the deepest built square (they share
+    their walks): the first walk has exactly that many rows, far fewer than the queries, and
+    the answers are still every query's own walk's (to ROUNDING)."""
+    lat = lattice()
+    ask(lat, np.random.default_rng(0).uniform(-0.3, 0.3, (200, 2)))
+    line = np.column_stack([np.linspace(-0.25, 0.25, 20001), np.full(20001, 0.0371)])
+    rows: list[int] = []
+    original = lattice_walk.walk
+
+    def counting(squares, keys, surplus, ids, s, targets, strict=False):
+        rows.append(len(s))
+        return original(squares, keys, surplus, ids, s, targets, strict)
+
+    monkeypatch.setattr(lattice_walk, "walk", counting)
+    lat._stops = lattice_walk.StopSquares()  # none known
+    lat._walk(np.zeros(len(line), dtype=np.int64), line)
+    monkeypatch.undo()
+    depth = max(lattice_walk.square_corners(np.array(sorted(lat._built)))[1]) + 1
+    squares = len(np.unique(lattice_walk.cell(line, depth)[0], axis=0))
+    print(f"walked {rows[0]} of {len(line)} queries")
+    assert rows[0] == squares < len(line) / 10
+    assert_cached_is_walked(lat, line, ROUNDING)
+
+
 def test_queries_next_to_lattice_lines_stay_in_nested_squares():
     """Cells a hair off a lattice line (the near-homogeneous cells of gradient_nu_stress,
     s = (6.4e-10, -3.9e-11), and the like next to a level-3 line): each query's squares nest

@@ -226,7 +226,14 @@ class StopSquares:
     ) -> None:  # fmt: skip
         """Walk queries (ids, s) to their stop squares on the lattice (sorted built squares'
         keys, sorted point keys and their surpluses), then each new stop square's centre to I
-        and S's term at its corners (:func:`walk`), and keep them."""
+        and S's term at its corners (:func:`walk`), and keep them. One query per square of the
+        level below the deepest built one is walked: queries in one such square share every
+        coarser square (they nest), so their walks are one walk, which stops there at the
+        latest (no point is new on that level). On the organ scene the 500,000 queries of a
+        rank share a few thousand such squares."""
+        depth = min(int(((squares >> 42) & 15).max()) + 1, MAX_LEVEL) if len(squares) else 0
+        first = np.unique(square_key(ids, depth, cell(s, depth)[0]), return_index=True)[1]
+        ids, s = ids[first], s[first]
         nowhere = np.empty((len(s), 0, 2))  # no targets: the stop levels only (no products)
         stop = walk(squares, keys, surplus, ids, s, nowhere)["stop"]
         stops, pick = np.unique(square_key(ids, stop, cell(s, stop)[0]), return_index=True)
