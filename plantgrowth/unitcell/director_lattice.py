@@ -306,7 +306,9 @@ class DirectorInterpolant:
         estimates[plain] = answer.estimates[start:]
         interpolated[plain] = answer.interpolated[start:]
         for queries, weights, rows, need, grids, nearest, blend, near in layout:
-            value = np.einsum("qj,qjm->qm", weights, answer.values[rows])
+            far = blend > 0.0  # where A is blended in (elsewhere A_k alone, estimate 0)
+            value = np.zeros((len(queries), answer.values.shape[1]))
+            value[far] = np.einsum("qj,qjm->qm", weights[far], answer.values[rows[far]])
             terms = [np.zeros_like(value) for _ in grids]
             coarse = np.zeros_like(value)
             if need.any():
@@ -322,9 +324,9 @@ class DirectorInterpolant:
                 )  # the first surplus term on the last term's (coarser) grid
             full = value + sum(terms)
             # near a node the angle's terms are O(distance to it): no estimate asks for more M
-            estimates[queries] = (blend > 0.0) * np.maximum(
-                self._difference(full - terms[-1], full),
-                self._difference(full - terms[0] + coarse, full),
+            estimates[queries[far]] = np.maximum(
+                self._difference(full[far] - terms[-1][far], full[far]),
+                self._difference(full[far] - terms[0][far] + coarse[far], full[far]),
             )
             values[queries] = self._blend(full, answer.values, rows, nearest, blend, near)
             used = weights != 0.0
