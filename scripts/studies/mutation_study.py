@@ -456,8 +456,32 @@ MUTANTS = (
         "a refinement drops the cached stop squares that meet the built square only, instead "
         "of its parent widened by one spacing h on every side (the new points' hat supports): "
         "a neighbour's cached corners keep the interpolant of before",
-        (("low = b_corner // span * span - h", "low = b_corner"),
-         ("high = low + span + 2 * h", "high = low + h")),
+        (("    low = corner // span * span - h\n    return table, low, low + span + 2 * h",
+          "    low = corner\n    return table, low, low + h"),),
+    ),
+    Mutant(
+        "refine_pass_touched_scale", "plantgrowth/unitcell/lattice.py", "wrong scale",
+        "a refinement pass tests which queries the new hats reach with the queries' places in "
+        "coarsest spacings (s / H0) against boxes in finest-lattice integers: most queries "
+        "the new points change keep the answers of the lattice before (this stop's pass reuse)",
+        (("    x = place(s) * STEP  # exact: a power of 2\n    out = np.zeros(",
+          "    x = place(s)\n    out = np.zeros("),),
+    ),
+    Mutant(
+        "learn_walks_per_deepest_square", "plantgrowth/unitcell/lattice.py", "wrong index",
+        "learning stop squares walks one query per square of the deepest built level instead "
+        "of the level below it: queries in one such square may stop in different children, "
+        "and the stop squares of all but one are never learnt (this stop's shared walks)",
+        (("depth = min(int(((squares >> 42) & 15).max()) + 1, MAX_LEVEL)",
+          "depth = min(int(((squares >> 42) & 15).max()), MAX_LEVEL)"),),
+    ),
+    Mutant(
+        "near_node_zone_fixed", "plantgrowth/unitcell/director_lattice.py", "factor",
+        "the near-node zone kept at its 1e-3 width whatever the tolerance: at the fine "
+        "preset's 1e-4 the near-node form A_k answers where its error (2e-3 per degree) is the "
+        "whole tolerance (this stop's zone scaled with the tolerance)",
+        (("scale = min(tolerance / 1e-3, NEAR_NODE_WIDEST * 180.0 / count / NEAR_NODE[1])",
+          "scale = min(1.0, NEAR_NODE_WIDEST * 180.0 / count / NEAR_NODE[1])"),),
     ),
     Mutant(
         "angle_surplus_sign", "plantgrowth/unitcell/angle_surplus.py", "sign",
