@@ -34,6 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from plantgrowth.base.errors import RunError
 from plantgrowth.unitcell.lattice import (
     LOW,
     OFFSET,
@@ -130,6 +131,20 @@ class SmoothAnswers:
         self.births: dict[int, int] = {}  # square key -> its step
         self.guarded = 0  # answers the SPD guard replaced so far
         self._cache: dict[int, tuple[int, CellPolynomials | None]] = {}
+
+    def birth_rows(self, keys: list[int], step: int) -> np.ndarray:
+        """The resume state: per square of ``keys`` (sorted) its birth step, then one row
+        holding the step count ``step`` ((q + 1, 1) int64)."""
+        return np.array([*(self.births[k] for k in keys), step], dtype=np.int64).reshape(-1, 1)
+
+    def restore_births(self, keys: list[int], rows: np.ndarray) -> int:
+        """Set the births of the squares ``keys`` from :meth:`birth_rows`'s rows; returns the
+        step count."""
+        births = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if len(births) != len(keys) + 1:
+            raise RunError("the saved surrogate state does not match its squares")
+        self.births = dict(zip(keys, births[:-1].tolist(), strict=True))
+        return int(births[-1])
 
     def _squares(self, last: int, first: int | None = None) -> np.ndarray:
         """Sorted keys of the squares born in [first, last] (first None: any before)."""

@@ -303,18 +303,13 @@ class LatticeSurrogate:
         self, ids: np.ndarray, s: np.ndarray, last: dict[str, np.ndarray] | None,
         built: np.ndarray,
     ) -> dict[str, np.ndarray]:  # fmt: skip
-        """One pass of :meth:`_refine`: the frozen interpolant's answers at the queries (as
-        :meth:`~plantgrowth.unitcell.lattice.StopSquares.through`) and their estimates
-        ``error`` (inf: no estimate yet, the query's level-0 square is S). A query outside
-        the new hats of the squares ``built`` since the ``last`` pass
-        (:func:`~plantgrowth.unitcell.lattice.touched`) keeps its last answer: I, S and S's
-        term are unchanged there (a new lookup gives the same to rounding, 5e-16 relative:
-        another stop square's bilinear form). The others are looked up again (all of them
-        after a pass on a lattice without points). On the organ scene's refining steps the
-        squares built drop the stop squares of every query, but their hats reach few."""
-        if last is None or not last["values"].shape[1]:
-            last, again = None, np.arange(len(ids))
-        else:
+        """One pass of :meth:`_refine`: the frozen interpolant's answers (:meth:`_found`) and
+        estimates ``error`` (inf: none yet). A query that the new hats of the squares ``built``
+        since the ``last`` pass do not reach (:func:`~plantgrowth.unitcell.lattice.touched`)
+        keeps its last answer: I, S and S's term are unchanged there (a lookup gives the same
+        to rounding, 5e-16 relative: another stop square's bilinear form)."""
+        again = np.arange(len(ids))
+        if last is not None and last["values"].shape[1]:  # a lattice with points before
             again = np.flatnonzero(touched(built, ids, s))
             if not len(again):
                 return last
@@ -330,7 +325,7 @@ class LatticeSurrogate:
             part = values[inside]
             error[inside] = self.relative_difference(part - change[inside], part)
         found["error"] = error
-        if last is None:
+        if len(again) == len(ids):
             return found
         merged = {name: array.copy() for name, array in last.items()}
         for name, array in found.items():
@@ -402,20 +397,20 @@ class LatticeSurrogate:
     def _walk(
         self, ids: np.ndarray, s: np.ndarray, strict: bool = False
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The frozen interpolant at n queries: I(s) (:meth:`interpolate`; ``strict``: a
-        KeyError off the built lattice), which queries are not on a built point, the level and
-        key of the deepest built square S holding each (-1, 0: none), and S's term of I, the
-        change its new corners made there, ``sum_c alpha_c phi_c(s)`` (the error estimate is
-        ``|term| / |I(s)|`` per segment; for a smooth f the error left is about a third of it).
-        One lookup of each query's stop square (:class:`~plantgrowth.unitcell.lattice.
-        StopSquares`); the stop squares not met before are found by walks first."""
+        """:meth:`_found` as a tuple: I(s), which queries are not on a built point, the level
+        and key of S and S's term."""
         found = self._found(ids, s, strict)
         return (found["values"], ~found["on_point"], found["level"], found["square"],
                 found["change"])  # fmt: skip
 
     def _found(self, ids: np.ndarray, s: np.ndarray, strict: bool = False) -> dict[str, np.ndarray]:
-        """:meth:`~plantgrowth.unitcell.lattice.StopSquares.through` on the lattice, for n >= 0
-        queries."""
+        """The frozen interpolant at n >= 0 queries: I(s) (:meth:`interpolate`; ``strict``: a
+        KeyError off the built lattice), whether each is a built point, the level and key of
+        the deepest built square S holding it (-1, 0: none), and S's term of I, the change its
+        new corners made there, ``sum_c alpha_c phi_c(s)`` (the error estimate is ``|term| /
+        |I(s)|`` per segment; for a smooth f the error left is about a third of it). One lookup
+        of each query's stop square (:class:`~plantgrowth.unitcell.lattice.StopSquares`); the
+        stop squares not met before are found by walks first."""
         if not len(ids):  # a rank without queries (perhaps without stop squares yet)
             empty = np.zeros((0, self._points_table()[1].shape[1]))
             return {"values": empty, "change": empty, "on_point": np.zeros(0, dtype=bool),
@@ -455,20 +450,14 @@ class LatticeSurrogate:
         self.step += 1
 
     def births(self) -> np.ndarray:
-        """The c1 path's resume state: one row per square of :meth:`squares` (same order),
-        its birth step, then one row holding the step count ((q + 1, 1) int64)."""
-        births = [self.smooth.births[k] for k in sorted(self._built)]
-        return np.array([*births, self.step], dtype=np.int64).reshape(-1, 1)
+        """The c1 path's resume state, its squares those of :meth:`squares` in order
+        (:meth:`~plantgrowth.unitcell.smooth_answers.SmoothAnswers.birth_rows`)."""
+        return self.smooth.birth_rows(sorted(self._built), self.step)
 
     def restore_births(self, rows: np.ndarray) -> None:
         """Set the squares' births and the step count from :meth:`births`'s rows (after
         :meth:`restore` of the same state's squares)."""
-        keys = sorted(self._built)
-        births = np.asarray(rows, dtype=np.int64).reshape(-1)
-        if len(births) != len(keys) + 1:
-            raise RunError("the saved surrogate state does not match its squares")
-        self.smooth.births = dict(zip(keys, births[:-1].tolist(), strict=True))
-        self.step = int(births[-1])
+        self.step = self.smooth.restore_births(sorted(self._built), rows)
 
     def _lattice_points(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact values and surpluses (P, m) of built lattice points (point keys (P,))."""
