@@ -232,6 +232,29 @@ def test_a_refining_pass_looks_up_again_only_the_queries_its_new_hats_reach(surr
     np.testing.assert_array_equal(answer.interpolated, ~fresh["on_point"])
 
 
+@pytest.mark.parametrize("tables", [1, 5])
+def test_touched_is_the_queries_in_their_own_tables_hat_boxes(tables):
+    """lattice.touched (boxes grouped by table, one table without a sort) against its
+    definition: a query is touched when it lies in the closed box of a built square of its
+    own table (1 and 5 tables, 40 squares of levels 0-4, one table with squares and no
+    queries, queries on box edges)."""
+    rng = np.random.default_rng(3)
+    ids = rng.integers(0, tables, 3000)
+    level = rng.integers(0, 5, 40)
+    corner = (rng.uniform(-0.2, 0.2, (40, 2)) / surrogate.H0 * surrogate.STEP).astype(np.int64)
+    corner = corner // (surrogate.STEP >> level)[:, None] * (surrogate.STEP >> level)[:, None]
+    built = lattice_walk.square_key(rng.integers(0, tables + 1, 40), level, corner)
+    on_corners = corner[:10] * (surrogate.H0 / surrogate.STEP)  # on box edges
+    s = np.vstack([rng.uniform(-0.25, 0.25, (2990, 2)), on_corners])
+    table, low, high = lattice_walk.supports(built)
+    x = lattice_walk.place(s) * surrogate.STEP
+    inside = np.all((x[:, None] >= low[None]) & (x[:, None] <= high[None]), axis=-1)
+    expected = (inside & (ids[:, None] == table[None])).any(axis=1)
+    touched = lattice_walk.touched(built, ids, s)
+    assert 0 < expected.sum() < len(ids)
+    np.testing.assert_array_equal(touched, expected)
+
+
 def test_learning_stop_squares_walks_one_query_per_square_below_the_deepest(monkeypatch):
     """20,001 queries along a line, none in a known stop square, are walked to their stop
     squares as one query per square of the level below the deepest built square (they share

@@ -176,11 +176,19 @@ def supports(built: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def touched(built: np.ndarray, ids: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Whether each query (table numbers ids (n,), stretches s (n, 2)) lies in the box of a
     built square's new hats (:func:`supports`): only there can building the squares ``built``
-    change the interpolant, the deepest built square or whether the query is a built point."""
+    change the interpolant, the deepest built square or whether the query is a built point.
+    Each box is tested against its own table's queries only (a geometry per coarse column
+    builds squares of many tables in one pass)."""
     x = place(s) * STEP  # exact: a power of 2
     out = np.zeros(len(ids), dtype=bool)
-    for table, low, high in zip(*supports(built), strict=True):
-        out |= (ids == table) & np.all((x >= low) & (x <= high), axis=1)
+    tables, low, high = supports(built)
+    one_table = not len(ids) or (ids == ids[0]).all()  # the organ's: no sort, no copies
+    order = None if one_table else np.argsort(ids, kind="stable")
+    keys = ids if one_table else ids[order]
+    first, last = (np.searchsorted(keys, tables, side=side) for side in ("left", "right"))
+    for box in range(len(tables)):  # the queries of the box's table
+        mine = slice(first[box], last[box]) if one_table else order[first[box] : last[box]]
+        out[mine] |= np.all((x[mine] >= low[box]) & (x[mine] <= high[box]), axis=1)
     return out
 
 
