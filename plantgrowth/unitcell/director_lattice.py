@@ -89,6 +89,9 @@ degrees, 2.0e-4 at 0.1). So A_k alone errs by at most a tenth of the tolerance, 
 blend zone its share (1 - w) of at most 2e-4 keeps that bound. The fibred gradient scene with
 a fixed director (fibre_angle 90) turns its directors off node 90 by 0.028 degrees at most
 over its 61 steps: A_k answers every query, no surplus grid is asked (docs/fibres.md)."""
+NEAR_NODE_WIDEST = 1.0 / 30.0
+"""The widest zone's outer distance, in spacings of the fine nodes (1 degree at M = 6, the
+zone of a tolerance of 1e-2): A_k is A's first-order term, not an answer across the spacing."""
 PERIOD = round(180.0 / ANGLE_STEP)
 """Node indices per 180 degrees (index PERIOD is index 0)."""
 
@@ -105,11 +108,6 @@ def trigonometric_weights(b: np.ndarray, count: int) -> np.ndarray:
     weights = np.sin(count * d) * np.cos(d) / (count * safe)
     weights[hit] = np.arange(count)[None, :] == (node[hit, None] % count)
     return weights
-
-
-NEAR_NODE_WIDEST = 1.0 / 30.0
-"""The widest zone's outer distance, in spacings of the fine nodes (1 degree at M = 6, the
-zone of a tolerance of 1e-2): A_k is A's first-order term, not an answer across the spacing."""
 
 
 def near_node_zone(tolerance: float, count: int) -> tuple[float, float]:
@@ -306,9 +304,9 @@ class DirectorInterpolant:
         estimates[plain] = answer.estimates[start:]
         interpolated[plain] = answer.interpolated[start:]
         for queries, weights, rows, need, grids, nearest, blend, near in layout:
-            far = blend > 0.0  # where A is blended in (elsewhere A_k alone, estimate 0)
+            with_a = blend > 0.0  # where A is blended in (elsewhere A_k alone, estimate 0)
             value = np.zeros((len(queries), answer.values.shape[1]))
-            value[far] = np.einsum("qj,qjm->qm", weights[far], answer.values[rows[far]])
+            value[with_a] = np.einsum("qj,qjm->qm", weights[with_a], answer.values[rows[with_a]])
             terms = [np.zeros_like(value) for _ in grids]
             coarse = np.zeros_like(value)
             if need.any():
@@ -324,9 +322,9 @@ class DirectorInterpolant:
                 )  # the first surplus term on the last term's (coarser) grid
             full = value + sum(terms)
             # near a node the angle's terms are O(distance to it): no estimate asks for more M
-            estimates[queries[far]] = np.maximum(
-                self._difference(full[far] - terms[-1][far], full[far]),
-                self._difference(full[far] - terms[0][far] + coarse[far], full[far]),
+            estimates[queries[with_a]] = np.maximum(
+                self._difference(full[with_a] - terms[-1][with_a], full[with_a]),
+                self._difference(full[with_a] - terms[0][with_a] + coarse[with_a], full[with_a]),
             )
             values[queries] = self._blend(full, answer.values, rows, nearest, blend, near)
             used = weights != 0.0
