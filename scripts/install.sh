@@ -40,6 +40,7 @@ APT_PACKAGES=(
     python3-skimage   # [tissue] cells = "labels.tif": imported label images (issue 34,
     python3-tifffile  # docs/real_tissues.md) are read with tifffile (TIFF) or skimage.io (PNG),
     python3-shapely   # checked with skimage.measure and their walls simplified with shapely
+    libdeflate0       # the step files' deflate streams (plantgrowth/base/deflate.py)
     python3-venv
     python3-pip
     git

@@ -9,6 +9,7 @@ tests/test_output_economy.py's stopped-before-its-state run, which now go throug
 
 from __future__ import annotations
 
+import zlib
 from pathlib import Path
 
 import h5py
@@ -17,7 +18,7 @@ import pytest
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from plantgrowth.base import gather
+from plantgrowth.base import deflate, gather
 from plantgrowth.base.blocks import Block, CanonicalBlocks, block_offsets
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import rectangle_mesh
@@ -214,16 +215,28 @@ def test_distributed_files_equal_the_serial_run_files(mpi_tmp_path):
                 np.testing.assert_allclose(x, y, rtol=0, atol=tolerance, err_msg=str(key))
 
 
-def test_a_deflated_chunk_is_the_one_hdf5_writes(tmp_path):
-    """The bytes a rank writes for its chunk (shuffle, then deflate) are HDF5's own for the
-    same chunk, an edge chunk (padded) included: any HDF5 reader reads them."""
+@pytest.mark.parametrize("use_libdeflate", [True, False])
+def test_a_deflated_chunk_inflates_to_hdf5s_own_and_reads_back(
+    tmp_path, monkeypatch, use_libdeflate
+):
+    """The bytes a rank writes for its chunk (shuffle, then deflate; libdeflate, or zlib where it
+    is missing) inflate to what HDF5's own filters store for the same chunk, an edge chunk
+    (padded) included, and HDF5 reads a file made of them as the values: any HDF5 reader does."""
+    compressor = deflate.Deflater(use_libdeflate=use_libdeflate)
+    assert compressor.library == ("libdeflate" if use_libdeflate else "zlib")
+    monkeypatch.setattr(h5_blocks, "deflate", compressor)
     values = (np.arange(21.0).reshape(7, 3) ** 1.5).astype(np.float32)
     with h5py.File(tmp_path / "h.h5", "w") as f:
         f.create_dataset("x", data=values, chunks=(4, 3), **h5_blocks.FIELD_FILTERS)
-    with h5py.File(tmp_path / "h.h5", "r") as f:
+        ours = f.create_dataset("y", shape=(7, 3), dtype=np.float32, chunks=(4, 3),
+                                **h5_blocks.FIELD_FILTERS)  # fmt: skip
         for start in (0, 4):
+            chunk = bytes(h5_blocks.deflated(values[start : start + 4], 4))
             _, raw = f["x"].id.read_direct_chunk((start, 0))
-            assert raw == h5_blocks.deflated(values[start : start + 4], 4), start
+            assert zlib.decompress(chunk) == zlib.decompress(raw), start
+            ours.id.write_direct_chunk((start, 0), chunk)
+    with h5py.File(tmp_path / "h.h5", "r") as f:
+        np.testing.assert_array_equal(f["y"][...], values)
 
 
 def test_a_rank_without_rows_writes_nothing_and_the_file_is_whole(mpi_tmp_path):

@@ -7,8 +7,9 @@ then lays the file out alone: the datasets, a placeholder of the right length fo
 rank's chunk (:meth:`h5py.h5d.DatasetID.write_direct_chunk`) and the attributes; it
 closes the file and sends every rank where its bytes go (the chunk's byte offset, or the
 contiguous dataset's offset plus the block's first row). Each rank then writes its bytes there
-with ``os.pwrite``: the bytes of a chunk written this way are the bytes HDF5's own filters give
-(zlib is HDF5's deflate), so any HDF5 reader reads the file as if HDF5 had written it.
+with ``os.pwrite``: a chunk written this way is a zlib stream of the shuffled bytes, what HDF5's
+own filters store (made by libdeflate, faster than the zlib HDF5 calls: the bytes differ, what
+they inflate to does not), so any HDF5 reader reads the file as if HDF5 had written it.
 
 What no rank does: gather another rank's values (only the chunks' lengths travel), or open the
 file through HDF5's MPI-IO driver, whose collective writes with filters scaled 1.3-1.5x from
@@ -19,7 +20,6 @@ temporary name that rank 0 renames once every rank has written (crash safety as 
 from __future__ import annotations
 
 import os
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,13 +28,12 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth.base.blocks import Block, block_offsets
+from plantgrowth.base.deflate import LEVEL, deflate
 
-DEFLATE_LEVEL = 1
-"""gzip level of the field datasets: measured here, higher levels save under 5% and take up to
-3x as long."""
-FIELD_FILTERS = {"compression": "gzip", "compression_opts": DEFLATE_LEVEL, "shuffle": True}
+FIELD_FILTERS = {"compression": "gzip", "compression_opts": LEVEL, "shuffle": True}
 """How field datasets are compressed: gzip after byte shuffling (HDF5's built-in filters, which
-every HDF5 reader has), one chunk per rank's block."""
+every HDF5 reader has), one chunk per rank's block; the chunks' bytes are made by
+:mod:`plantgrowth.base.deflate` (the level is recorded, as HDF5 records it, not needed to read)."""
 
 
 @dataclass(frozen=True)
@@ -59,14 +58,17 @@ def chunk_rows(total: int, size: int) -> int:
     return max(int(block_offsets(total, size)[1]), 1)
 
 
-def deflated(values: np.ndarray, rows: int) -> bytes:
+def deflated(values: np.ndarray, rows: int) -> memoryview:
     """One chunk of ``rows`` rows (``values`` padded with zeros, as HDF5 stores an edge chunk)
     through HDF5's shuffle filter (the k-th byte of every element together, k = 0..itemsize-1)
-    and its deflate filter (zlib at DEFLATE_LEVEL)."""
-    chunk = np.zeros((rows, *values.shape[1:]), dtype=values.dtype)
-    chunk[: len(values)] = values
-    shuffled = chunk.view(np.uint8).reshape(-1, values.dtype.itemsize).T
-    return zlib.compress(np.ascontiguousarray(shuffled).tobytes(), DEFLATE_LEVEL)
+    and its deflate filter (a zlib stream: :data:`plantgrowth.base.deflate.deflate`)."""
+    values = np.ascontiguousarray(values)
+    if len(values) < rows:
+        chunk = np.zeros((rows, *values.shape[1:]), dtype=values.dtype)
+        chunk[: len(values)] = values
+        values = chunk
+    shuffled = values.view(np.uint8).reshape(-1, values.dtype.itemsize).T
+    return deflate(np.ascontiguousarray(shuffled))
 
 
 def write_blocks(
