@@ -31,6 +31,14 @@ if "numpy" not in sys.modules:
     # against 45.1 s). numpy reads this at import; a user's own setting is kept.
     os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
+# dolfinx partitions meshes with PT-SCOTCH, whose version 7 (Debian bookworm's) splits the work
+# over threads by default: a rectangle of 384,400 cells made 5 times on 2 ranks got 5 different
+# partitions, and with them different BoomerAMG hierarchies (the organ scene's 60 steps took
+# 513-596 CG iterations in all, run to run). One thread gives the same partition in every run
+# and every process, at the same cost (0.47 s against 0.48 s for that mesh). SCOTCH reads this
+# at each partitioning; a user's own setting is kept.
+os.environ.setdefault("SCOTCH_PTHREAD_NUMBER", "1")
+
 # ufl and ffcx (imported with dolfinx) import pkg_resources for their version only: 0.07-0.13 s
 # of every run's start-up. plantgrowth/base/dist_versions.py answers them from importlib.metadata.
 install_dist_versions()
