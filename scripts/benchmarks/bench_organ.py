@@ -12,7 +12,10 @@ step 0 of all repeats (step 0 pays the first multigrid set-up and cell problems)
 relative difference of the summary's results (area, u, growth rates, every step) from the
 baseline's; with ``--rank-check``, one more run of the first interpolant on 1 rank and its
 summary's largest difference from the 2-rank one (issue 33: within 1e-6). The cell cache is off
-(as in bench_ranks.py). Writes benchmarks/results/organ.json with the machine and its load
+(as in bench_ranks.py), and every run, the baseline's too, partitions the mesh with PT-SCOTCH on
+one thread (``SCOTCH_PTHREAD_NUMBER=1``, this checkout's default: plantgrowth/__init__.py), so
+all runs get the same partition (with SCOTCH's threads it changed from run to run, and the
+2-rank CG counts with it). Writes benchmarks/results/organ.json with the machine and its load
 average before and after (2 cores: a run measured while other jobs run is slower, and a 2-rank
 run more so).
 
@@ -77,7 +80,7 @@ def run_once(exe: Path, scene: Path, ranks: int, outdir: Path, log: Path) -> dic
     command = [exe, "run", scene, "-o", outdir]
     if ranks > 1:
         command = ["/usr/bin/mpirun", "-n", str(ranks), *command]
-    wall, memory = timed_run(command, dict(os.environ, **MPI_ENV), log)
+    wall, memory = timed_run(command, dict(os.environ, **MPI_ENV, SCOTCH_PTHREAD_NUMBER="1"), log)
     rows = summary_rows(outdir)
     steps = [
         {p: r[p] for p in PHASES} | {"other": r["seconds"] - sum(r[p] for p in PHASES),
