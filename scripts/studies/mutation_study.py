@@ -651,6 +651,13 @@ MUTANTS = (
         (("centres[i] = [polygon_centroid(self.outline(i))[0], 0.0]",
           "centres[i] = self.cells.centroids[i]"),),
     ),
+    Mutant(
+        "step_chunk_not_shuffled", "plantgrowth/runner/h5_blocks.py", "transposition",
+        "a field's chunk deflated in row order instead of after HDF5's byte shuffle, which the "
+        "dataset declares: every reader un-shuffles the inflated bytes into other values",
+        (("    shuffled = values.view(np.uint8).reshape(-1, values.dtype.itemsize).T\n",
+          "    shuffled = values.view(np.uint8).reshape(-1, values.dtype.itemsize)\n"),),
+    ),
 )  # fmt: skip
 
 
