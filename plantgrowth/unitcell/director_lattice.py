@@ -322,9 +322,10 @@ class DirectorInterpolant:
                 )  # the first surplus term on the last term's (coarser) grid
             full = value + sum(terms)
             # near a node the angle's terms are O(distance to it): no estimate asks for more M
+            blended = full[with_a]
             estimates[queries[with_a]] = np.maximum(
-                self._difference(full[with_a] - terms[-1][with_a], full[with_a]),
-                self._difference(full[with_a] - terms[0][with_a] + coarse[with_a], full[with_a]),
+                self._difference(blended - terms[-1][with_a], blended),
+                self._difference(blended - terms[0][with_a] + coarse[with_a], blended),
             )
             values[queries] = self._blend(full, answer.values, rows, nearest, blend, near)
             used = weights != 0.0

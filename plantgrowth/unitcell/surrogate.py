@@ -327,10 +327,9 @@ class LatticeSurrogate:
         found["error"] = error
         if len(again) == len(ids):
             return found
-        merged = {name: array.copy() for name, array in last.items()}
-        for name, array in found.items():
-            merged[name][again] = array
-        return merged
+        for name, array in found.items():  # last is this call's own: updated in place
+            last[name][again] = array
+        return last
 
     def _check_growths(self, every: list[tuple[np.ndarray, ...]]) -> None:
         """Raise RunError on every rank if a query on any rank (its table numbers and
