@@ -99,9 +99,9 @@ def surrogate_lookups(monkeypatch):
     counts: list[int] = []
     original = surrogate.LatticeSurrogate._found
 
-    def counting(self, ids, s, strict=False):
+    def counting(self, ids, s, strict=False, quiet=None):
         counts.append(len(ids))
-        return original(self, ids, s, strict)
+        return original(self, ids, s, strict, quiet)
 
     monkeypatch.setattr(surrogate.LatticeSurrogate, "_found", counting)
     return counts

@@ -140,6 +140,32 @@ def test_an_inverted_element_names_the_time_step_and_the_adaptive_integrator():
     assert "time.dt" in message and 'time.integrator = "adaptive"' in message
 
 
+def test_the_stiffness_check_flags_exactly_the_nodes_whose_e_hom_is_not_spd():
+    """Sylvester's criterion (diagnostics.stiffness_problems) against numpy's eigenvalues, on
+    symmetric matrices whose smallest eigenvalue is +-1e-3 of the largest (a honeycomb's shear
+    modulus is about 1e-2 of its stiffness: far from round-off, so the two must agree), with
+    positive diagonals (no minor of order 1 gives the indefinite ones away), and one SPD matrix
+    made asymmetric by 1e-6 of its largest entry (the check allows 1e-8)."""
+    rng = np.random.default_rng(5)
+    Q = np.linalg.qr(rng.normal(size=(300, 3, 3)))[0]
+    sign = np.where(rng.random(300) < 0.5, -1.0, 1.0)
+    eigen = np.column_stack([sign * 1e-3, rng.uniform(0.1, 1, 300), np.ones(300)])
+    C = Q @ (eigen[:, :, None] * np.swapaxes(Q, 1, 2))
+    C = C[(np.diagonal(C, axis1=1, axis2=2) > 0).all(axis=1)]
+    C[0] = np.diag([1.0, 0.5, 0.1])
+    C[0, 0, 1] += 1e-6
+    n = len(C)
+    expected = (np.linalg.eigvalsh(0.5 * (C + np.swapaxes(C, 1, 2)))[:, 0] <= 0) | (
+        np.arange(n) == 0
+    )
+    assert 100 < expected.sum() < n - 100
+    points = np.column_stack([np.arange(float(n)), np.zeros(n)])
+    assert not diagnostics.stiffness_problems(C[~expected], points[~expected])
+    message = diagnostics.stiffness_problems(C, points)[0]
+    assert "not symmetric positive definite" in message
+    assert f"at x = (0, 0) ({int(expected.sum())} place(s)" in message
+
+
 def test_a_run_that_fails_on_a_growth_contrast_names_dt_and_adaptive(tmp_path_factory, capsys):
     code, _, err, _ = _run(tmp_path_factory, capsys, "contrast", CONTRAST)
     assert code == 3

@@ -223,13 +223,40 @@ def test_a_refining_pass_looks_up_again_only_the_queries_its_new_hats_reach(surr
     print(f"queries looked up per pass: {looked_up}")
     assert looked_up[0] == len(queries) and len(looked_up) >= 3
     assert all(0 < rows < len(queries) for rows in looked_up[1:])
-    lat._stops = lattice_walk.StopSquares()
-    fresh = lat._pass(np.zeros(len(queries), dtype=np.int64), queries, None, np.zeros(0))
+    lat._stops = lattice_walk.StopSquares(lat.segment_norms)
+    quiet = np.full(len(queries), surrogate.KEEP * TOLERANCE)
+    fresh = lat._pass(np.zeros(len(queries), dtype=np.int64), queries, None, np.zeros(0), quiet)
     scale = np.abs(fresh["values"]).max(axis=1)
     assert (np.abs(answer.values - fresh["values"]).max(axis=1) <= ROUNDING * scale).all()
     np.testing.assert_allclose(answer.estimates, fresh["error"], rtol=0, atol=ROUNDING)
     np.testing.assert_array_equal(answer.square, fresh["square"])
     np.testing.assert_array_equal(answer.interpolated, ~fresh["on_point"])
+
+
+def test_a_bounded_estimate_is_at_least_the_estimate_and_decides_as_it_would():
+    """A pass given the threshold KEEP x tolerance (below which no query grows a square) takes
+    each query's bound of its estimate (the corners' term norms, weighted, over the square's
+    lower bound of |I|) where that bound is below the threshold, and the estimate itself
+    elsewhere. Against a pass that computes every estimate (threshold 0): the bound is never
+    below the estimate (to ROUNDING), it stands in only below the threshold (so no grow
+    decision changes), most queries of a settled lattice need no estimate (the point), and
+    the answers are the same."""
+    lat = lattice()
+    rng = np.random.default_rng(4)
+    cells = rng.uniform(-0.3, 0.3, (2000, 2))
+    ask(lat, cells)
+    ids = np.zeros(len(cells), dtype=np.int64)
+    every = lat._pass(ids, cells, None, np.zeros(0), np.zeros(len(cells)))
+    quiet = np.full(len(cells), surrogate.KEEP * TOLERANCE)
+    bounded = lat._pass(ids, cells, None, np.zeros(0), quiet)
+    inside = every["level"] >= 1
+    spared = inside & (bounded["error"] != every["error"])
+    print(f"{spared.sum()} of {inside.sum()} estimates bounded instead")
+    assert spared.sum() > inside.sum() / 2
+    assert (bounded["error"][inside] >= every["error"][inside] * (1 - ROUNDING)).all()
+    assert (bounded["error"][spared] < quiet[spared]).all()
+    np.testing.assert_array_equal(bounded["values"], every["values"])
+    np.testing.assert_array_equal(bounded["square"], every["square"])
 
 
 @pytest.mark.parametrize("tables", [1, 5])

@@ -196,10 +196,11 @@ class StopSquares:
     """I and the estimate's term at the corners of the stop squares met so far (module
     docstring); the owner drops the entries a refinement may change (:meth:`drop`)."""
 
-    def __init__(self) -> None:
+    def __init__(self, norms: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         self._entries: dict[int, tuple] = {}  # stop square key -> its corner data
         self._index: tuple[np.ndarray, ...] | None = None
         self.depth = 0  # deepest stop square's level
+        self._norms = norms  # (..., m) -> (..., segments): the estimate's norms per segment
 
     def drop(self, built: np.ndarray) -> None:
         """Forget the entries that squares just built (keys) may change: those of their table
@@ -253,7 +254,7 @@ class StopSquares:
 
     def through(
         self, lattice: Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]],
-        ids: np.ndarray, s: np.ndarray, strict: bool = False,
+        ids: np.ndarray, s: np.ndarray, strict: bool = False, quiet: np.ndarray | None = None,
     ) -> dict[str, np.ndarray]:  # fmt: skip
         """:meth:`answer` for queries (ids, s): one lookup of each query's stop square, the
         ones not met before learnt first (:meth:`learn`) from ``lattice()``, the squares,
@@ -263,16 +264,27 @@ class StopSquares:
         if miss.any():  # new entries renumber the rows: look up again
             self.learn(*lattice(), ids[miss], s[miss])
             rows, t = self.lookup(ids, s)
-        return self.answer(rows, t, s, strict)
+        return self.answer(rows, t, s, strict, quiet)
 
     def _table(self) -> tuple[np.ndarray, ...]:
-        """Sorted keys, corner rows (4 E, 2 m), and per entry its corner flags, Q_0's corners'
-        built flags, S's level and key."""
+        """Sorted keys, corner rows of I and of S's term (each (4 E, m)), per entry its corner
+        flags, Q_0's corners' built flags, S's level and key, and (with ``norms``, else None)
+        the norms of S's term at its corners (E, 4, segments) and a lower bound of |I| over
+        the square (E, segments): ``max_c (|I(c)| - max_c' |I(c') - I(c)|)``, as I is a convex
+        combination of the corners' values there."""
         if self._index is None:
             keys = np.array(sorted(self._entries), dtype=np.int64)
             rows = [self._entries[k] for k in keys.tolist()]
             self.depth = int(((keys >> 42) & 15).max()) if len(keys) else 0
-            self._index = (keys, *(np.array([e[i] for e in rows]) for i in range(5)))
+            table, *rest = (np.array([e[i] for e in rows]) for i in range(5))
+            m = table.shape[2] // 2 if len(keys) else 0
+            values, change = table[..., :m], table[..., m:]
+            flat = [np.ascontiguousarray(a).reshape(len(keys) * 4, m) for a in (values, change)]
+            norms = None
+            if self._norms is not None and len(keys):
+                spread = self._norms(values[:, :, None, :] - values[:, None, :, :]).max(axis=2)
+                norms = self._norms(change), (self._norms(values) - spread).max(axis=1)
+            self._index = (keys, *flat, *rest, norms)
         return self._index
 
     def lookup(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -293,21 +305,35 @@ class StopSquares:
         return rows, t
 
     def answer(
-        self, rows: np.ndarray, t: np.ndarray, s: np.ndarray, strict: bool
-    ) -> dict[str, np.ndarray]:
+        self, rows: np.ndarray, t: np.ndarray, s: np.ndarray, strict: bool,
+        quiet: np.ndarray | None = None,
+    ) -> dict[str, np.ndarray]:  # fmt: skip
         """The bilinear answers of queries in known stop squares (entry ``rows``, coordinates
-        t): values, change, on_point, level, square (as :func:`walk`, r = 1)."""
-        _, table, corner_point, base, level, square = self._table()
+        t): values, change, on_point, level, square (as :func:`walk`, r = 1). With ``quiet``
+        (n,) thresholds (and ``norms``), also ``bound``, a bound of each query's estimate
+        ``|term| / |I|`` (largest over the segments): the term is a convex combination of the
+        corners' terms, so ``|term| <= sum_c phi_c |term(c)|``, over the square's lower bound
+        of |I| (:meth:`_table`); a query whose bound is below its threshold needs no estimate:
+        its term is not summed (left 0)."""
+        _, values, change, corner_point, base, level, square, norms = self._table()
         weights = hats(t)
         if strict and not np.all(base[rows] | (hats(cell(s, 0)[1]) == 0.0)):
             raise KeyError("a query outside the refined lattice: refine() first")
-        flat = table.reshape(len(table) * 4, -1)  # an entry's four corner rows
-        both = combine(weights, rows[:, None] * 4 + np.arange(4)[None], flat)
-        m = both.shape[1] // 2
-        return {
-            "values": both[:, :m],
-            "change": both[:, m:],
+        corners = rows[:, None] * 4 + np.arange(4)[None]  # an entry's four corner rows
+        found = {
+            "values": combine(weights, corners, values),
             "level": level[rows],
             "square": square[rows],
             "on_point": (corner_point[rows] & (weights == 1.0)).any(axis=1),
+            "bound": np.full(len(rows), np.inf),
         }
+        loud = slice(None)
+        if quiet is not None and norms is not None:
+            top = np.einsum("nc,ncs->ns", weights, norms[0][rows])
+            size = norms[1][rows]
+            ratio = np.divide(top, size, out=np.full(top.shape, np.inf), where=size > 0.0)
+            found["bound"] = np.where(top == 0.0, 0.0, ratio).max(axis=1)
+            loud = np.flatnonzero((found["bound"] >= quiet) | (found["level"] < 1))
+        found["change"] = np.zeros_like(found["values"])
+        found["change"][loud] = combine(weights[loud], corners[loud], change)
+        return found

@@ -131,6 +131,11 @@ need. Measured on tests/test_surrogate_continuity.py's drifting queries, KEEP 0.
 (no gap): 28 / 33 / 44 refining calls, 321 / 293 / 275 points, largest jump beyond the exact
 change 0.055 / 0.029 / 0.054 tolerance; on gradient_E_strain at ``balanced`` 101 / 73 / 67
 lattice points (0.5 overshot a level in most squares: the estimates there sit at 0.5-0.7)."""
+QUIET_MARGIN = 1e-6
+"""Relative margin below KEEP times the tolerance under which a query's bound of its estimate
+spares it the estimate (:meth:`LatticeSurrogate._pass`): far above the rounding of an estimate
+summed from the corners (1e-16 of |I| against a term of 1e-5 |I| and more), so the bound never
+stands in for an estimate that could reach the threshold."""
 MAX_GROWTHS = MAX_LEVEL + 1
 """Most passes of one refinement in which a query asks for a square (a bound no correct table
 reaches). A query grows when its deepest built square S has level -1 (none) or is below
@@ -185,7 +190,7 @@ class LatticeSurrogate:
         self._built: set[int] = set()  # keys of the built squares
         self._points_index: tuple[np.ndarray, np.ndarray] | None = None
         self._squares_index: np.ndarray | None = None
-        self._stops = StopSquares()  # I at the corners of the stop squares met
+        self._stops = StopSquares(self.segment_norms)  # I at the corners of the stop squares met
         self.step = 0  # steps ended (:meth:`end_step`): the c1 blend's clock
         self.smooth = None if interpolant == "bilinear" else SmoothAnswers(
             self._lattice_points, self.relative_difference, voigt
@@ -216,6 +221,10 @@ class LatticeSurrogate:
             ratio = np.divide(diff, scale, out=np.zeros_like(diff), where=scale > 0)
             out = np.maximum(out, ratio)
         return out
+
+    def segment_norms(self, x: np.ndarray) -> np.ndarray:
+        """Frobenius norms (..., segments) of the segments of packed values x (..., m)."""
+        return np.stack([np.sqrt((x[..., seg] ** 2).sum(axis=-1)) for seg in self.segments], -1)
 
     def _solve_points(self, points: list[Point]) -> int:
         """Solve the lattice points missing on any rank (collective: ``points`` are this
@@ -282,7 +291,7 @@ class LatticeSurrogate:
         grown = np.zeros(n, dtype=np.int64)  # passes in which each query asked for a square
         found, squares = None, np.zeros(0, dtype=np.int64)
         while True:
-            found = self._pass(ids, s, found, squares)
+            found = self._pass(ids, s, found, squares, KEEP * tol)
             values, interpolated = found["values"], ~found["on_point"]
             level, key, error = found["level"], found["square"], found["error"]
             going = np.isin(key, fresh) & (error > KEEP * tol)
@@ -301,29 +310,37 @@ class LatticeSurrogate:
 
     def _pass(
         self, ids: np.ndarray, s: np.ndarray, last: dict[str, np.ndarray] | None,
-        built: np.ndarray,
+        built: np.ndarray, quiet: np.ndarray,
     ) -> dict[str, np.ndarray]:  # fmt: skip
         """One pass of :meth:`_refine`: the frozen interpolant's answers (:meth:`_found`) and
-        estimates ``error`` (inf: none yet). A query that the new hats of the squares ``built``
-        since the ``last`` pass do not reach (:func:`~plantgrowth.unitcell.lattice.touched`)
-        keeps its last answer: I, S and S's term are unchanged there (a lookup gives the same
-        to rounding, 5e-16 relative: another stop square's bilinear form)."""
+        estimates ``error`` (inf: none yet). A query whose estimate is bounded below ``quiet``
+        (n,), the lowest threshold that grows a square (KEEP times the tolerance), has that
+        bound as its estimate: it grows nothing either way, and its estimate's term is not
+        summed (:meth:`~plantgrowth.unitcell.lattice.StopSquares.answer`). A query that the
+        new hats of the squares ``built`` since the ``last`` pass do not reach
+        (:func:`~plantgrowth.unitcell.lattice.touched`) keeps its last answer: I, S and S's
+        term are unchanged there (a lookup gives the same to rounding, 5e-16 relative: another
+        stop square's bilinear form)."""
         again = np.arange(len(ids))
         if last is not None and last["values"].shape[1]:  # a lattice with points before
             again = np.flatnonzero(touched(built, ids, s))
             if not len(again):
                 return last
-        found = self._found(ids[again], s[again])
-        level, values, change = found["level"], found["values"], found["change"]
+        # the margin: far above the estimate's rounding (1e-16 of |I| against |term|)
+        found = self._found(ids[again], s[again], quiet=quiet[again] * (1.0 - QUIET_MARGIN))
+        level, values, change, bound = (found[k] for k in ("level", "values", "change", "bound"))
         error = np.full(len(again), np.inf)
-        inside = level >= 1  # level 0 has no estimate: its children are built first,
         on_corner = (level == 0) & (cell(s[again], 0)[1] % 1.0 == 0.0).all(axis=1)
-        error[on_corner] = 0.0  # unless the query is a corner: answered exactly
-        if inside.all():
+        error[on_corner] = 0.0  # level 0 has no estimate (its children are built first)
+        inside = level >= 1  # unless the query is a corner: answered exactly
+        sure = inside & (bound < quiet[again] * (1.0 - QUIET_MARGIN))
+        error[sure] = bound[sure]
+        loud = inside & ~sure
+        if loud.all():
             error = self.relative_difference(values - change, values)
-        elif inside.any():
-            part = values[inside]
-            error[inside] = self.relative_difference(part - change[inside], part)
+        elif loud.any():
+            part = values[loud]
+            error[loud] = self.relative_difference(part - change[loud], part)
         found["error"] = error
         if len(again) == len(ids):
             return found
@@ -402,7 +419,9 @@ class LatticeSurrogate:
         return (found["values"], ~found["on_point"], found["level"], found["square"],
                 found["change"])  # fmt: skip
 
-    def _found(self, ids: np.ndarray, s: np.ndarray, strict: bool = False) -> dict[str, np.ndarray]:
+    def _found(
+        self, ids: np.ndarray, s: np.ndarray, strict: bool = False, quiet: np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """The frozen interpolant at n >= 0 queries: I(s) (:meth:`interpolate`; ``strict``: a
         KeyError off the built lattice), whether each is a built point, the level and key of
         the deepest built square S holding it (-1, 0: none), and S's term of I, the change its
@@ -413,8 +432,9 @@ class LatticeSurrogate:
         if not len(ids):  # a rank without queries (perhaps without stop squares yet)
             empty = np.zeros((0, self._points_table()[1].shape[1]))
             return {"values": empty, "change": empty, "on_point": np.zeros(0, dtype=bool),
-                    "level": np.full(0, -1), "square": np.zeros(0, np.int64)}  # fmt: skip
-        return self._stops.through(self._lattice_tables, ids, s, strict)
+                    "level": np.full(0, -1), "square": np.zeros(0, np.int64),
+                    "bound": np.zeros(0)}  # fmt: skip
+        return self._stops.through(self._lattice_tables, ids, s, strict, quiet)
 
     def _lattice_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sorted built squares' keys, sorted point keys and their surpluses (for the walks

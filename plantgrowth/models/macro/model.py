@@ -208,6 +208,7 @@ class MacroModel:
             scene.regions, problem.midpoints[:n, :2], problem.areas, comm
         )
         self.strain_magnitudes = np.zeros(n)  # the last step's, per owned fine cell
+        self.jacobians = np.ones(len(problem.areas))  # the last step's det(I + grad u), per cell
         self.sampling = field_sampling(
             scene, vertices, problem.areas, self._W_active[:n], nodes, self.per_cell, comm
         )
@@ -386,9 +387,10 @@ class MacroModel:
             driving = sigma if law == "stress" else eps_hom
             G = growth.growth_rate(driving, phi_w, self.eta, self.tau, self.scene.growth.clamp)
         midpoints = problem.midpoints[:, :2]
+        self.jacobians = det2(np.eye(2) + grad_u)  # det(I + grad u): for measures' area too
         diagnostics.stop_if(
             diagnostics.growth_problems(Fg, midpoints, G)
-            + diagnostics.inversion_problems(det2(np.eye(2) + grad_u), midpoints),
+            + diagnostics.inversion_problems(self.jacobians, midpoints),
             self.comm,
         )
         walls = None if problem.finite else (stability.stretch_of_strain(eps_el), sigma, C)
@@ -462,7 +464,7 @@ class MacroModel:
         problem, comm = self.problem, self.comm
         n = problem.n_owned
         areas = problem.areas
-        current = areas * det2(np.eye(2) + problem.grad_u()[:n])
+        current = areas * self.jacobians[:n]  # the step's u
         area = np.sum(current)
         means = np.array([np.sum(areas * G[:n, 0, 0]), np.sum(areas * G[:n, 1, 1])])
         means = comm.allreduce(means, op=MPI.SUM) / problem.total_area
