@@ -22,10 +22,13 @@ from plantgrowth.base.tensors import (
     inv2,
     rotate2,
     rotate4,
+    rotate_symmetric2,
+    rotate_symmetric4,
     rotate_voigt,
     smallest_eigenvalue_sym3,
     tensor_from_voigt,
     voigt_matrix,
+    voigt_rotation,
 )
 from plantgrowth.unitcell import surrogate
 from plantgrowth.unitcell.homogenization import Homogenizer
@@ -73,6 +76,14 @@ def test_voigt_round_trip_and_rotations():
     # the Voigt shortcut is the full 4th-order rotation (round-off of a few products of O(1))
     turned = voigt_matrix(rotate4(R, T))
     np.testing.assert_allclose(rotate_voigt(R, C), turned, rtol=0.0, atol=1e-12)
+    # the symmetric forms (K_hom, dbar[v]; dbar[w]: minor symmetries, no major one) are the
+    # full rotations, to the same round-off
+    turn = voigt_rotation(R)
+    np.testing.assert_allclose(rotate_symmetric2(turn, K), rotate2(R, K), rtol=0.0, atol=1e-12)
+    D = T + np.random.default_rng(3).normal(size=(4, 2, 2, 1, 1)) * np.eye(2)
+    D = 0.5 * (D + np.swapaxes(D, 1, 2))
+    assert np.abs(D - np.swapaxes(D, 1, 3)).max() > 0.1  # no major symmetry
+    np.testing.assert_allclose(rotate_symmetric4(turn, D), rotate4(R, D), rtol=0.0, atol=1e-12)
 
 
 def test_closed_forms_agree_with_numpy():

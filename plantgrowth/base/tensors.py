@@ -107,22 +107,52 @@ def rotate2(R: np.ndarray, T: np.ndarray) -> np.ndarray:
     return R @ T @ np.swapaxes(R, 1, 2)
 
 
-def rotate_voigt(R: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """Voigt matrices (n, 3, 3) of :func:`rotate4` applied to the tensors of ``C``, directly:
-    ``T C T^T`` with T the stress transformation of R = [[c, -s], [s, c]],
-    ``T = [[c^2, s^2, -2cs], [s^2, c^2, 2cs], [cs, -cs, c^2 - s^2]]`` (the engineering strain's
+def voigt_rotation(R: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) the stress transformation of rotations R = [[c, -s], [s, c]] (n, 2, 2),
+    ``T = [[c^2, s^2, -2cs], [s^2, c^2, 2cs], [cs, -cs, c^2 - s^2]]``: the tensor components
+    (a11, a22, a12) of a symmetric A become those of ``R A R^T`` (the engineering strain's
     transformation is T^-T)."""
     c, s = R[:, 0, 0], R[:, 1, 0]
     cc, ss, cs = c * c, s * s, c * s
-    T = np.stack(
-        [
-            np.stack([cc, ss, -2.0 * cs], -1),
-            np.stack([ss, cc, 2.0 * cs], -1),
-            np.stack([cs, -cs, cc - ss], -1),
-        ],
-        -2,
-    )
+    T = np.empty((len(R), 3, 3))
+    T[:, 0, 0], T[:, 0, 1], T[:, 0, 2] = cc, ss, -2.0 * cs
+    T[:, 1, 0], T[:, 1, 1], T[:, 1, 2] = ss, cc, 2.0 * cs
+    T[:, 2, 0], T[:, 2, 1], T[:, 2, 2] = cs, -cs, cc - ss
+    return T
+
+
+def rotate_voigt(R: np.ndarray, C: np.ndarray, T: np.ndarray | None = None) -> np.ndarray:
+    """Voigt matrices (n, 3, 3) of :func:`rotate4` applied to the tensors of ``C``, directly:
+    ``T C T^T`` with T the stress transformation of R (:func:`voigt_rotation`, or given)."""
+    T = voigt_rotation(R) if T is None else T
     return T @ C @ np.swapaxes(T, 1, 2)
+
+
+SYMMETRIC2 = np.array([0, 3, 1])
+"""Positions of (a11, a22, a12) in a flattened 2 x 2 tensor."""
+FULL2 = np.array([0, 2, 2, 1])
+"""Positions of a11, a12, a21, a22 among (a11, a22, a12)."""
+
+
+def rotate_symmetric2(T: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """:func:`rotate2` of symmetric (n, 2, 2) tensors A (their (1, 2) entries taken), as the
+    stress transformation T (:func:`voigt_rotation`) of their three components: a matrix
+    times a vector instead of two 2 x 2 products."""
+    n = len(A)
+    turned = (T @ A.reshape(n, 4)[:, SYMMETRIC2, None])[:, :, 0]
+    return turned[:, FULL2].reshape(n, 2, 2)
+
+
+def rotate_symmetric4(T: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """:func:`rotate4` of (n, 2, 2, 2, 2) tensors with both minor symmetries (D_ijkl =
+    D_jikl = D_ijlk; their entries with i <= j, k <= l taken), as ``T D3 T^T`` of their 3 x 3
+    matrices of tensor components (:func:`voigt_rotation`'s T on each index pair): two 3 x 3
+    products instead of two 4 x 4 ones and no 4 x 4 Kronecker matrix."""
+    n = len(D)
+    pairs = (SYMMETRIC2[:, None] * 4 + SYMMETRIC2[None, :]).ravel()
+    D3 = D.reshape(n, 16)[:, pairs].reshape(n, 3, 3)
+    turned = (T @ D3 @ np.swapaxes(T, 1, 2)).reshape(n, 9)
+    return turned[:, (FULL2[:, None] * 3 + FULL2[None, :]).ravel()].reshape(n, 2, 2, 2, 2)
 
 
 def rotate4(R: np.ndarray, T: np.ndarray) -> np.ndarray:

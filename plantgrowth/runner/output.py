@@ -315,7 +315,8 @@ class FieldSeries:
             v = np.reshape(self.side.values[name], (-1, components))
             blocks[f"{self.side.prefix}/{name}"] = Block.split(v, self.comm)
         datasets = [
-            Dataset(name, Block(pad(block.values), block.start, block.total), self.dtype, True)
+            Dataset(name, Block(pad(block.values, self.dtype), block.start, block.total),
+                    self.dtype, True)  # fmt: skip
             for name, block in blocks.items()
         ]  # fmt: skip
         attrs = {"/": {"step": step, "t": t}}

@@ -14,15 +14,18 @@ ATTRIBUTE_TYPES = {1: ("Scalar", 1), 2: ("Vector", 3), 4: ("Tensor", 9)}
 """Block size -> XDMF attribute type and its padded width (2D vectors/tensors padded to 3D)."""
 
 
-def pad(values: np.ndarray) -> np.ndarray:
+def pad(values: np.ndarray, dtype: np.dtype | str) -> np.ndarray:
+    """Values (n, block size) as ``dtype`` and padded to 3D (:data:`ATTRIBUTE_TYPES`): a 2D
+    vector gets a zero third component, a 2 x 2 tensor (row-major) zero third row and column."""
     n, bs = values.shape
+    if bs not in (2, 4):
+        return np.ascontiguousarray(values, dtype=dtype)
+    out = np.zeros((n, ATTRIBUTE_TYPES[bs][1]), dtype=dtype)
     if bs == 2:
-        return np.column_stack([values, np.zeros(n)])
-    if bs == 4:
-        out = np.zeros((n, 9))
-        out[:, [0, 1, 3, 4]] = values
-        return out
-    return values
+        out[:, :2] = values
+    else:
+        out[:, 0:2], out[:, 3:5] = values[:, 0:2], values[:, 2:4]
+    return out
 
 
 @dataclass(frozen=True)

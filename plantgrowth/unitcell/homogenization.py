@@ -38,7 +38,13 @@ import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
 
-from plantgrowth.base.tensors import rotate2, rotate4, rotate_voigt, voigt_matrix
+from plantgrowth.base.tensors import (
+    rotate_symmetric2,
+    rotate_symmetric4,
+    rotate_voigt,
+    voigt_matrix,
+    voigt_rotation,
+)
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.unitcell import director_lattice, surrogate
 from plantgrowth.unitcell.cache import CellCache, cache_root
@@ -324,12 +330,13 @@ class Homogenizer:
             s_q, answer,
         )  # fmt: skip
         tensors = self._unpack(layout.combine @ answer.values, E)
-        rotated = {"C": rotate_voigt(R, tensors.C)}
+        T = voigt_rotation(R)  # K_hom, dbar[v] and dbar[w] are symmetric (minor symmetries)
+        rotated = {"C": rotate_voigt(R, tensors.C, T)}
         for name in ("K", "dbar_v"):
             if getattr(tensors, name) is not None:
-                rotated[name] = rotate2(R, getattr(tensors, name))
+                rotated[name] = rotate_symmetric2(T, getattr(tensors, name))
         if tensors.dbar_w is not None:
-            rotated["dbar_w"] = rotate4(R, tensors.dbar_w)
+            rotated["dbar_w"] = rotate_symmetric4(T, tensors.dbar_w)
         return replace(tensors, **rotated)
 
     def _layout(

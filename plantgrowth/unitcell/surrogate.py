@@ -328,19 +328,15 @@ class LatticeSurrogate:
                 return last
         # the margin: far above the estimate's rounding (1e-16 of |I| against |term|)
         found = self._found(ids[again], s[again], quiet=quiet[again] * (1.0 - QUIET_MARGIN))
-        level, values, change, bound = (found[k] for k in ("level", "values", "change", "bound"))
+        level, values = found["level"], found["values"]
+        bound, loud, change = found.pop("bound"), found.pop("loud"), found.pop("change")
         error = np.full(len(again), np.inf)
         on_corner = (level == 0) & (cell(s[again], 0)[1] % 1.0 == 0.0).all(axis=1)
         error[on_corner] = 0.0  # level 0 has no estimate (its children are built first)
         inside = level >= 1  # unless the query is a corner: answered exactly
-        sure = inside & (bound < quiet[again] * (1.0 - QUIET_MARGIN))
-        error[sure] = bound[sure]
-        loud = inside & ~sure
-        if loud.all():
-            error = self.relative_difference(values - change, values)
-        elif loud.any():
-            part = values[loud]
-            error[loud] = self.relative_difference(part - change[loud], part)
+        error[inside] = bound[inside]  # below the threshold, or replaced next
+        if len(loud):
+            error[loud] = self.relative_difference(values[loud] - change, values[loud])
         found["error"] = error
         if len(again) == len(ids):
             return found
@@ -433,7 +429,7 @@ class LatticeSurrogate:
             empty = np.zeros((0, self._points_table()[1].shape[1]))
             return {"values": empty, "change": empty, "on_point": np.zeros(0, dtype=bool),
                     "level": np.full(0, -1), "square": np.zeros(0, np.int64),
-                    "bound": np.zeros(0)}  # fmt: skip
+                    "bound": np.zeros(0), "loud": np.zeros(0, dtype=np.int64)}  # fmt: skip
         return self._stops.through(self._lattice_tables, ids, s, strict, quiet)
 
     def _lattice_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
