@@ -62,10 +62,11 @@ class _Exchange:
         start = self.offsets[comm.rank]
         self.place = self._move(positions.astype(np.int64).reshape(-1, 1))[:, 0] - start
 
-    def _move(self, rows: np.ndarray) -> np.ndarray:
-        """Alltoallv of the rows, sent in :attr:`order`; received in rank order."""
+    def _move(self, rows: np.ndarray, pick: np.ndarray | None = None) -> np.ndarray:
+        """Alltoallv of the rows ``rows[pick]`` (default: all), sent in :attr:`order`;
+        received in rank order."""
         width = rows.shape[1]
-        send = np.ascontiguousarray(rows[self.order])
+        send = np.ascontiguousarray(rows[self.order if pick is None else pick[self.order]])
         received = np.empty((int(self.receive.sum()), width), dtype=rows.dtype)
         counts_out, counts_in = self.send * width, self.receive * width
         displs_out = np.concatenate([[0], np.cumsum(counts_out)[:-1]])
@@ -73,11 +74,12 @@ class _Exchange:
         self.comm.Alltoallv([send, (counts_out, displs_out)], [received, (counts_in, displs_in)])
         return received
 
-    def __call__(self, rows: np.ndarray) -> Block:
-        """This rank's block of the global array whose owned rows are ``rows`` (n_owned, k)."""
+    def __call__(self, rows: np.ndarray, pick: np.ndarray | None = None) -> Block:
+        """This rank's block of the global array whose owned rows are ``rows`` (n_owned, k),
+        or ``rows[pick]`` (taken in the one gather that sends them)."""
         rows = np.asarray(rows, dtype=np.float64)
         flat = rows.reshape(len(rows), -1)
-        received = self._move(flat)
+        received = self._move(flat, pick)
         block = np.empty_like(received)
         block[self.place] = received
         start = int(self.offsets[self.comm.rank])
@@ -106,7 +108,7 @@ class CanonicalBlocks:
         dofmap = u.function_space.dofmap
         values = u.x.array.reshape(-1, dofmap.index_map_bs)
         if u.function_space.ufl_element().degree() == 0:
-            return self.cells(values[dofmap.list.array[: self.n_owned_cells]])
+            return self.cells(values, dofmap.list.array[: self.n_owned_cells])
         return self.nodes(values[: len(self.nodes.order)])
 
 

@@ -36,9 +36,8 @@ OFFSET = 2**20  # finest-lattice integers are keyed in [-OFFSET, OFFSET): |s| < 
 OFFSETS = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])  # a square's corners, in its spacing
 LOW = (1 << 21) - 1
 CHUNK = 8192
-"""Queries per pass of :meth:`StopSquares.lookup` (and rows per pass of
-:meth:`LatticeSurrogate.relative_difference`): a chunk's keys of every level (8192 x 13) stay
-in cache."""
+"""Rows per pass of :meth:`LatticeSurrogate.relative_difference`: a chunk's differences and
+squares (8192 x 38 values of the strain law) stay in cache."""
 
 
 def place(s: np.ndarray) -> np.ndarray:
@@ -293,19 +292,18 @@ class StopSquares:
 
     def lookup(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per query: its entry's row (-1: no known stop square holds it) and its coordinates t
-        (n, 2) in that square; over chunks of :data:`CHUNK` queries (each asks every level)."""
-        keys, rows, t = self._table()[0], np.empty(len(ids), dtype=np.int64), np.empty(s.shape)
-        levels = np.arange(self.depth + 1)
-        for start in range(0, len(ids), CHUNK):
-            part = slice(start, start + CHUNK)
-            n = len(ids[part])
-            corner, place = cell(np.repeat(s[part], len(levels), axis=0), np.tile(levels, n))
-            key = square_key(np.repeat(ids[part], len(levels)), np.tile(levels, n), corner)
-            pos, hit = (a.reshape(n, -1) for a in find(keys, key))
-            first = np.argmax(hit, axis=1)  # the coarsest holding square: they do not nest
-            every = np.arange(n)
-            rows[part] = np.where(hit[every, first], pos[every, first], -1)
-            t[part] = place.reshape(n, -1, 2)[every, first]
+        (n, 2) in that square: the coarsest level's entry that holds it, found level by level
+        from the coarsest, each level asked by the queries no coarser one holds."""
+        keys = self._table()[0]
+        rows, t = np.full(len(ids), -1, dtype=np.int64), np.zeros(s.shape)
+        left = np.arange(len(ids))  # the queries no coarser entry holds
+        for level in range(self.depth + 1):
+            corner, place = cell(s[left], level)
+            pos, hit = find(keys, square_key(ids[left], level, corner))
+            rows[left[hit]], t[left[hit]] = pos[hit], place[hit]
+            left = left[~hit]
+            if not len(left):
+                break
         return rows, t
 
     def answer(

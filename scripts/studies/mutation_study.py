@@ -651,6 +651,35 @@ MUTANTS = (
         (("centres[i] = [polygon_centroid(self.outline(i))[0], 0.0]",
           "centres[i] = self.cells.centroids[i]"),),
     ),
+    # --- issue 33, stop 47: the cell phase's bounded estimates, symmetric rotations, SPD test -
+    Mutant(
+        "estimate_bound_at_refine_threshold", "plantgrowth/unitcell/surrogate.py", "factor",
+        "a query's bound of its estimate spares it below the refine threshold (the tolerance) "
+        "instead of KEEP times it: a refinement no longer goes on to KEEP times the tolerance "
+        "in the squares it built (the gap between the thresholds closed)",
+        (("found = self._pass(ids, s, found, squares, KEEP * tol)",
+          "found = self._pass(ids, s, found, squares, tol)"),),
+    ),
+    Mutant(
+        "estimate_bound_without_spread", "plantgrowth/unitcell/lattice.py", "wrong average",
+        "the stop square's lower bound of |I| taken as its largest corner value's norm, without "
+        "the corners' spread: the bound may fall below the estimate it stands in for",
+        (("norms = corner_norms, (self._norms(values) - spread).max(axis=1)",
+          "norms = corner_norms, self._norms(values).max(axis=1)"),),
+    ),
+    Mutant(
+        "symmetric4_turned_back", "plantgrowth/base/tensors.py", "transposition",
+        "dbar[w] turned by T^T D T (the rotation by -R) instead of T D T^T",
+        (("turned = (T @ D3 @ np.swapaxes(T, 1, 2)).reshape(n, 9)",
+          "turned = (np.swapaxes(T, 1, 2) @ D3 @ T).reshape(n, 9)"),),
+    ),
+    Mutant(
+        "stiffness_check_two_minors", "plantgrowth/models/diagnostics.py", "wrong index",
+        "E_hom's SPD test by its first two leading minors only (Sylvester's criterion without "
+        "the determinant): an indefinite E_hom with a positive 2 x 2 block passes",
+        (("bad = ~((a > 0) & (a * d - b * b > 0) & (det > 0))",
+          "bad = ~((a > 0) & (a * d - b * b > 0))"),),
+    ),
     Mutant(
         "step_chunk_not_shuffled", "plantgrowth/runner/h5_blocks.py", "transposition",
         "a field's chunk deflated in row order instead of after HDF5's byte shuffle, which the "

@@ -195,6 +195,7 @@ class MacroModel:
         self.cell_table = None  # per-cell rows (cells.csv): micro only
         self.output_space = problem.V
         self._blocks = CanonicalBlocks(problem.V)
+        self._midpoint_block: Block | None = None  # the state's midpoints, in its blocks
         self._factors_saved: tuple[int, dict[str, Block]] = (0, {})  # see _factor_blocks
         log.info(
             "macro: %d fine dofs, %d coarse nodes (%d in the tissue), terms: %s",
@@ -228,13 +229,15 @@ class MacroModel:
         block of them in the written mesh's cell order (finite kinematics: Newton's guess, which
         rank 0 writes)."""
         n = self.problem.n_owned
-        parts = {"midpoints": self.problem.midpoints[:n, :2], "Fg": Fg[:n].reshape(n, 4),
-                 "G": G[:n].reshape(n, 4)}  # fmt: skip
+        parts = {"Fg": Fg[:n].reshape(n, 4), "G": G[:n].reshape(n, 4)}
         if self.director is not None:
             parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
         if self.water is not None:  # after end_step: the time the next step reaches
             parts |= self.water.state() | {"water_time": np.full((n, 1), self._time)}
-        blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
+        if self._midpoint_block is None:  # the same at every step: moved once
+            self._midpoint_block = self._blocks.cells(self.problem.midpoints[:n, :2])
+        blocks = {"midpoints": self._midpoint_block}
+        blocks |= {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         whole = newton | self.homogenizer.state()  # the surrogate: the same on every rank
         whole = root_blocks(whole if self.comm.rank == 0 else {}, self.comm)
