@@ -132,18 +132,12 @@ need. Measured on tests/test_surrogate_continuity.py's drifting queries, KEEP 0.
 change 0.055 / 0.029 / 0.054 tolerance; on gradient_E_strain at ``balanced`` 101 / 73 / 67
 lattice points (0.5 overshot a level in most squares: the estimates there sit at 0.5-0.7)."""
 QUIET_MARGIN = 1e-6
-"""Relative margin below KEEP times the tolerance under which a query's bound of its estimate
-spares it the estimate (:meth:`LatticeSurrogate._pass`): far above the rounding of an estimate
-summed from the corners (1e-16 of |I| against a term of 1e-5 |I| and more), so the bound never
-stands in for an estimate that could reach the threshold."""
+"""Margin under the threshold where a bound spares an estimate: far above its 1e-16 rounding."""
 MAX_GROWTHS = MAX_LEVEL + 1
-"""Most passes of one refinement in which a query asks for a square (a bound no correct table
-reaches). A query grows when its deepest built square S has level -1 (none) or is below
-MAX_LEVEL, and then asks for S's child holding it (the level-0 square for -1), which is not
-built (S is the deepest) and which the next pass's lookup sees: its level rises by at least one
-each pass it grows, from -1 to at most MAX_LEVEL, so at most MAX_LEVEL + 1 times. A query that
-asks more often sees a stale level (stop squares that a refinement did not drop, squares that
-do not nest): it would ask for the same built square forever."""
+"""Most passes of one refinement in which a query asks for a square: each time, for the child
+of its deepest built square S holding it, so S's level rises from -1 (none) to at most
+MAX_LEVEL. A query that asks more often sees a stale level (stop squares a refinement did not
+drop, squares that do not nest): it would ask for the same built square forever."""
 SQUARE_TABLE = 7
 """Most entries of a table (a fibred table's angle node: geometry, nu, fibre_stiffness, node)."""
 
@@ -313,20 +307,16 @@ class LatticeSurrogate:
         built: np.ndarray, quiet: np.ndarray,
     ) -> dict[str, np.ndarray]:  # fmt: skip
         """One pass of :meth:`_refine`: the frozen interpolant's answers (:meth:`_found`) and
-        estimates ``error`` (inf: none yet). A query whose estimate is bounded below ``quiet``
-        (n,), the lowest threshold that grows a square (KEEP times the tolerance), has that
-        bound as its estimate: it grows nothing either way, and its estimate's term is not
-        summed (:meth:`~plantgrowth.unitcell.lattice.StopSquares.answer`). A query that the
-        new hats of the squares ``built`` since the ``last`` pass do not reach
-        (:func:`~plantgrowth.unitcell.lattice.touched`) keeps its last answer: I, S and S's
-        term are unchanged there (a lookup gives the same to rounding, 5e-16 relative: another
-        stop square's bilinear form)."""
+        estimates ``error`` (inf: none yet); a query whose estimate is bounded below ``quiet``
+        (KEEP times its tolerance: it grows nothing) has the bound as its estimate
+        (:meth:`~plantgrowth.unitcell.lattice.StopSquares.answer`). A query the new hats of the
+        squares ``built`` since the ``last`` pass do not reach (:func:`.lattice.touched`) keeps
+        its last answer: I, S and S's term are unchanged there (to rounding, 5e-16)."""
         again = np.arange(len(ids))
         if last is not None and last["values"].shape[1]:  # a lattice with points before
             again = np.flatnonzero(touched(built, ids, s))
             if not len(again):
                 return last
-        # the margin: far above the estimate's rounding (1e-16 of |I| against |term|)
         found = self._found(ids[again], s[again], quiet=quiet[again] * (1.0 - QUIET_MARGIN))
         level, values = found["level"], found["values"]
         bound, loud, change = found.pop("bound"), found.pop("loud"), found.pop("change")
@@ -394,10 +384,8 @@ class LatticeSurrogate:
         self, tables: Sequence[tuple], which: np.ndarray, s: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """The frozen interpolant ``I(s) = sum_p alpha_p phi_p(s)`` at this rank's n queries
-        (no solve, not collective), and which queries are not on a built point. Level by level,
-        the hats of a query's square's corners that are points of that level; a query whose
-        square has none has no finer hat reaching it (the quadtree's finer points lie on and
-        inside built squares), so it stops there. Raises KeyError off the built lattice."""
+        (no solve, not collective; :meth:`_found`), and which queries are not on a built point.
+        Raises KeyError off the built lattice."""
         n = len(which)
         ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
         return self.interpolate_ids(ids, np.asarray(s, dtype=float).reshape(n, 2))
@@ -422,19 +410,18 @@ class LatticeSurrogate:
         KeyError off the built lattice), whether each is a built point, the level and key of
         the deepest built square S holding it (-1, 0: none), and S's term of I, the change its
         new corners made there, ``sum_c alpha_c phi_c(s)`` (the error estimate is ``|term| /
-        |I(s)|`` per segment; for a smooth f the error left is about a third of it). One lookup
-        of each query's stop square (:class:`~plantgrowth.unitcell.lattice.StopSquares`); the
-        stop squares not met before are found by walks first."""
+        |I(s)|`` per segment; for a smooth f the error left is about a third of it); with
+        ``quiet``, as :meth:`.StopSquares.answer`. One lookup of each query's stop square, the
+        ones not met before found by walks first."""
         if not len(ids):  # a rank without queries (perhaps without stop squares yet)
             empty = np.zeros((0, self._points_table()[1].shape[1]))
             return {"values": empty, "change": empty, "on_point": np.zeros(0, dtype=bool),
-                    "level": np.full(0, -1), "square": np.zeros(0, np.int64),
-                    "bound": np.zeros(0), "loud": np.zeros(0, dtype=np.int64)}  # fmt: skip
+                    "level": np.full(0, -1), "square": np.zeros(0, np.int64), "bound":
+                    np.zeros(0), "loud": np.zeros(0, dtype=np.int64)}  # fmt: skip
         return self._stops.through(self._lattice_tables, ids, s, strict, quiet)
 
     def _lattice_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Sorted built squares' keys, sorted point keys and their surpluses (for the walks
-        of :meth:`~plantgrowth.unitcell.lattice.StopSquares.learn`)."""
+        """Sorted built squares' keys, point keys and surpluses (:meth:`.StopSquares.learn`)."""
         if self._squares_index is None:
             self._squares_index = np.array(sorted(self._built), dtype=np.int64)
         return (self._squares_index, *self._points_table())

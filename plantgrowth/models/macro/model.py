@@ -194,8 +194,8 @@ class MacroModel:
         self.side_output = coarse_output(self.grid, scene.output.fields)
         self.cell_table = None  # per-cell rows (cells.csv): micro only
         self.output_space = problem.V
-        self._blocks = CanonicalBlocks(problem.V)
-        self._midpoint_block: Block | None = None  # the state's midpoints, in its blocks
+        self._blocks = CanonicalBlocks(problem.V)  # the state's midpoints moved once, below
+        self._midpoints = self._blocks.cells(problem.midpoints[: problem.n_owned, :2])
         self._factors_saved: tuple[int, dict[str, Block]] = (0, {})  # see _factor_blocks
         log.info(
             "macro: %d fine dofs, %d coarse nodes (%d in the tissue), terms: %s",
@@ -205,11 +205,9 @@ class MacroModel:
             log.info("skipped: %s", line)
         msh, n = problem.mesh, problem.n_owned
         vertices = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 3)[:n], :2]
-        self.regions = RegionStatistics(
-            scene.regions, problem.midpoints[:n, :2], problem.areas, comm
-        )
-        self.strain_magnitudes = np.zeros(n)  # the last step's, per owned fine cell
-        self.jacobians = np.ones(len(problem.areas))  # the last step's det(I + grad u), per cell
+        self.regions = RegionStatistics(scene.regions, problem.midpoints[:n, :2], problem.areas,
+                                        comm)  # fmt: skip
+        self.strain_magnitudes, self.jacobians = np.zeros(n), np.ones(n)  # the last step's
         self.sampling = field_sampling(
             scene, vertices, problem.areas, self._W_active[:n], nodes, self.per_cell, comm
         )
@@ -234,14 +232,11 @@ class MacroModel:
             parts["fibre_angle"] = self.director.angle[:n].reshape(n, 1)
         if self.water is not None:  # after end_step: the time the next step reaches
             parts |= self.water.state() | {"water_time": np.full((n, 1), self._time)}
-        if self._midpoint_block is None:  # the same at every step: moved once
-            self._midpoint_block = self._blocks.cells(self.problem.midpoints[:n, :2])
-        blocks = {"midpoints": self._midpoint_block}
-        blocks |= {key: self._blocks.cells(p) for key, p in parts.items()}
+        blocks = {key: self._blocks.cells(p) for key, p in parts.items()}
         newton = dof_state(self.problem.newton.guess_functions) if self.problem.finite else {}
         whole = newton | self.homogenizer.state()  # the surrogate: the same on every rank
         whole = root_blocks(whole if self.comm.rank == 0 else {}, self.comm)
-        return blocks | whole | self._factor_blocks()
+        return {"midpoints": self._midpoints} | blocks | whole | self._factor_blocks()
 
     def _factor_blocks(self) -> dict[str, Block]:
         """Collective: the kept LU factors' coefficients (``lu_Fg``, ``lu_C``) and floor as state
