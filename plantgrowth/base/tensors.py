@@ -132,6 +132,11 @@ SYMMETRIC2 = np.array([0, 3, 1])
 """Positions of (a11, a22, a12) in a flattened 2 x 2 tensor."""
 FULL2 = np.array([0, 2, 2, 1])
 """Positions of a11, a12, a21, a22 among (a11, a22, a12)."""
+SYMMETRIC4 = (SYMMETRIC2[:, None] * 4 + SYMMETRIC2[None, :]).ravel()
+"""Positions of the 3 x 3 tensor components of a flattened 2 x 2 x 2 x 2 tensor with both minor
+symmetries (:data:`SYMMETRIC2` on each index pair)."""
+FULL4 = (FULL2[:, None] * 3 + FULL2[None, :]).ravel()
+"""Positions of the 16 entries among the flattened 3 x 3 components (:data:`FULL2` on each)."""
 
 
 def rotate_symmetric2(T: np.ndarray, A: np.ndarray) -> np.ndarray:
@@ -149,11 +154,9 @@ def rotate_symmetric4(T: np.ndarray, D: np.ndarray) -> np.ndarray:
     matrices of tensor components (:func:`voigt_rotation`'s T on each index pair): two 3 x 3
     products instead of two 4 x 4 ones and no 4 x 4 Kronecker matrix."""
     n = len(D)
-    pairs = (SYMMETRIC2[:, None] * 4 + SYMMETRIC2[None, :]).ravel()
-    D3 = np.take(D.reshape(n, 16), pairs, axis=1).reshape(n, 3, 3)
+    D3 = np.take(D.reshape(n, 16), SYMMETRIC4, axis=1).reshape(n, 3, 3)
     turned = (T @ D3 @ np.swapaxes(T, 1, 2)).reshape(n, 9)
-    full = (FULL2[:, None] * 3 + FULL2[None, :]).ravel()
-    return np.take(turned, full, axis=1).reshape(n, 2, 2, 2, 2)
+    return np.take(turned, FULL4, axis=1).reshape(n, 2, 2, 2, 2)
 
 
 def rotate4(R: np.ndarray, T: np.ndarray) -> np.ndarray:
