@@ -15,8 +15,15 @@ from test_surrogate_continuity import TOLERANCE, exact, smooth
 from plantgrowth.base.errors import SceneError
 from plantgrowth.scene.parts import Accuracy
 from plantgrowth.unitcell import surrogate
-from plantgrowth.unitcell.lattice import H0, LOW, OFFSET, STEP
-from plantgrowth.unitcell.smooth_answers import BLEND_STEPS, ratios
+from plantgrowth.unitcell.lattice import H0, LOW, OFFSET, STEP, square_key
+from plantgrowth.unitcell.smooth_answers import (
+    BLEND_STEPS,
+    GATE,
+    SmoothAnswers,
+    corner_keys,
+    ratios,
+    smoothstep,
+)
 
 TABLE = [(1,)]
 FIVE, VOIGT = slice(0, 5), slice(0, 9)
@@ -94,6 +101,56 @@ def test_built_points_are_answered_exactly_once_the_blends_end():
     truth = np.array([lat.values[TABLE[0], tuple(p)] for p in ij.tolist()])
     assert lat.relative_difference(values, truth).max() <= 1e-12
     assert lat.relative_difference(ask(lat, queries), exact(queries)).max() <= TOLERANCE
+
+
+def test_a_point_the_interpolant_missed_enters_at_once_and_a_close_one_along_the_smoothstep():
+    """Nine level-0 squares born at step 0 hold a linear map (J reproduces it), then one level-1
+    square born at step 1 adds three points: one where the map has a bump of 100 tolerances
+    (the gate shut: its exact value at once), one with a bump of half the tolerance (the gate
+    open: J_<b plus the smoothstep's share w = smoothstep(1 / (B + 1)) of the bump) and one of
+    2 tolerances (between: share 1 - g (1 - w), g the gate's smoothstep). At step 1 + B every
+    point has its exact value. Values at built points are J's, to the 1e-12 of the cells'
+    fitted bicubics."""
+    side = STEP  # the level-0 spacing in finest integers
+    level0 = np.array([[i, j] for i in range(-1, 2) for j in range(-1, 2)]) * side
+    new_square = square_key(np.zeros(1, dtype=np.int64), 1, np.array([[side // 2, side // 2]]))
+    births = {int(k): 0 for k in square_key(np.zeros(9, dtype=np.int64), 0, level0)}
+    births[int(new_square[0])] = 1
+    bumps = {(side // 2, side // 2): 100.0, (side, side // 2): 0.5, (side // 2, side): 2.0}
+
+    def linear(ij: np.ndarray) -> np.ndarray:
+        x = ij / STEP
+        return np.column_stack([1.0 + 0.1 * x[:, 0] + 0.2 * x[:, 1], 2.0 - 0.1 * x[:, 1]])
+
+    def exact_values(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ij = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
+        values = linear(ij)
+        for row, p in enumerate(ij.tolist()):
+            values[row] *= 1.0 + bumps.get(tuple(p), 0.0) * TOLERANCE
+        return values, np.zeros_like(values)
+
+    def difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(a - b, axis=1) / np.linalg.norm(b, axis=1)
+
+    answers = SmoothAnswers(exact_values, difference, TOLERANCE, None)
+    answers.births = births
+    points = np.array(list(bumps), dtype=np.int64)
+    s = points * (H0 / STEP)
+    ids = np.zeros(len(points), dtype=np.int64)
+    keys = np.sort(corner_keys(new_square).ravel())
+    ij = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
+    truth = exact_values(keys)[0][[ij.tolist().index(p) for p in points.tolist()]]
+    base = linear(points)  # J_<b there: the level-0 map
+    error = difference(base, truth)  # 90, 0.5 and 2 tolerances (relative to the bumped values)
+    gate = smoothstep(np.clip((GATE * TOLERANCE - error) / ((GATE - 1.0) * TOLERANCE), 0, 1))
+    assert gate[0] == 0.0 and gate[1] == 1.0 and 0.0 < gate[2] < 1.0
+    share = 1.0 - gate * (1.0 - smoothstep(1.0 / (BLEND_STEPS + 1)))
+    expected = base + share[:, None] * (truth - base)
+    at_birth = answers.answer(ids, s, np.zeros((3, 2)), np.zeros(3, dtype=np.int64), 1)
+    np.testing.assert_allclose(at_birth, expected, rtol=1e-12, atol=0.0)
+    settled = answers.answer(ids, s, np.zeros((3, 2)), np.zeros(3, dtype=np.int64),
+                             1 + BLEND_STEPS)  # fmt: skip
+    np.testing.assert_allclose(settled, truth, rtol=1e-12, atol=0.0)
 
 
 def ramp(table: tuple, U: np.ndarray) -> np.ndarray:

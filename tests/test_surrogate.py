@@ -19,13 +19,13 @@ from mpi4py import MPI
 
 from plantgrowth.base.tensors import (
     det2,
+    extreme_eigenvalues_sym3,
     inv2,
     rotate2,
     rotate4,
     rotate_symmetric2,
     rotate_symmetric4,
     rotate_voigt,
-    smallest_eigenvalue_sym3,
     tensor_from_voigt,
     voigt_matrix,
     voigt_rotation,
@@ -87,7 +87,7 @@ def test_voigt_round_trip_and_rotations():
 
 
 def test_closed_forms_agree_with_numpy():
-    """det2, inv2 and smallest_eigenvalue_sym3 (the per-cell closed forms of every step) against
+    """det2, inv2 and extreme_eigenvalues_sym3 (the per-cell closed forms of every step) against
     numpy's batched LU and eigensolver, on random matrices and on nearly singular ones (an
     eigenvalue 1e-6 of the largest, as a honeycomb's shear modulus is 1e-2 of its stiffness):
     agreement to round-off of the entries' size (1e-12)."""
@@ -100,8 +100,10 @@ def test_closed_forms_agree_with_numpy():
     Q = np.linalg.qr(rng.normal(size=(200, 3, 3)))[0]
     small = Q @ (np.array([1e-6, 0.5, 1.0])[None, :, None] * np.swapaxes(Q, 1, 2))
     for M in (B, small):
-        expected = np.linalg.eigvalsh(M)[:, 0]
-        np.testing.assert_allclose(smallest_eigenvalue_sym3(M), expected, rtol=0.0, atol=1e-12)
+        expected = np.linalg.eigvalsh(M)
+        smallest, largest = extreme_eigenvalues_sym3(M)
+        np.testing.assert_allclose(smallest, expected[:, 0], rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(largest, expected[:, -1], rtol=0.0, atol=1e-12)
 
 
 @pytest.mark.skip_in_parallel

@@ -187,7 +187,7 @@ class LatticeSurrogate:
         self._stops = StopSquares(self.segment_norms)  # I at the corners of the stop squares met
         self.step = 0  # steps ended (:meth:`end_step`): the c1 blend's clock
         self.smooth = None if interpolant == "bilinear" else SmoothAnswers(
-            self._lattice_points, self.relative_difference, voigt
+            self._lattice_points, self.relative_difference, tolerance, voigt
         )  # fmt: skip
 
     def add(self, values: dict[Point, np.ndarray]) -> None:
@@ -444,7 +444,7 @@ class LatticeSurrogate:
             return answer
         ids = self._numbers(tables)[np.asarray(which, dtype=np.int64)]
         s = np.asarray(s, dtype=float).reshape(n, 2)
-        values = self.smooth.answer(ids, s, tol, answer.values, answer.square, self.step)
+        values = self.smooth.answer(ids, s, answer.values, answer.square, self.step)
         return Answer(values, answer.estimates, answer.interpolated, answer.solves)
 
     def end_step(self) -> None:
