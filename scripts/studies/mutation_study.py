@@ -681,6 +681,14 @@ MUTANTS = (
           "bad = ~((a > 0) & (a * d - b * b > 0))"),),
     ),
     Mutant(
+        "c1_blend_without_gate", "plantgrowth/unitcell/smooth_answers.py", "missing check",
+        "every new point of the c1 path blended in along the smoothstep, its gate ignored: a "
+        "point the interpolant before it missed by more than the tolerance keeps part of that "
+        "miss for B steps",
+        (("share = 1.0 - gate * (1.0 - smoothstep((step - b + 1) / (BLEND_STEPS + 1)))",
+          "share = smoothstep((step - b + 1) / (BLEND_STEPS + 1))"),),
+    ),
+    Mutant(
         "step_chunk_not_shuffled", "plantgrowth/runner/h5_blocks.py", "transposition",
         "a field's chunk deflated in row order instead of after HDF5's byte shuffle, which the "
         "dataset declares: every reader un-shuffles the inflated bytes into other values",
