@@ -240,7 +240,7 @@ def test_ranks_answer_as_one_rank_on_the_c1_path():
 
 def test_the_scene_option_is_validated():
     """accuracy.cell_interpolant: a named error listing the valid values; bilinear by default
-    (docs/surrogate_c1.md: c1's blend makes the organ scene's cell phase about 3x slower)."""
+    (docs/surrogate_c1.md: c1's answers make a step's cell phase about 1.5x bilinear's)."""
     with pytest.raises(SceneError, match=r"accuracy.cell_interpolant = 'cubic' is invalid.*'c1'"):
         Accuracy(cell_interpolant="cubic")
     with pytest.raises(SceneError, match="accuracy.cell_interpolant: expected a string"):
