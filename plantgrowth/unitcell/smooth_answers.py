@@ -155,6 +155,7 @@ class SmoothAnswers:
         if len(births) != len(keys) + 1:
             raise RunError("the saved surrogate state does not match its squares")
         self.births = dict(zip(keys, births[:-1].tolist(), strict=True))
+        self._kept = None  # J of other births
         return int(births[-1])
 
     def answer(
@@ -164,10 +165,9 @@ class SmoothAnswers:
         """The answers (n, m) at step ``step`` to queries (table numbers ids, stretches s)
         whose bilinear answers and deepest built squares' keys are given."""
         smooth = self.interpolant(step)
-        values = np.zeros((len(ids), len(bilinear[0]) if len(bilinear) else 0))
-        if smooth is not None:
-            values = smooth.evaluate(ids, s)
-        return self._guard(values, bilinear, square)
+        if smooth is None:  # no point built: the bilinear answers (a query builds its square)
+            return bilinear
+        return self._guard(smooth.evaluate(ids, s), bilinear, square)
 
     def interpolant(self, step: int) -> CellPolynomials | None:
         """J of every point built up to step ``step`` with its blended value (module
