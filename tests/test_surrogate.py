@@ -26,6 +26,7 @@ from plantgrowth.base.tensors import (
     rotate_symmetric2,
     rotate_symmetric4,
     rotate_voigt,
+    smallest_eigenvalue_sym3,
     tensor_from_voigt,
     voigt_matrix,
     voigt_rotation,
@@ -87,10 +88,10 @@ def test_voigt_round_trip_and_rotations():
 
 
 def test_closed_forms_agree_with_numpy():
-    """det2, inv2 and extreme_eigenvalues_sym3 (the per-cell closed forms of every step) against
-    numpy's batched LU and eigensolver, on random matrices and on nearly singular ones (an
-    eigenvalue 1e-6 of the largest, as a honeycomb's shear modulus is 1e-2 of its stiffness):
-    agreement to round-off of the entries' size (1e-12)."""
+    """det2, inv2, smallest_eigenvalue_sym3 and extreme_eigenvalues_sym3 (the per-cell closed
+    forms of every step) against numpy's batched LU and eigensolver, on random matrices and on
+    nearly singular ones (an eigenvalue 1e-6 of the largest, as a honeycomb's shear modulus is
+    1e-2 of its stiffness): agreement to round-off of the entries' size (1e-12)."""
     rng = np.random.default_rng(3)
     A = rng.normal(size=(200, 2, 2))
     np.testing.assert_allclose(det2(A), np.linalg.det(A), rtol=0.0, atol=1e-12)
@@ -102,6 +103,7 @@ def test_closed_forms_agree_with_numpy():
     for M in (B, small):
         expected = np.linalg.eigvalsh(M)
         smallest, largest = extreme_eigenvalues_sym3(M)
+        np.testing.assert_array_equal(smallest_eigenvalue_sym3(M), smallest)
         np.testing.assert_allclose(smallest, expected[:, 0], rtol=0.0, atol=1e-12)
         np.testing.assert_allclose(largest, expected[:, -1], rtol=0.0, atol=1e-12)
 

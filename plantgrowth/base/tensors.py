@@ -167,11 +167,9 @@ def rotate4(R: np.ndarray, T: np.ndarray) -> np.ndarray:
     return (Q @ T.reshape(n, 4, 4) @ np.swapaxes(Q, 1, 2)).reshape(n, 2, 2, 2, 2)
 
 
-def extreme_eigenvalues_sym3(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) the smallest and the largest eigenvalue of symmetric (n, 3, 3) matrices (the
-    trigonometric closed form: ``q + 2 p cos(phi + 2 pi / 3)`` and ``q + 2 p cos(phi)``,
-    ``phi = acos(det((A - q I) / p) / 2) / 3``, q = tr A / 3; a few times faster than numpy's
-    batched eigensolver on the per-cell stacks)."""
+def _trigonometric_form(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """q = tr A / 3, p = |A - q I| / sqrt(6) and ``phi = acos(det((A - q I) / p) / 2) / 3`` of
+    symmetric (n, 3, 3) matrices: their eigenvalues are ``q + 2 p cos(phi + 2 pi k / 3)``."""
     q = np.trace(A, axis1=1, axis2=2) / 3.0
     off = A[:, 0, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 2] ** 2
     diag = (A[:, 0, 0] - q) ** 2 + (A[:, 1, 1] - q) ** 2 + (A[:, 2, 2] - q) ** 2
@@ -180,7 +178,21 @@ def extreme_eigenvalues_sym3(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a, d, f = ((A[:, k, k] - q) / safe for k in range(3))  # B = (A - q I) / p, symmetric
     b, c, e = A[:, 0, 1] / safe, A[:, 0, 2] / safe, A[:, 1, 2] / safe
     r = 0.5 * (a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c))  # det(B) / 2
-    angle = np.arccos(np.clip(r, -1.0, 1.0)) / 3.0
+    return q, p, np.arccos(np.clip(r, -1.0, 1.0)) / 3.0
+
+
+def smallest_eigenvalue_sym3(A: np.ndarray) -> np.ndarray:
+    """(n,) the smallest eigenvalue of symmetric (n, 3, 3) matrices (the trigonometric closed
+    form, :func:`_trigonometric_form`: ``q + 2 p cos(phi + 2 pi / 3)``)."""
+    q, p, angle = _trigonometric_form(A)
+    return np.where(p > 0.0, q + 2.0 * p * np.cos(angle + 2.0 * np.pi / 3.0), q)
+
+
+def extreme_eigenvalues_sym3(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) the smallest and the largest eigenvalue of symmetric (n, 3, 3) matrices (closed
+    form: :func:`smallest_eigenvalue_sym3` and ``q + 2 p cos(phi)``; a few times faster than
+    numpy's batched eigensolver on the per-cell stacks)."""
+    q, p, angle = _trigonometric_form(A)
     smallest = np.where(p > 0.0, q + 2.0 * p * np.cos(angle + 2.0 * np.pi / 3.0), q)
     return smallest, np.where(p > 0.0, q + 2.0 * p * np.cos(angle), q)
 

@@ -11,7 +11,7 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth.base.errors import RunError
-from plantgrowth.base.tensors import det2, extreme_eigenvalues_sym3
+from plantgrowth.base.tensors import det2, smallest_eigenvalue_sym3
 
 RESIDUAL_BOUND = 1e-8
 """Largest accepted relative residual of a direct solve and of Newton's linear solves; LU's
@@ -91,7 +91,7 @@ def stiffness_problems(C: np.ndarray, nodes: np.ndarray) -> list[str]:
     bad[suspect] |= asym[suspect] > 1e-8 * np.abs(C[suspect]).max(axis=(1, 2))
     if not bad.any():
         return []
-    smallest = extreme_eigenvalues_sym3(0.5 * (C[bad] + np.swapaxes(C[bad], 1, 2)))[0]
+    smallest = smallest_eigenvalue_sym3(0.5 * (C[bad] + np.swapaxes(C[bad], 1, 2)))
     what = f"E_hom not symmetric positive definite (smallest eigenvalue {smallest.min():.3g})"
     return [
         f"{_where(bad, nodes, what)}; likely cause: a degenerate unit cell there (wall "

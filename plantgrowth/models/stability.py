@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from plantgrowth.base.tensors import det2, extreme_eigenvalues_sym3
+from plantgrowth.base.tensors import det2, smallest_eigenvalue_sym3
 from plantgrowth.models import nonelliptic_sets
 from plantgrowth.models.nonelliptic_sets import NonellipticSet
 
@@ -197,7 +197,7 @@ def lower_bound(Fe: np.ndarray, S: np.ndarray, C_voigt: np.ndarray) -> np.ndarra
     lambda_min(C) |e|^2 >= lambda_min(C) |sym(w (x) N)|^2 >= lambda_min(C) |w|^2 / 2`` (e the
     Voigt vector of sym(w (x) N) with engineering shear). A cheap certificate of ellipticity:
     where it is positive, no direction needs sweeping."""
-    C_min = extreme_eigenvalues_sym3(C_voigt)[0]
+    C_min = smallest_eigenvalue_sym3(C_voigt)
     FtF = np.swapaxes(Fe, 1, 2) @ Fe
     bound = _smallest_symmetric2(S) + _smallest_symmetric2(FtF) * 0.5 * C_min
     return np.where(C_min > 0.0, bound, -np.inf)

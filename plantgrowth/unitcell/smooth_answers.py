@@ -141,7 +141,7 @@ class SmoothAnswers:
         self.voigt = voigt
         self.births: dict[int, int] = {}  # square key -> its step
         self.guarded = 0  # answers the SPD guard replaced so far
-        self._kept: tuple | None = None  # (births' count, step's blend, keys, values, J)
+        self._kept: tuple | None = None  # (births' count and blend ages, keys, values, J)
 
     def birth_rows(self, keys: list[int], step: int) -> np.ndarray:
         """The resume state: per square of ``keys`` (sorted) its birth step, then one row
