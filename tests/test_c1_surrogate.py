@@ -18,7 +18,7 @@ from plantgrowth.unitcell import surrogate
 from plantgrowth.unitcell.lattice import H0, LOW, OFFSET, STEP, square_key
 from plantgrowth.unitcell.smooth_answers import (
     BLEND_STEPS,
-    GATE,
+    DECLINE,
     SmoothAnswers,
     corner_keys,
     ratios,
@@ -106,17 +106,52 @@ def test_built_points_are_answered_exactly_once_the_blends_end():
 def test_a_point_the_interpolant_missed_enters_at_once_and_a_close_one_along_the_smoothstep():
     """Nine level-0 squares born at step 0 hold a linear map (J reproduces it), then one level-1
     square born at step 1 adds three points: one where the map has a bump of 100 tolerances
-    (the gate shut: its exact value at once), one with a bump of half the tolerance (the gate
-    open: J_<b plus the smoothstep's share w = smoothstep(1 / (B + 1)) of the bump) and one of
-    2 tolerances (between: share 1 - g (1 - w), g the gate's smoothstep). At step 1 + B every
-    point has its exact value. Values at built points are J's, to the 1e-12 of the cells'
-    fitted bicubics."""
+    (from 16 tolerances: its exact value at once), one with a bump of 0.8 tolerances (above
+    DECLINE, within the tolerance: J_<b plus the smoothstep's share w = smoothstep(1 / (B + 1))
+    of the bump) and one of 2 tolerances (over B / 2 steps: w = smoothstep(1 / (B / 2 + 1))).
+    At step 1 + B / 2 the 2-tolerance point has its exact value, at step 1 + B every point.
+    Values at built points are J's, to the 1e-12 of the cells' fitted bicubics."""
+    side = STEP  # the level-0 spacing in finest integers
+    bumps = {(side // 2, side // 2): 100.0, (side, side // 2): 0.8, (side // 2, side): 2.0}
+    answers, s, ids, truth, base, error = level1_births(bumps)
+    miss = error / TOLERANCE  # relative to the bumped values: 90.9, 0.8 and 2.0
+    assert miss[0] >= 16.0 and DECLINE < miss[1] <= 1.0
+    assert round(BLEND_STEPS / miss[2]) == BLEND_STEPS // 2
+    share = smoothstep(np.array([1.0, 1.0 / (BLEND_STEPS + 1), 1.0 / (BLEND_STEPS // 2 + 1)]))
+    expected = base + share[:, None] * (truth - base)
+
+    def at(step: int) -> np.ndarray:
+        return answers.answer(ids, s, np.zeros((3, 2)), np.zeros(3, dtype=np.int64), step)
+
+    np.testing.assert_allclose(at(1), expected, rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(at(1 + BLEND_STEPS // 2)[2], truth[2], rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(at(1 + BLEND_STEPS), truth, rtol=1e-12, atol=0.0)
+
+
+def test_a_new_point_the_interpolant_already_meets_is_declined():
+    """The nine level-0 squares and the level-1 square of the test above, its three points
+    with bumps of 0.3 tolerances (at most DECLINE: declined), 0.8 and 100 (taken). The
+    declined point's answer is J_<b's (the level-0 map) at its birth and B steps later, so it
+    stays within its 0.3 tolerances of its exact value; the taken ones become exact."""
+    side = STEP
+    bumps = {(side // 2, side // 2): 0.3, (side, side // 2): 0.8, (side // 2, side): 100.0}
+    answers, s, ids, truth, base, error = level1_births(bumps)
+    assert error[0] <= DECLINE * TOLERANCE < error[1]
+    for step in (1, 1 + BLEND_STEPS):
+        values = answers.answer(ids, s, np.zeros((3, 2)), np.zeros(3, dtype=np.int64), step)
+        np.testing.assert_allclose(values[0], base[0], rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(values[1:], truth[1:], rtol=1e-12, atol=0.0)
+
+
+def level1_births(bumps: dict) -> tuple:
+    """Nine level-0 squares born at step 0 on a linear map and one level-1 square born at
+    step 1 whose three new points (``bumps``: place -> bump in tolerances) carry bumps: the
+    answers, the points' places, ids, exact values, J_<b there (the map) and J_<b's misses."""
     side = STEP  # the level-0 spacing in finest integers
     level0 = np.array([[i, j] for i in range(-1, 2) for j in range(-1, 2)]) * side
     new_square = square_key(np.zeros(1, dtype=np.int64), 1, np.array([[side // 2, side // 2]]))
     births = {int(k): 0 for k in square_key(np.zeros(9, dtype=np.int64), 0, level0)}
     births[int(new_square[0])] = 1
-    bumps = {(side // 2, side // 2): 100.0, (side, side // 2): 0.5, (side // 2, side): 2.0}
 
     def linear(ij: np.ndarray) -> np.ndarray:
         x = ij / STEP
@@ -141,16 +176,7 @@ def test_a_point_the_interpolant_missed_enters_at_once_and_a_close_one_along_the
     ij = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
     truth = exact_values(keys)[0][[ij.tolist().index(p) for p in points.tolist()]]
     base = linear(points)  # J_<b there: the level-0 map
-    error = difference(base, truth)  # 90, 0.5 and 2 tolerances (relative to the bumped values)
-    gate = smoothstep(np.clip((GATE * TOLERANCE - error) / ((GATE - 1.0) * TOLERANCE), 0, 1))
-    assert gate[0] == 0.0 and gate[1] == 1.0 and 0.0 < gate[2] < 1.0
-    share = 1.0 - gate * (1.0 - smoothstep(1.0 / (BLEND_STEPS + 1)))
-    expected = base + share[:, None] * (truth - base)
-    at_birth = answers.answer(ids, s, np.zeros((3, 2)), np.zeros(3, dtype=np.int64), 1)
-    np.testing.assert_allclose(at_birth, expected, rtol=1e-12, atol=0.0)
-    settled = answers.answer(ids, s, np.zeros((3, 2)), np.zeros(3, dtype=np.int64),
-                             1 + BLEND_STEPS)  # fmt: skip
-    np.testing.assert_allclose(settled, truth, rtol=1e-12, atol=0.0)
+    return answers, s, ids, truth, base, difference(base, truth)  # relative to the bumped
 
 
 def ramp(table: tuple, U: np.ndarray) -> np.ndarray:

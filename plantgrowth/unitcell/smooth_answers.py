@@ -7,16 +7,22 @@ earliest birth of the squares it is a corner of. The answer is one C1 interpolan
 each point with a *blended value*: at step c, a point p born at step b with c - b < B
 (:data:`BLEND_STEPS`) takes
 
-    f~(p) = J_<b(p) + (1 - g_p (1 - w_b)) (f(p) - J_<b(p)),
-    w_b = x^2 (3 - 2 x),   x = (c - b + 1) / (B + 1),
+    f~(p) = J_<b(p) + w_p (f(p) - J_<b(p)),
+    w_p = x^2 (3 - 2 x),   x = min(1, (c - b + 1) / (L_p + 1)),   L_p = round(B / max(1, m_p)),
 
-where f(p) is its exact value and J_<b the interpolant of the points born before b (with their
-own blended values, births taken in order); older points take f. Since J's kernels are
+where f(p) is its exact value, J_<b the interpolant of the points born before b (with their
+own blended values, births taken in order) and m_p = |f(p) - J_<b(p)| / tol the miss in
+tolerances (relative, the surrogate's segments); older points take f. Since J's kernels are
 cardinal, a point whose value is J_<b(p) has a zero surplus and changes nothing: each
-refinement enters over B steps along a smoothstep, and J is C1 in s at every step (one
-interpolant, linear in the values). The gate g_p in [0, 1] is a function of the point: 1 where
-J_<b missed f(p) by at most the tolerance (relative, the surrogate's segments), 0 from
-:data:`GATE` times it (the point enters at once), the smoothstep between. J is rebuilt when a
+refinement enters along a smoothstep, and J is C1 in s at every step (one interpolant, linear
+in the values). A point J_<b met within the tolerance enters over B steps; one it missed by m
+tolerances over B / m (its value moves by about a tolerance per step) and from 16 tolerances
+at once (L_p = 0). A new point that the interpolant of the taken points born before it, with
+their exact values, already meets to :data:`DECLINE` times the tolerance is *declined*: not
+taken into J at all (the bilinear lattice keeps it for its estimates). Refinement is decided by
+the bilinear estimate, which J beats by far, so most refinements would otherwise move J by a
+few hundredths of the tolerance, each move costing the macro CG iterations (its initial guess
+cannot predict it). The verdict is fixed at the point's birth. J is rebuilt when a
 square is born or a blend moves (a few hundred points: milliseconds), and its cells' bicubic
 coefficients (:class:`~plantgrowth.unitcell.smooth_cells.CellPolynomials`) are carried over
 outside :data:`REACH` of the points whose values changed, so a step costs one evaluation of J
@@ -63,18 +69,18 @@ EARLY = 0.7
 queries starting a refinement are still within the tolerance and blend (measured with B = 8:
 theta = 1 let 7 steps jump past 6 iterations, 0.7 none, 0.5 one, at 127 cell solves against
 117)."""
-GATE = 3.0
-"""A new point's gate closes between e = tol and GATE tol, e the relative difference of J_<b
-from its exact value (module docstring). Measured on gradient_E_strain forced to CG, 60 steps
-(scripts/benchmarks/bench_cg_steps.py --variants c1, benchmarks/results/cg_steps_c1.json): at
-most 6 CG iterations a step from step 16 on, 310 in all, largest exact check 3.5e-5 (tolerance
-1e-3). The gate per query that this one replaced (3 tol too) measured the same; with it at tol
-alone a drifting query's remaining share jumped (9 iterations at steps 17-20)."""
 REACH = (5, 3)
 """Spacings of its level around a point of level 0, and of a finer level, outside which adding
 it or changing its value leaves J unchanged bit for bit: a level-l point's kernel reaches 2 h_l
 and the finer surpluses it changes 1 h_l more (3); a level-0 point also changes the ghosts
 2 h_0 around it, whose kernels reach 2 h_0 more (5)."""
+DECLINE = 0.5
+"""A new point is declined (module docstring) where the taken points' interpolant misses its
+exact value by at most DECLINE times the tolerance: J stays within that of it. On the organ
+scene the new points' misses fell in two groups, 0.03-0.48 and from 0.96 tolerances (every
+threshold between gives the same run): with the declines and the blend lengths B / m, 3 steps
+from step 16 on above 6 CG iterations (at most 8), 322 in all, against 6 steps and 343; on
+gradient_E_strain forced to CG none above 6, 289 against 310 (docs/surrogate_c1.md)."""
 SPD_FRACTION = 0.5
 """The SPD guard's bound, a fraction of the corners' smallest lambda_min / lambda_max."""
 
@@ -84,10 +90,11 @@ def smoothstep(x: float | np.ndarray) -> float | np.ndarray:
     return x * x * (3.0 - 2.0 * x)
 
 
-def point_gate(error: np.ndarray, tol: float) -> np.ndarray:
-    """The gate g (P,) of new points whose value the interpolant before them missed by
-    ``error`` (relative): 1 up to ``tol``, 0 from :data:`GATE` ``tol``, the smoothstep between."""
-    return smoothstep(np.clip((GATE * tol - error) / ((GATE - 1.0) * tol), 0.0, 1.0))
+def blend_share(miss: np.ndarray, age: int) -> np.ndarray:
+    """w_p (P,) of new points ``age`` steps after their birth (0 at it) whose interpolant
+    before them missed their values by ``miss`` tolerances (module docstring)."""
+    length = np.round(BLEND_STEPS / np.maximum(miss, 1.0))
+    return smoothstep(np.minimum((age + 1) / (length + 1), 1.0))
 
 
 def corner_keys(squares: np.ndarray) -> np.ndarray:
@@ -95,6 +102,12 @@ def corner_keys(squares: np.ndarray) -> np.ndarray:
     ids, level, corner = square_corners(squares)
     points = corner[:, None, :] + OFFSETS[None] * (STEP >> level)[:, None, None]
     return point_key(ids[:, None], points[..., 0], points[..., 1])
+
+
+def places(keys: np.ndarray) -> np.ndarray:
+    """The places (P, 2) of lattice points (point keys (P,)) in level-0 spacings, as
+    :meth:`~plantgrowth.unitcell.smooth_lattice.SmoothLattice.at` takes them (exact)."""
+    return np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET]) / STEP
 
 
 def marks(new: np.ndarray) -> dict[int, np.ndarray]:
@@ -126,7 +139,7 @@ class SmoothAnswers:
         points: ``points(keys)`` the exact values (P, m) and bilinear surpluses (P, m) of
             lattice points (point keys (P,)).
         difference: the surrogate's relative difference per row (its segments).
-        tolerance: the surrogate's tolerance, which the points' gates compare with.
+        tolerance: the surrogate's tolerance, the unit of the new points' misses.
         voigt: the slice of the packed values holding E_hom's Voigt matrix (None: no guard).
     """
 
@@ -142,6 +155,7 @@ class SmoothAnswers:
         self.births: dict[int, int] = {}  # square key -> its step
         self.guarded = 0  # answers the SPD guard replaced so far
         self._kept: tuple | None = None  # (births' count and blend ages, keys, values, J)
+        self._taken: dict[int, bool] = {}  # point key -> taken into J (False: declined)
 
     def birth_rows(self, keys: list[int], step: int) -> np.ndarray:
         """The resume state: per square of ``keys`` (sorted) its birth step, then one row
@@ -156,6 +170,7 @@ class SmoothAnswers:
             raise RunError("the saved surrogate state does not match its squares")
         self.births = dict(zip(keys, births[:-1].tolist(), strict=True))
         self._kept = None  # J of other births
+        self._taken = {}  # the verdicts are recomputed from the births, in order
         return int(births[-1])
 
     def answer(
@@ -187,16 +202,16 @@ class SmoothAnswers:
         keys, inverse = np.unique(corners.ravel(), return_inverse=True)
         point_birth = np.full(len(keys), np.iinfo(np.int64).max)
         np.minimum.at(point_birth, inverse, born)
+        taken = self._verdicts(keys, point_birth)
+        keys, point_birth = keys[taken], point_birth[taken]
         values = self._points(keys)[0].copy()
         for b in blending:  # in birth order: each blends in against the ones before it
             new, before = point_birth == b, point_birth < b
             if not before.any():
                 continue  # the first points: nothing to blend from
             old = SmoothLattice(keys[before], values[before])
-            ij = np.column_stack([((keys[new] >> 21) & LOW) - OFFSET, (keys[new] & LOW) - OFFSET])
-            previous = old.at(keys[new] >> 42, ij / STEP)  # exact places
-            gate = point_gate(self._difference(previous, values[new]), self.tolerance)
-            share = 1.0 - gate * (1.0 - smoothstep((step - b + 1) / (BLEND_STEPS + 1)))
+            previous = old.at(keys[new] >> 42, places(keys[new]))
+            share = blend_share(self._difference(previous, values[new]) / self.tolerance, step - b)
             values[new] = previous + share[:, None] * (values[new] - previous)
         smooth = CellPolynomials(SmoothLattice(keys, values), keys)
         if self._kept is not None:
@@ -208,6 +223,24 @@ class SmoothAnswers:
                 smooth.inherit(older, marks(changed))
         self._kept = (state, keys, values, smooth)
         return smooth
+
+    def _verdicts(self, keys: np.ndarray, point_birth: np.ndarray) -> np.ndarray:
+        """(P,) whether each point (keys, births) is taken into J (:data:`DECLINE`), decided
+        birth by birth in order for the points not decided yet."""
+        undecided = np.array([k not in self._taken for k in keys.tolist()], dtype=bool)
+        if undecided.any():
+            exact = self._points(keys)[0]
+            for b in np.unique(point_birth[undecided]).tolist():
+                new = undecided & (point_birth == b)
+                taken = np.array([self._taken.get(k, False) for k in keys.tolist()], dtype=bool)
+                before = taken & (point_birth < b)
+                verdict = np.ones(int(new.sum()), dtype=bool)
+                if before.any():
+                    old = SmoothLattice(keys[before], exact[before])
+                    miss = self._difference(old.at(keys[new] >> 42, places(keys[new])), exact[new])
+                    verdict = miss > DECLINE * self.tolerance
+                self._taken.update(zip(keys[new].tolist(), verdict.tolist(), strict=True))
+        return np.array([self._taken[k] for k in keys.tolist()], dtype=bool)
 
     def _guard(self, values: np.ndarray, bilinear: np.ndarray, square: np.ndarray) -> np.ndarray:
         """The SPD guard (module docstring): the bilinear answer where the C1 one fails it."""

@@ -681,12 +681,18 @@ MUTANTS = (
           "bad = ~((a > 0) & (a * d - b * b > 0))"),),
     ),
     Mutant(
-        "c1_blend_without_gate", "plantgrowth/unitcell/smooth_answers.py", "missing check",
-        "every new point of the c1 path blended in along the smoothstep, its gate ignored: a "
-        "point the interpolant before it missed by more than the tolerance keeps part of that "
-        "miss for B steps",
-        (("share = 1.0 - gate * (1.0 - smoothstep((step - b + 1) / (BLEND_STEPS + 1)))",
-          "share = smoothstep((step - b + 1) / (BLEND_STEPS + 1))"),),
+        "c1_blend_length_ignores_miss", "plantgrowth/unitcell/smooth_answers.py",
+        "missing check",
+        "every new point of the c1 path blended in over B steps whatever its miss: a point the "
+        "interpolant before it missed by many tolerances keeps part of that miss for B steps",
+        (("    length = np.round(BLEND_STEPS / np.maximum(miss, 1.0))\n",
+          "    length = np.full(len(miss), float(BLEND_STEPS))\n"),),
+    ),
+    Mutant(
+        "c1_declined_points_taken", "plantgrowth/unitcell/smooth_answers.py", "missing check",
+        "the c1 path's declines ignored: every new point enters J, those J already met within "
+        "DECLINE tolerances too (each move of J costs the macro CG iterations)",
+        (("        keys, point_birth = keys[taken], point_birth[taken]\n", ""),),
     ),
     Mutant(
         "step_chunk_not_shuffled", "plantgrowth/runner/h5_blocks.py", "transposition",
