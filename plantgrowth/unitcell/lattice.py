@@ -102,10 +102,15 @@ def square_key(ids: np.ndarray, level: int | np.ndarray, corner: np.ndarray) -> 
     )  # fmt: skip
 
 
+def key_integers(keys: np.ndarray) -> np.ndarray:
+    """The finest-lattice integers (n, 2) held in the low 42 bits of point or square keys (a
+    point's own, a square's lower-left corner's)."""
+    return np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
+
+
 def square_corners(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Table numbers (q,), levels (q,) and lower-left corners (q, 2) of squares' keys."""
-    corner = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
-    return keys >> 46, (keys >> 42) & 15, corner
+    return keys >> 46, (keys >> 42) & 15, key_integers(keys)
 
 
 def walk(

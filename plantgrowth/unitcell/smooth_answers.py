@@ -47,10 +47,9 @@ import numpy as np
 from plantgrowth.base.errors import RunError
 from plantgrowth.base.tensors import extreme_eigenvalues_sym3
 from plantgrowth.unitcell.lattice import (
-    LOW,
-    OFFSET,
     OFFSETS,
     STEP,
+    key_integers,
     point_key,
     square_corners,
     square_key,
@@ -107,13 +106,13 @@ def corner_keys(squares: np.ndarray) -> np.ndarray:
 def places(keys: np.ndarray) -> np.ndarray:
     """The places (P, 2) of lattice points (point keys (P,)) in level-0 spacings, as
     :meth:`~plantgrowth.unitcell.smooth_lattice.SmoothLattice.at` takes them (exact)."""
-    return np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET]) / STEP
+    return key_integers(keys) / STEP
 
 
 def marks(new: np.ndarray) -> dict[int, np.ndarray]:
     """Per level k, the sorted keys of the level-k cells within :data:`REACH` of a new point
     of level k (point keys ``new``): where J changes when they are added."""
-    ij = np.column_stack([((new >> 21) & LOW) - OFFSET, (new & LOW) - OFFSET])
+    ij = key_integers(new)
     level = point_level(ij)
     out = {}
     for k in np.unique(level).tolist():

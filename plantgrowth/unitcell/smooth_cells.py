@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from plantgrowth.unitcell.lattice import LOW, OFFSET, STEP, combine, find, place, square_key
+from plantgrowth.unitcell.lattice import STEP, combine, find, key_integers, place, square_key
 from plantgrowth.unitcell.smooth_lattice import SmoothLattice, point_level
 
 SAMPLES = np.array([0.0, 1.0, 2.0, 3.0]) / 3.0
@@ -35,7 +35,7 @@ def reached(keys: np.ndarray) -> list[np.ndarray]:
     """Per level k, the sorted keys (:func:`~plantgrowth.unitcell.lattice.square_key`) of the
     level-k cells met by the support of a point (keys (P,)) of a finer level."""
     ids = keys >> 42
-    ij = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
+    ij = key_integers(keys)
     level = point_level(ij)
     out = []
     for k in range(int(level.max(initial=0))):
@@ -94,7 +94,7 @@ class CellPolynomials:
         bit (the same terms in the same order; a cell no longer a stop cell is never asked)."""
         keys = older._keys
         ids, level = keys >> 46, (keys >> 42) & 15
-        corner = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
+        corner = key_integers(keys)
         hit = np.zeros(len(keys), dtype=bool)
         for k, marked in changed.items():
             side = STEP >> k
@@ -103,7 +103,7 @@ class CellPolynomials:
             coarse = np.flatnonzero(~finer)  # a marked level-k cell lies inside the entry
             if len(coarse):
                 m_ids = marked >> 46
-                m_corner = np.column_stack([(marked >> 21) & LOW, marked & LOW]) - OFFSET
+                m_corner = key_integers(marked)
                 for j in np.unique(level[coarse]).tolist():
                     big = STEP >> j
                     inside = np.unique(square_key(m_ids, j, m_corner // big * big))
@@ -114,7 +114,7 @@ class CellPolynomials:
     def _learn(self, cells: np.ndarray) -> None:
         """The coefficients of new stop cells (keys), from J at their 4 x 4 sample points."""
         ids, level = cells >> 46, (cells >> 42) & 15
-        corner = np.column_stack([((cells >> 21) & LOW) - OFFSET, (cells & LOW) - OFFSET])
+        corner = key_integers(cells)
         points = corner[:, None, :] / STEP + GRID[None] / 2.0 ** level[:, None, None]
         samples = self.lattice.at(np.repeat(ids, 16), points.reshape(-1, 2))
         coefficients = np.einsum("ij,qjm->qim", FIT, samples.reshape(len(cells), 16, -1))

@@ -25,12 +25,11 @@ from __future__ import annotations
 import numpy as np
 
 from plantgrowth.unitcell.lattice import (
-    LOW,
     MAX_LEVEL,
-    OFFSET,
     STEP,
     combine,
     find,
+    key_integers,
     place,
     point_key,
 )
@@ -63,7 +62,7 @@ class SmoothLattice:
         keys = np.asarray(keys, dtype=np.int64)
         values = np.asarray(values, dtype=float)
         ids = keys >> 42
-        ij = np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
+        ij = key_integers(keys)
         level = point_level(ij)
         self.width = values.shape[1]  # m, the packed values' length
         self.levels: list[tuple[np.ndarray, np.ndarray]] = []  # per level: sorted keys, beta

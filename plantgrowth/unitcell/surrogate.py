@@ -63,14 +63,13 @@ from plantgrowth.base.tensors import det2
 from plantgrowth.unitcell.lattice import (
     CHUNK,
     H0,
-    LOW,
     MAX_LEVEL,
-    OFFSET,
     OFFSETS,
     STEP,
     StopSquares,
     cell,
     hats,
+    key_integers,
     point_key,
     square_corners,
     square_key,
@@ -464,8 +463,9 @@ class LatticeSurrogate:
     def _lattice_points(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact values and surpluses (P, m) of built lattice points (point keys (P,))."""
         names = {v: k for k, v in self._table_ids.items()}
-        points = [(names[k >> 42], (((k >> 21) & LOW) - OFFSET, (k & LOW) - OFFSET))
-                  for k in np.asarray(keys).tolist()]  # fmt: skip
+        keys = np.asarray(keys, dtype=np.int64)
+        points = [(names[k >> 42], tuple(ij))
+                  for k, ij in zip(keys.tolist(), key_integers(keys).tolist(), strict=True)]
         values = np.array([self.values[p] for p in points])
         return values, np.array([self._surplus[k] for k in np.asarray(keys).tolist()])
 
