@@ -68,11 +68,12 @@ EARLY = 0.7
 queries starting a refinement are still within the tolerance and blend (measured with B = 8:
 theta = 1 let 7 steps jump past 6 iterations, 0.7 none, 0.5 one, at 127 cell solves against
 117)."""
-REACH = (5, 3)
+REACH = (6, 3)
 """Spacings of its level around a point of level 0, and of a finer level, outside which adding
 it or changing its value leaves J unchanged bit for bit: a level-l point's kernel reaches 2 h_l
 and the finer surpluses it changes 1 h_l more (3); a level-0 point also changes the ghosts
-2 h_0 around it, whose kernels reach 2 h_0 more (5)."""
+3 h_0 around it (quadratic extrapolation from three points in a row), whose kernels reach 2 h_0
+more (6)."""
 DECLINE = 0.5
 """A new point is declined (module docstring) where the taken points' interpolant misses its
 exact value by at most DECLINE times the tolerance: J stays within that of it. On the organ
