@@ -695,6 +695,12 @@ MUTANTS = (
         (("        keys, point_birth = keys[taken], point_birth[taken]\n", ""),),
     ),
     Mutant(
+        "c1_ghosts_never_quadratic", "plantgrowth/unitcell/smooth_lattice.py", "wrong index",
+        "the c1 interpolant's level-0 ghosts never take the quadratic extrapolation: a ghost "
+        "whose directions all have three built nodes in a row gets none at all",
+        (("        quadratic = count[0] > 0\n", "        quadratic = count[0] < 0\n"),),
+    ),
+    Mutant(
         "step_chunk_not_shuffled", "plantgrowth/runner/h5_blocks.py", "transposition",
         "a field's chunk deflated in row order instead of after HDF5's byte shuffle, which the "
         "dataset declares: every reader un-shuffles the inflated bytes into other values",
