@@ -79,8 +79,9 @@ DECLINE = 0.5
 exact value by at most DECLINE times the tolerance: J stays within that of it. On the organ
 scene the new points' misses fell in two groups, 0.03-0.48 and from 0.96 tolerances (every
 threshold between gives the same run): with the declines and the blend lengths B / m, 3 steps
-from step 16 on above 6 CG iterations (at most 8), 322 in all, against 6 steps and 343; on
-gradient_E_strain forced to CG none above 6, 289 against 310 (docs/surrogate_c1.md)."""
+from step 16 on above 6 CG iterations (at most 8), 322 in all, against 6 steps and 343 (with
+the quadratic ghosts too: none, 280); on gradient_E_strain forced to CG none above 6, 289
+against 310 (docs/surrogate_c1.md)."""
 SPD_FRACTION = 0.5
 """The SPD guard's bound, a fraction of the corners' smallest lambda_min / lambda_max."""
 
