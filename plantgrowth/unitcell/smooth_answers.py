@@ -203,9 +203,9 @@ class SmoothAnswers:
         keys, inverse = np.unique(corners.ravel(), return_inverse=True)
         point_birth = np.full(len(keys), np.iinfo(np.int64).max)
         np.minimum.at(point_birth, inverse, born)
-        taken = self._verdicts(keys, point_birth)
-        keys, point_birth = keys[taken], point_birth[taken]
-        values = self._points(keys)[0].copy()
+        exact = self._points(keys)[0]
+        taken = self._verdicts(keys, point_birth, exact)
+        keys, point_birth, values = keys[taken], point_birth[taken], exact[taken]
         for b in blending:  # in birth order: each blends in against the ones before it
             new, before = point_birth == b, point_birth < b
             if not before.any():
@@ -225,12 +225,13 @@ class SmoothAnswers:
         self._kept = (state, keys, values, smooth)
         return smooth
 
-    def _verdicts(self, keys: np.ndarray, point_birth: np.ndarray) -> np.ndarray:
-        """(P,) whether each point (keys, births) is taken into J (:data:`DECLINE`), decided
-        birth by birth in order for the points not decided yet."""
+    def _verdicts(
+        self, keys: np.ndarray, point_birth: np.ndarray, exact: np.ndarray
+    ) -> np.ndarray:
+        """(P,) whether each point (keys, births, exact values) is taken into J
+        (:data:`DECLINE`), decided birth by birth in order for the points not decided yet."""
         undecided = np.array([k not in self._taken for k in keys.tolist()], dtype=bool)
         if undecided.any():
-            exact = self._points(keys)[0]
             for b in np.unique(point_birth[undecided]).tolist():
                 new = undecided & (point_birth == b)
                 taken = np.array([self._taken.get(k, False) for k in keys.tolist()], dtype=bool)

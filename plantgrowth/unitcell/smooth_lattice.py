@@ -22,8 +22,8 @@ frontier points of step 51 were missed by 5.4 tolerances, and the macro CG neede
 iterations there against at most 6 with quadratic ghosts (docs/surrogate_c1.md). Finer
 kernels vanish at every coarser and same-level point, so J equals f at every built point; J
 is a fixed finite sum of C1 functions, so it is C1 in s (piecewise bicubic on the finest built
-lattice). It depends only on the shared points and
-values (serial = mpirun) and is evaluated per query by 16 key lookups per level.
+lattice). It depends only on the shared points and values (serial = mpirun) and is evaluated
+per query by 16 key lookups per level.
 """
 
 from __future__ import annotations

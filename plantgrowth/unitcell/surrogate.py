@@ -467,7 +467,7 @@ class LatticeSurrogate:
         points = [(names[k >> 42], tuple(ij))
                   for k, ij in zip(keys.tolist(), key_integers(keys).tolist(), strict=True)]
         values = np.array([self.values[p] for p in points])
-        return values, np.array([self._surplus[k] for k in np.asarray(keys).tolist()])
+        return values, np.array([self._surplus[k] for k in keys.tolist()])
 
     def squares(self) -> np.ndarray:
         """The built squares, what a resumed run needs to rebuild the interpolant: one row a

@@ -692,7 +692,8 @@ MUTANTS = (
         "c1_declined_points_taken", "plantgrowth/unitcell/smooth_answers.py", "missing check",
         "the c1 path's declines ignored: every new point enters J, those J already met within "
         "DECLINE tolerances too (each move of J costs the macro CG iterations)",
-        (("        keys, point_birth = keys[taken], point_birth[taken]\n", ""),),
+        (("        keys, point_birth, values = keys[taken], point_birth[taken], exact[taken]\n",
+          "        values = exact.copy()\n"),),
     ),
     Mutant(
         "c1_ghosts_never_quadratic", "plantgrowth/unitcell/smooth_lattice.py", "wrong index",
