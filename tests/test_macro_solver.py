@@ -336,3 +336,34 @@ def test_mpirun_reproduces_the_serial_iterative_run(tmp_path, rtol, agreement):
         for column in ("u1_max", "u2_max"):
             assert abs(b[column] - a[column]) <= agreement * scale, column
         assert max(a["residual"], b["residual"]) <= 10 * rtol
+
+
+def test_assemble_system_holds_homogeneous_conditions_and_refuses_others():
+    """assemble_system lifts nothing (every model's condition holds u = 0): b is the assembled
+    load with zeros on the conditions' dofs, exactly, and a condition of nonzero value is
+    refused rather than silently left unlifted."""
+    import ufl
+    from dolfinx import fem, mesh
+    from petsc4py import PETSc
+
+    from plantgrowth.models.linear import assemble_system
+
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+    V = fem.FunctionSpace(msh, ("Lagrange", 1))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    a = fem.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx)
+    L = fem.form(v * ufl.dx)
+    edge = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], 0.0))
+    A, b = fem.petsc.create_matrix(a), fem.petsc.create_vector(L)
+    held = [fem.dirichletbc(PETSc.ScalarType(0.0), edge, V)]
+    assemble_system(A, b, a, L, held)
+    load = fem.petsc.assemble_vector(L)
+    load.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    owned = edge[edge < len(b.array)]
+    free = np.setdiff1d(np.arange(len(b.array)), owned)
+    assert np.all(b.array[owned] == 0.0)
+    assert np.array_equal(b.array[free], load.array[free])
+    assert A.getDiagonal().array[owned] == pytest.approx(1.0)
+    moved = [fem.dirichletbc(PETSc.ScalarType(0.5), edge, V)]
+    with pytest.raises(ValueError, match="homogeneous"):
+        assemble_system(A, b, a, L, moved)
