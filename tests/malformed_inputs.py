@@ -101,7 +101,7 @@ FIELD_KEYS = {  # number or {from, to}
     "growth": ("eta", "tau"),
 }
 INT_KEYS = {"accuracy": ("cell_resolution",), "micro": ("nx", "resolution"), "output": ("every",),
-            "solver": ("macro_threshold",)}  # fmt: skip
+            "solver": ("macro_threshold", "macro_spare_iterations")}  # fmt: skip
 CHOICE_KEYS = {("", "model"), ("growth", "law"), ("time", "integrator"), ("accuracy", "preset"),
                ("output", "precision"), ("solver", "macro")}  # fmt: skip
 TABLES = ("tissue", "cell", "material", "pressure", "growth", "time", "loads", "output",
@@ -117,7 +117,7 @@ SCHEMA = {
     "output": ("fields", "every", "precision"),
     "accuracy": ("preset", "cell_resolution", "key_tolerance", "cell_tolerance"),
     "micro": ("nx", "resolution"),
-    "solver": ("macro", "macro_threshold", "macro_rtol"),
+    "solver": ("macro", "macro_threshold", "macro_rtol", "macro_spare_iterations"),
 }
 OUTPUT_FIELDS = ("u", "Fg", "G", "sigma_hom", "E_hom", "eps_hom", "trG", "growth_anisotropy",
                  "growth_direction", "stress_direction")  # fmt: skip
@@ -184,7 +184,8 @@ def base_scene(rng: random.Random, micro: bool = False) -> dict:
         "micro": {"nx": 2 * rng.randint(1, 16), "resolution": rng.randint(1, 4)},
         "solver": {"macro": rng.choice(["auto", "direct", "iterative"]),
                    "macro_threshold": rng.randint(0, 10**6),
-                   "macro_rtol": rng.choice([1e-12, 1e-10, 1e-7, 1e-5])},
+                   "macro_rtol": rng.choice([1e-12, 1e-10, 1e-7, 1e-5]),
+                   "macro_spare_iterations": rng.randint(0, 10)},
     }  # fmt: skip
     for name in TABLES:  # a random subset of the keys (cell, time: all or none), growth.law
         whole = name in ("cell", "time")  # a default w or t_max may not fit the others

@@ -367,3 +367,61 @@ def test_assemble_system_holds_homogeneous_conditions_and_refuses_others():
     moved = [fem.dirichletbc(PETSc.ScalarType(0.5), edge, V)]
     with pytest.raises(ValueError, match="homogeneous"):
         assemble_system(A, b, a, L, moved)
+
+
+def poisson_system(n: int = 24):
+    """A Poisson matrix and load on the unit square (u = 0 on x1 = 0), assembled on
+    COMM_WORLD: an SPD system that CG + BoomerAMG takes several iterations to solve."""
+    import ufl
+    from dolfinx import fem, mesh
+    from petsc4py import PETSc
+
+    from plantgrowth.models.linear import assemble_system
+
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, n, n)
+    V = fem.FunctionSpace(msh, ("Lagrange", 1))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    x = ufl.SpatialCoordinate(msh)
+    a = fem.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx)
+    L = fem.form(ufl.sin(3.0 * x[0]) * ufl.cos(2.0 * x[1]) * v * ufl.dx)
+    edge = fem.locate_dofs_geometrical(V, lambda p: np.isclose(p[0], 0.0))
+    A, b = fem.petsc.create_matrix(a), fem.petsc.create_vector(L)
+    assemble_system(A, b, a, L, [fem.dirichletbc(PETSc.ScalarType(0.0), edge, V)])
+    return A, b
+
+
+def cg_solve(A, b, rtol: float, spare: int) -> tuple[int, float, np.ndarray]:
+    """CG + BoomerAMG from zero: iterations, true relative residual, the solution's values."""
+    from plantgrowth.models.linear import boomeramg_cg_solver, relative_residual
+
+    ksp = boomeramg_cg_solver(A, MPI.COMM_WORLD, "spare_test_", rtol, 500, False, spare)
+    x = A.createVecRight()
+    ksp.solve(b, x)
+    assert ksp.getConvergedReason() > 0
+    out = ksp.getIterationNumber(), relative_residual(A, x, b), x.array.copy()
+    ksp.destroy()
+    return out
+
+
+def test_spare_iterations_tighten_cg_only_while_there_are_iterations_to_spare():
+    """solver.macro_spare_iterations (linear.SpareAccuracy): with iterations to spare CG goes
+    on to rtol / SPARE_FACTOR (the true residual below it: CG's recursive residual is the true
+    one to round-off, 1e-12 here); with fewer spare iterations than the plain solve takes, CG's
+    iterates and stop are the plain test's (CG's iterates do not depend on the test), so the
+    solution is the same to the last bit; never less accurate than rtol."""
+    from plantgrowth.models.linear import SPARE_FACTOR
+
+    A, b = poisson_system()
+    # an rtol whose plain stop leaves the residual above rtol / SPARE_FACTOR (a ladder of
+    # factor 2 has one: the plain residual lies in [rtol / 2, rtol] for some rung)
+    for rtol in 1e-3 / 2.0 ** np.arange(30):
+        plain_its, plain_residual, plain = cg_solve(A, b, rtol, 0)
+        if plain_residual > rtol / SPARE_FACTOR:
+            break
+    assert plain_residual <= rtol
+    its, residual, _ = cg_solve(A, b, rtol, 1000)
+    assert residual <= rtol / SPARE_FACTOR < plain_residual
+    assert its > plain_its
+    short_its, short_residual, short = cg_solve(A, b, rtol, 1)
+    assert short_its == plain_its and short_residual == plain_residual
+    assert np.array_equal(short, plain)

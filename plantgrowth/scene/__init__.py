@@ -105,6 +105,10 @@ inclined wall length l2 = 1)::
     macro_threshold = 30000    # fine dofs (2 per node) where "auto" switches, integer in [0, 1e9]
     macro_rtol = 1e-8          # CG's stop |b - A u| / |b| (algebraic error of u <= 4 macro_rtol),
                                # [1e-14, 1e-4] (docs/large_tissues.md)
+    macro_spare_iterations = 0 # CG goes on to macro_rtol / 4 while a solve has taken fewer than
+                               # this many iterations, integer in [0, 1000]; 0: off (the organ
+                               # scene: 6, its 1- and 2-rank runs then agree within 6e-7:
+                               # docs/large_tissues.md)
     [numerics]
     on_instability = "stop"    # where the walls' law loses strong ellipticity on a set larger
                                # than a cell (they would buckle; smaller sets are singular points,

@@ -38,6 +38,9 @@ by accuracy"): the algebraic error it leaves is at most 4 macro_rtol in u and up
 in the largest elastic strain (a maximum of grad u; measured 8.7e-6 at 1e-7), so 1e-8 keeps every
 summary column within 1e-6: 1% of the `fine` preset's smallest measured discretization error
 (0.0095%, docs/accuracy_cost.md) and 1/10 of the 1e-5 the organ scene's summary may move."""
+SPARE_ITERATIONS_RANGE = (0, 1000)
+"""``solver.macro_spare_iterations``: 0 (off) to 1000 (beyond any solve's count: CG always
+goes on to the tighter stop)."""
 MACRO_RTOL_RANGE = (1e-14, 1e-4)
 """``solver.macro_rtol``: below 1e-14 double precision cannot reach the residual; above 1e-4 the
 algebraic error would reach the `draft` preset's discretization error."""

@@ -38,6 +38,7 @@ from plantgrowth.scene.limits import (
     OUTPUT_FIELDS,
     RANGES,
     REFERENCE_WIDTH,
+    SPARE_ITERATIONS_RANGE,
     SUPPORTS,
 )
 from plantgrowth.scene.presets import DEFAULT_PRESET, PRESETS, knob
@@ -352,15 +353,20 @@ class Accuracy:
 class Solver:
     """The macro problem's linear solver: "direct", "iterative" or "auto" (iterative from
     ``macro_threshold`` fine dofs on); the iterative solve stops at the true relative residual
-    ``macro_rtol``."""
+    ``macro_rtol``, or with ``macro_spare_iterations`` = n > 0 at ``macro_rtol / SPARE_FACTOR``
+    unless it has taken n iterations (then at ``macro_rtol``: plantgrowth.models.linear.
+    SpareAccuracy)."""
 
     macro: str = "auto"
     macro_threshold: int = MACRO_THRESHOLD
     macro_rtol: float = MACRO_RTOL
+    macro_spare_iterations: int = 0
 
     def __post_init__(self) -> None:
         choice("solver.macro", self.macro, MACRO_SOLVERS)
         integer("solver.macro_threshold", self.macro_threshold, 0, 10**9)
+        integer("solver.macro_spare_iterations", self.macro_spare_iterations,
+                *SPARE_ITERATIONS_RANGE)  # fmt: skip
         rtol = in_range("solver.macro_rtol", self.macro_rtol, *MACRO_RTOL_RANGE, False, False)
         set_fields(self, macro_rtol=rtol)
 

@@ -23,7 +23,7 @@ TABLES = {
         "preset", "cell_resolution", "key_tolerance", "cell_tolerance", "cell_interpolant",
     ),
     "micro": ("nx", "resolution"),
-    "solver": ("macro", "macro_threshold", "macro_rtol"),
+    "solver": ("macro", "macro_threshold", "macro_rtol", "macro_spare_iterations"),
     "numerics": ("on_instability",),
     "walls": ("fibre_stiffness", "fibre_angle"),
     "feedback": ("cue", "rate", "walls"),

@@ -31,6 +31,7 @@ from plantgrowth.models import growth, stability
 from plantgrowth.models.diagnostics import RESIDUAL_BOUND, TRUE_RESIDUAL_FACTOR
 from plantgrowth.models.factor_reuse import FactorReuse
 from plantgrowth.models.linear import (
+    SPARE_FACTOR,
     SolveReport,
     assemble_and_solve,
     assemble_matrix,
@@ -192,6 +193,7 @@ class MacroProblem:
         self.ndofs = self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
         self.solver = scene.solver.macro_kind(self.ndofs)
         self.rtol = scene.solver.macro_rtol
+        self.spare = scene.solver.macro_spare_iterations
         self.with_water = water
         self.ksp = self.factors = None  # factors: the kept LU factors (FactorReuse) or None
         if not water:
@@ -262,11 +264,16 @@ class MacroProblem:
         if self.solver != "iterative":
             return "LU"
         newton = ", Newton: GMRES + GAMG (LU where GMRES stops)" if self.finite else ""
-        return "CG + BoomerAMG" + newton
+        spare = f", to macro_rtol / {SPARE_FACTOR:g} within {self.spare} iterations" * (
+            self.spare > 0
+        )
+        return "CG + BoomerAMG" + spare + newton
 
     def _linear_solver(self, A: PETSc.Mat) -> PETSc.KSP:
         if self.solver == "iterative":  # warm: from the guess SolutionHistory sets
-            return boomeramg_cg_solver(A, self.mesh.comm, PREFIX, self.rtol, MACRO_MAX_IT, True)
+            return boomeramg_cg_solver(
+                A, self.mesh.comm, PREFIX, self.rtol, MACRO_MAX_IT, True, self.spare
+            )
         return lu_solver(A, self.mesh.comm, PREFIX, serial=SERIAL_LU)
 
     def _jacobian_solver(self, J: PETSc.Mat) -> PETSc.KSP:
