@@ -702,6 +702,13 @@ MUTANTS = (
         (("        quadratic = count[0] > 0\n", "        quadratic = count[0] < 0\n"),),
     ),
     Mutant(
+        "spare_goal_not_tightened", "plantgrowth/models/linear.py", "factor",
+        "solver.macro_spare_iterations read and ignored: CG stops at macro_rtol whatever the "
+        "iterations it has to spare (the organ scene's 1- and 2-rank runs then differ by 1.8e-6)",
+        (("        goal = rtol / SPARE_FACTOR if its < self.spare else rtol\n",
+          "        goal = rtol\n"),),
+    ),
+    Mutant(
         "step_chunk_not_shuffled", "plantgrowth/runner/h5_blocks.py", "transposition",
         "a field's chunk deflated in row order instead of after HDF5's byte shuffle, which the "
         "dataset declares: every reader un-shuffles the inflated bytes into other values",
