@@ -151,7 +151,8 @@ SPARE_FACTOR = 4.0
 to spare: a factor 4 is about 2 iterations (CG from the projected guess gains about a decade in 3
 on the organ scene). On the organ scene with 6 to spare (2 ranks, 60 steps) it kept every step
 from 16 on at 6 iterations or fewer, 306 in all against 280, and its 1- and 2-rank summaries
-within 5.9e-7 (elastic_strain_max) against 1.8e-6 (docs/large_tissues.md)."""
+within 5.8e-7 (elastic_strain_max) against 1.8e-6 (benchmarks/results/organ_60_stop50b.json,
+docs/large_tissues.md)."""
 
 
 class SpareAccuracy:
