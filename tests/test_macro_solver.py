@@ -338,22 +338,32 @@ def test_mpirun_reproduces_the_serial_iterative_run(tmp_path, rtol, agreement):
         assert max(a["residual"], b["residual"]) <= 10 * rtol
 
 
+def poisson_forms(n: int):
+    """Poisson's forms on the unit square (n x n cells, COMM_WORLD) with a load that varies in
+    x1 and x2, and the dofs on x1 = 0: the space, a, L and those dofs."""
+    import ufl
+    from dolfinx import fem, mesh
+
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, n, n)
+    V = fem.FunctionSpace(msh, ("Lagrange", 1))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    x = ufl.SpatialCoordinate(msh)
+    a = fem.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx)
+    L = fem.form(ufl.sin(3.0 * x[0]) * ufl.cos(2.0 * x[1]) * v * ufl.dx)
+    edge = fem.locate_dofs_geometrical(V, lambda p: np.isclose(p[0], 0.0))
+    return V, a, L, edge
+
+
 def test_assemble_system_holds_homogeneous_conditions_and_refuses_others():
     """assemble_system lifts nothing (every model's condition holds u = 0): b is the assembled
     load with zeros on the conditions' dofs, exactly, and a condition of nonzero value is
     refused rather than silently left unlifted."""
-    import ufl
-    from dolfinx import fem, mesh
+    from dolfinx import fem
     from petsc4py import PETSc
 
     from plantgrowth.models.linear import assemble_system
 
-    msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
-    V = fem.FunctionSpace(msh, ("Lagrange", 1))
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    a = fem.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx)
-    L = fem.form(v * ufl.dx)
-    edge = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], 0.0))
+    V, a, L, edge = poisson_forms(4)
     A, b = fem.petsc.create_matrix(a), fem.petsc.create_vector(L)
     held = [fem.dirichletbc(PETSc.ScalarType(0.0), edge, V)]
     assemble_system(A, b, a, L, held)
@@ -370,21 +380,14 @@ def test_assemble_system_holds_homogeneous_conditions_and_refuses_others():
 
 
 def poisson_system(n: int = 24):
-    """A Poisson matrix and load on the unit square (u = 0 on x1 = 0), assembled on
-    COMM_WORLD: an SPD system that CG + BoomerAMG takes several iterations to solve."""
-    import ufl
-    from dolfinx import fem, mesh
+    """:func:`poisson_forms`' matrix and load (u = 0 on x1 = 0): an SPD system that CG +
+    BoomerAMG takes several iterations to solve."""
+    from dolfinx import fem
     from petsc4py import PETSc
 
     from plantgrowth.models.linear import assemble_system
 
-    msh = mesh.create_unit_square(MPI.COMM_WORLD, n, n)
-    V = fem.FunctionSpace(msh, ("Lagrange", 1))
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    x = ufl.SpatialCoordinate(msh)
-    a = fem.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx)
-    L = fem.form(ufl.sin(3.0 * x[0]) * ufl.cos(2.0 * x[1]) * v * ufl.dx)
-    edge = fem.locate_dofs_geometrical(V, lambda p: np.isclose(p[0], 0.0))
+    V, a, L, edge = poisson_forms(n)
     A, b = fem.petsc.create_matrix(a), fem.petsc.create_vector(L)
     assemble_system(A, b, a, L, [fem.dirichletbc(PETSc.ScalarType(0.0), edge, V)])
     return A, b

@@ -264,8 +264,9 @@ class MacroProblem:
         if self.solver != "iterative":
             return "LU"
         newton = ", Newton: GMRES + GAMG (LU where GMRES stops)" if self.finite else ""
-        spare = f", to macro_rtol / {SPARE_FACTOR:g} within {self.spare} iterations" * (
-            self.spare > 0
+        spare = (
+            f", to macro_rtol / {SPARE_FACTOR:g} within {self.spare} iterations"
+            if self.spare else ""
         )
         return "CG + BoomerAMG" + spare + newton
 

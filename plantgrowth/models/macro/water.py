@@ -28,6 +28,7 @@ from plantgrowth.forms.macro import macro_bilinear_form, macro_growth_rhs
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.models.linear import (
     SolveReport,
+    assemble_system,
     lu_solver,
     relative_residual,
     saddle_point_solver,
@@ -278,12 +279,8 @@ class MacroWater:
         ``m = m(u, P)``: the initial state."""
         pr = self.problem
         self.P.x.array[:] = self.Pi.x.array + self.inputs.initial_potential
-        A = fem.petsc.assemble_matrix(self._a_u, bcs=pr.bcs)
-        A.assemble()
-        b = fem.petsc.assemble_vector(self._L_u)
-        fem.petsc.apply_lifting(b, [self._a_u], bcs=[pr.bcs])
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem.petsc.set_bc(b, pr.bcs)
+        A, b = fem.petsc.create_matrix(self._a_u), fem.petsc.create_vector(self._L_u)
+        assemble_system(A, b, self._a_u, self._L_u, pr.bcs)
         ksp = lu_solver(A, pr.mesh.comm, PREFIX + "start_")
         ksp.solve(b, pr.u.vector)
         pr.u.x.scatter_forward()
