@@ -120,6 +120,7 @@ def _insert_hanging(tissue: CellPolygons, tol: float) -> list[np.ndarray]:
             t = (v - v[a]) @ d / (d @ d)
             gap = np.abs((v[:, 0] - v[a, 0]) * d[1] - (v[:, 1] - v[a, 1]) * d[0]) / math.sqrt(d @ d)
             on = np.flatnonzero((gap < tol) & (t > 0.0) & (t < 1.0))
+            on = on[(on != a) & (on != b)]  # t of an end may be a rounding off 0 or 1
             out.extend(on[np.argsort(t[on])].tolist())
         loops.append(v[out])
     return loops
