@@ -41,6 +41,9 @@ APT_PACKAGES=(
     python3-tifffile  # docs/real_tissues.md) are read with tifffile (TIFF) or skimage.io (PNG),
     python3-shapely   # checked with skimage.measure and their walls simplified with shapely
     libdeflate0       # the step files' deflate streams (plantgrowth/base/deflate.py)
+    libopenblas0-serial  # numpy's, scipy's and PETSc's BLAS/LAPACK (Debian's alternatives pick
+                      # it over the reference BLAS; serial: one thread per MPI rank):
+                      # docs/large_tissues.md, "An optimized BLAS"
     python3-venv
     python3-pip
     git

@@ -65,8 +65,22 @@ def _petsc_version() -> str | None:
     return ".".join(str(v) for v in PETSc.Sys.getVersion())
 
 
+def _blas() -> str | None:
+    """The BLAS/LAPACK files numpy's process has loaded (Debian's alternatives choose them: the
+    reference BLAS, or OpenBLAS since scripts/install.sh installs it), or None if unknown."""
+    import_module("numpy")
+    names = ("libblas", "liblapack", "libopenblas")
+    try:
+        with open("/proc/self/maps") as f:
+            paths = {line.split()[-1] for line in f if line.rsplit("/", 1)[-1].startswith(names)}
+    except OSError:
+        return None
+    return ", ".join(sorted(paths)) or None
+
+
 def machine_description() -> dict:
-    """CPU, cores, memory, OS, the versions of the numerical stack, and the date (UTC).
+    """CPU, cores, memory, OS, the versions of the numerical stack and its BLAS, and the date
+    (UTC).
 
     Returns:
         A JSON-serialisable dictionary without the host name.
@@ -89,6 +103,7 @@ def machine_description() -> dict:
         "petsc4py": _version("petsc4py"),
         "petsc": _petsc_version(),
         "gmsh": _version("gmsh"),
+        "blas": _blas(),
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }
 

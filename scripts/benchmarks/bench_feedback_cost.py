@@ -10,11 +10,14 @@ problem per coarse node and step, the directors projected to the nodes) and with
 ``cell_tolerance = --reference-tolerance`` (the surrogate ten times tighter, each fine cell
 answered at its own Fg and director), and their cell solves, t = 60 measures and the largest
 error of the runs' exact self-checks; and the cell solves of the fibred scene without feedback
-(the fixed director), of this checkout and of ``--base``. Writes
+(the fixed director), of this checkout and of ``--base``. With ``--free-solves``, a third kind
+alternates with the two: the feedback run with a cell cache that one untimed run filled with
+every lattice value the scene asks (``feedback_cached``: no cell problem solved but the exact
+self-checks', so its CPU is the floor any cheaper cell solver could reach). Writes
 ``benchmarks/results/feedback_cost.json`` with the machine and the load.
 
     python scripts/benchmarks/bench_feedback_cost.py [--repeats 3] \\
-        [--base /work/main/.venv/bin/plantgrowth] [--reference-tolerance 1e-4]
+        [--base /work/main/.venv/bin/plantgrowth] [--reference-tolerance 1e-4] [--free-solves]
 """
 
 from __future__ import annotations
@@ -51,12 +54,13 @@ def feedback_text(tolerance: float | None = None) -> str:
     return dict_to_toml(data)
 
 
-def run(exe: str, text: str) -> dict:
-    """One whole run of the scene text (cache off): CPU seconds, cell solves summed over the
-    steps, the t = 60 measures and the largest error of its exact self-checks (run.log)."""
+def run(exe: str, text: str, cache: str = "off") -> dict:
+    """One whole run of the scene text (cell cache ``cache``, a directory or "off"): CPU
+    seconds, cell solves summed over the steps, the t = 60 measures and the largest error of
+    its exact self-checks (run.log)."""
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "scene.toml").write_text(text)
-        env = os.environ | {"PLANTGROWTH_CACHE_DIR": "off"}
+        env = os.environ | {"PLANTGROWTH_CACHE_DIR": cache}
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         subprocess.run([exe, "run", f"{tmp}/scene.toml", "-o", f"{tmp}/o", "-q"], check=True,
                        capture_output=True, env=env)  # fmt: skip
@@ -81,19 +85,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--base", help="another checkout's plantgrowth (its feedback run too)")
     parser.add_argument("--reference-tolerance", type=float, default=1e-4)
+    parser.add_argument("--free-solves", action="store_true",
+                        help="also the feedback run from a filled cell cache")  # fmt: skip
     args = parser.parse_args(argv)
     exe = str(Path(sys.executable).with_name("plantgrowth"))
     result: dict = {"machine": machine_description(), "load_before": os.getloadavg(),
                     "scene": "scenes/gradient_E_strain.toml", "preset": "balanced",
-                    "cache": "off", "base": args.base}  # fmt: skip
-    kinds = {"unfibred": (exe, scene_text(False)), "feedback": (exe, feedback_text())}
+                    "cache": "off, feedback_cached: filled" if args.free_solves else "off",
+                    "base": args.base}  # fmt: skip
+    kinds = {"unfibred": (exe, scene_text(False), "off"), "feedback": (exe, feedback_text(), "off")}
     if args.base:
-        kinds["feedback_base"] = (args.base, feedback_text())
+        kinds["feedback_base"] = (args.base, feedback_text(), "off")
+    filled = tempfile.TemporaryDirectory()
+    if args.free_solves:
+        kinds["feedback_cached"] = (exe, feedback_text(), filled.name)
+        run(exe, feedback_text(), filled.name)  # untimed: fills the cache
     runs: dict[str, list[dict]] = {name: [] for name in kinds}
     for _ in range(args.repeats):
-        for name, (program, text) in kinds.items():
-            runs[name].append(run(program, text))
+        for name, (program, text, cache) in kinds.items():
+            runs[name].append(run(program, text, cache))
             print(name, json.dumps(runs[name][-1]), flush=True)
+    filled.cleanup()
     result["runs"] = runs
     result["cpu_median"] = {k: statistics.median(r["cpu"] for r in v) for k, v in runs.items()}
     result["cpu_ratio_median"] = {
@@ -110,9 +122,13 @@ def main(argv: list[str] | None = None) -> int:
     reference = run(exe, feedback_text(args.reference_tolerance))
     result["exact_path"], result["reference"] = exact, reference
     result["reference_tolerance"] = args.reference_tolerance
+    if args.free_solves:  # the cached values are the solved ones: the same answers (expected 0)
+        result["feedback_cached"] = {"cell_solves": runs["feedback_cached"][-1]["cell_solves"],
+                                     "vs_feedback": relative(runs["feedback_cached"][-1],
+                                                               runs["feedback"][-1])}  # fmt: skip
     for name in runs:
         last = runs[name][-1]
-        if name != "unfibred":
+        if name not in ("unfibred", "feedback_cached"):
             result[name] = {
                 "cell_solves": last["cell_solves"],
                 "fraction_of_exact": last["cell_solves"] / exact["cell_solves"],
