@@ -324,8 +324,8 @@ MEANING = {
         "(pre-grown 4:1 along x2, Fg0 = diag(1, 4)), finite kinematics only: its elastic strain "
         "is 6 (600%) in both kinematics; with the lumens' water a follower pressure the finite "
         "rates part from the linear ones at O(Ee), here by a factor of several, and the cells "
-        "degenerate (E_hom no longer positive definite) at t = 35. The linear run reaches "
-        "t = 60."
+        "degenerate (E_hom no longer positive definite) at t = 34-35 (the last two "
+        "measurements). The linear run reaches t = 60."
     ),
 }
 """Each limit scene (scenes/hard/<name>.toml) and which physical limit it reaches, in words
