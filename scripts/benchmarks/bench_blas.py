@@ -19,17 +19,14 @@ and stress feedback (scripts/benchmarks/bench_feedback_cost.py's scene). Writes
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
-import resource
 import statistics
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 from bench_feedback_cost import feedback_text
+from bench_feedback_cost import run as whole_run
 from bench_fibre_cost import scene_text
 
 from plantgrowth.base.machine import machine_description
@@ -43,21 +40,13 @@ MEASURES = ("area", "u1_max", "u2_max", "growth_rate_area", "elastic_strain_max"
 
 
 def run(exe: str, text: str, reference_blas: bool) -> dict:
-    """One whole run of the scene text: CPU seconds and the last summary row."""
-    env = os.environ | {"PLANTGROWTH_CACHE_DIR": "off"}
+    """One whole run of the scene text (cache off): CPU seconds and the last row's measures."""
+    env = dict(os.environ)
     env.pop("LD_LIBRARY_PATH", None)
     if reference_blas:
         env["LD_LIBRARY_PATH"] = REFERENCE_BLAS
-    with tempfile.TemporaryDirectory() as tmp:
-        (Path(tmp) / "scene.toml").write_text(text)
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run([exe, "run", f"{tmp}/scene.toml", "-o", f"{tmp}/o", "-q"], check=True,
-                       capture_output=True, env=env)  # fmt: skip
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        with open(Path(tmp) / "o/summary.csv", newline="") as f:
-            last = list(csv.DictReader(f))[-1]
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return {"cpu": cpu, "last": {k: float(last[k]) for k in MEASURES if k in last}}
+    whole = whole_run(exe, text, env=env, measures=MEASURES)
+    return {"cpu": whole["cpu"], "last": {k: whole[k] for k in MEASURES if k in whole}}
 
 
 def largest_difference(a: dict, b: dict) -> float:

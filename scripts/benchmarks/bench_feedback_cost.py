@@ -33,6 +33,7 @@ import subprocess
 import sys
 import tempfile
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
 
 from bench_fibre_cost import scene_text
@@ -54,13 +55,17 @@ def feedback_text(tolerance: float | None = None) -> str:
     return dict_to_toml(data)
 
 
-def run(exe: str, text: str, cache: str = "off") -> dict:
-    """One whole run of the scene text (cell cache ``cache``, a directory or "off"): CPU
-    seconds, cell solves summed over the steps, the t = 60 measures and the largest error of
-    its exact self-checks (run.log)."""
+def run(
+    exe: str, text: str, cache: str = "off", env: Mapping[str, str] | None = None,
+    measures: tuple[str, ...] = MEASURES,
+) -> dict:  # fmt: skip
+    """One whole run of the scene text (cell cache ``cache``, a directory or "off"; the process
+    environment ``env``, by default this one's): CPU seconds, cell solves summed over the
+    steps, the last row's ``measures`` and the largest error of its exact self-checks
+    (run.log)."""
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "scene.toml").write_text(text)
-        env = os.environ | {"PLANTGROWTH_CACHE_DIR": cache}
+        env = dict(os.environ if env is None else env) | {"PLANTGROWTH_CACHE_DIR": cache}
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         subprocess.run([exe, "run", f"{tmp}/scene.toml", "-o", f"{tmp}/o", "-q"], check=True,
                        capture_output=True, env=env)  # fmt: skip
@@ -71,7 +76,7 @@ def run(exe: str, text: str, cache: str = "off") -> dict:
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return {"cpu": cpu, "cell_solves": sum(int(float(r["n_cell_solves"])) for r in rows),
             "largest_checked_error": max(checks, default=None)} | {
-        m: float(rows[-1][m]) for m in MEASURES if m in rows[-1]
+        m: float(rows[-1][m]) for m in measures if m in rows[-1]
     }  # fmt: skip
 
 
