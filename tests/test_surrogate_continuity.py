@@ -332,6 +332,43 @@ def test_queries_next_to_lattice_lines_stay_in_nested_squares():
 
 
 @pytest.mark.mpi
+def test_a_squares_z_order_codes_are_the_range_of_its_finest_squares():
+    """The stop squares' lookup is one search of a query's finest-lattice Z-order code: the
+    finest squares inside an aligned square of level k are exactly the 4^(12 - k) codes from
+    its lower-left corner's, and another table's codes are outside the range."""
+    rng = np.random.default_rng(3)
+    for level in (0, 3, 7, 12):
+        size = lattice_walk.STEP >> level
+        corner = rng.integers(-50, 50, size=2) * size
+        start = lattice_walk.z_order(np.array([2]), corner[None])[0]
+        end = start + (1 << 2 * (lattice_walk.MAX_LEVEL - level))
+        points = corner + rng.integers(-size, 2 * size, size=(2000, 2))
+        inside = np.all((points >= corner) & (points < corner + size), axis=1)
+        assert inside.any() and not inside.all()
+        codes = lattice_walk.z_order(np.full(2000, 2), points)
+        np.testing.assert_array_equal((codes >= start) & (codes < end), inside)
+        other = lattice_walk.z_order(np.full(2000, 3), points)
+        assert not ((other >= start) & (other < end)).any()
+
+
+def test_the_lookup_answers_from_the_coarsest_stop_square_holding_a_query():
+    """Of two cached squares one inside the other, a query in both takes the coarser (the
+    walk's stop square: a walk stops at the first square without new points); one in the
+    coarser only takes it too, and one in neither none."""
+    stops = lattice_walk.StopSquares()
+    corners = np.array([[0, 0], [0, 0]]), np.array([1, 3])  # level 1 and level 3 at the origin
+    keys = lattice_walk.square_key(np.zeros(2, dtype=np.int64), corners[1], corners[0])
+    found = {"values": np.ones((2, 4, 1)), "change": np.zeros((2, 4, 1)),
+             "on_point": np.zeros((2, 4), dtype=bool), "base": np.ones((2, 4), dtype=bool),
+             "level": corners[1], "square": keys}  # fmt: skip
+    stops.add(found, keys[::-1])  # the finer first: the rule is not the order of learning
+    h = lattice_walk.H0
+    s = np.array([[0.01 * h, 0.01 * h], [0.4 * h, 0.2 * h], [0.6 * h, 0.1 * h]])
+    rows, t = stops.lookup(np.zeros(3, dtype=np.int64), s)
+    np.testing.assert_array_equal(rows, [1, 1, -1])
+    np.testing.assert_allclose(t[:2], 2 * s[:2] / h, rtol=1e-12)
+
+
 def test_a_refinement_that_cannot_end_stops_with_a_named_error(monkeypatch):
     """With the stop squares never dropped (a stale lookup: each pass sees the level it saw
     first), refine would ask for the same squares forever; after MAX_GROWTHS passes of one

@@ -108,6 +108,24 @@ def key_integers(keys: np.ndarray) -> np.ndarray:
     return np.column_stack([((keys >> 21) & LOW) - OFFSET, (keys & LOW) - OFFSET])
 
 
+def _spread(v: np.ndarray) -> np.ndarray:
+    """The bits of v (< 2^21) moved to the even bit positions (bit b to bit 2 b)."""
+    v = (v | (v << 16)) & 0x0000FFFF0000FFFF
+    v = (v | (v << 8)) & 0x00FF00FF00FF00FF
+    v = (v | (v << 4)) & 0x0F0F0F0F0F0F0F0F
+    v = (v | (v << 2)) & 0x3333333333333333
+    return (v | (v << 1)) & 0x5555555555555555
+
+
+def z_order(ids: np.ndarray, integers: np.ndarray) -> np.ndarray:
+    """One int64 code per table number and finest-lattice integers (n, 2): the table number,
+    then the Z-order (bit-interleaved) code of the two offset integers. The codes of the finest
+    squares inside an aligned square of level k are the 4^(MAX_LEVEL - k) ones from its
+    lower-left corner's, so a square is a range of codes."""
+    i, j = (integers[..., c].astype(np.int64) + OFFSET for c in (0, 1))
+    return (np.asarray(ids, dtype=np.int64) << 42) | (_spread(i) << 1) | _spread(j)
+
+
 def square_corners(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Table numbers (q,), levels (q,) and lower-left corners (q, 2) of squares' keys."""
     return keys >> 46, (keys >> 42) & 15, key_integers(keys)
@@ -204,37 +222,44 @@ class StopSquares:
     docstring); the owner drops the entries a refinement may change (:meth:`drop`)."""
 
     def __init__(self, norms: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
-        self._entries: dict[int, tuple] = {}  # stop square key -> its corner data
+        self._keys = np.zeros(0, dtype=np.int64)  # the entries' stop square keys
+        self._columns: list[np.ndarray] | None = None  # per entry, as :meth:`_table` lists
         self._index: tuple[np.ndarray, ...] | None = None
-        self.depth = 0  # deepest stop square's level
+        self._ranges_index: tuple[np.ndarray, ...] | None = None
         self._norms = norms  # (..., m) -> (..., segments): the estimate's norms per segment
 
     def drop(self, built: np.ndarray) -> None:
         """Forget the entries that squares just built (keys) may change: those of their table
         whose closed square meets a new point's hat support, the built square's parent (the
         square itself at level 0) widened by its spacing h on every side."""
-        if not self._entries:
+        if not len(self._keys):
             return
-        keys = np.array(list(self._entries), dtype=np.int64)
-        table, level, corner = square_corners(keys)
+        table, level, corner = square_corners(self._keys)
         width = (STEP >> level)[:, None]
         b_table, low, high = supports(built)
         meets = (table[:, None] == b_table[None]) & np.all(
             (corner[:, None, :] <= high[None]) & (corner[:, None, :] + width[:, None] >= low[None]),
             axis=-1,
         )  # (entries, built)
-        for key in keys[meets.any(axis=1)].tolist():
-            del self._entries[key]
-        self._index = None
+        kept = ~meets.any(axis=1)
+        self._keys = self._keys[kept]
+        self._columns = [column[kept] for column in self._columns]
+        self._index = self._ranges_index = None
 
     def add(self, found: dict[str, np.ndarray], keys: np.ndarray) -> None:
-        """Entries for the stop squares ``keys`` (q,) from :func:`walk` at their corners."""
-        for q, key in enumerate(keys.tolist()):
-            self._entries[key] = (
-                np.hstack([found["values"][q], found["change"][q]]), found["on_point"][q],
-                found["base"][q], found["level"][q], found["square"][q],
-            )  # fmt: skip
-        self._index = None
+        """Entries for the stop squares ``keys`` (q,, none known yet) from :func:`walk` at
+        their corners, after the entries before (whose rows stay)."""
+        values, change = found["values"], found["change"]
+        columns = [values, change, found["on_point"], found["base"], found["level"],
+                   found["square"]]  # fmt: skip
+        if self._norms is not None:
+            spread = self._norms(values[:, :, None, :] - values[:, None, :, :]).max(axis=2)
+            columns += [self._norms(change), (self._norms(values) - spread).max(axis=1)]
+        if len(self._keys):
+            columns = [np.concatenate([old, new])
+                       for old, new in zip(self._columns, columns, strict=True)]  # fmt: skip
+        self._keys, self._columns = np.concatenate([self._keys, keys]), columns
+        self._index = self._ranges_index = None
 
     def learn(
         self, squares: np.ndarray, keys: np.ndarray, surplus: np.ndarray, ids: np.ndarray,
@@ -267,49 +292,66 @@ class StopSquares:
         ones not met before learnt first (:meth:`learn`) from ``lattice()``, the squares,
         point keys and surpluses."""
         rows, t = self.lookup(ids, s)
-        miss = rows < 0
-        if miss.any():  # new entries renumber the rows: look up again
+        miss = np.flatnonzero(rows < 0)
+        if len(miss):  # new entries come after the rows found: the missed ones looked up
             self.learn(*lattice(), ids[miss], s[miss])
-            rows, t = self.lookup(ids, s)
+            rows[miss], t[miss] = self.lookup(ids[miss], s[miss])
         return self.answer(rows, t, s, strict, quiet)
 
     def _table(self) -> tuple[np.ndarray, ...]:
-        """Sorted keys, corner rows of I and of S's term (each (4 E, m)), per entry its corner
-        flags, Q_0's corners' built flags, S's level and key, and (with ``norms``, else None)
-        the norms of S's term at its corners (4 E, segments) and a lower bound of |I| over
-        the square (E, segments): ``max_c (|I(c)| - max_c' |I(c') - I(c)|)``, as I is a convex
+        """Keys, corner rows of I and of S's term (each (4 E, m)), per entry its corner flags,
+        Q_0's corners' built flags, S's level and key, and (with ``norms``, else None) the
+        norms of S's term at its corners (4 E, segments) and a lower bound of |I| over the
+        square (E, segments): ``max_c (|I(c)| - max_c' |I(c') - I(c)|)``, as I is a convex
         combination of the corners' values there."""
+        if self._index is None and not len(self._keys):  # no entry yet: the keys only
+            return (self._keys,)
         if self._index is None:
-            keys = np.array(sorted(self._entries), dtype=np.int64)
-            rows = [self._entries[k] for k in keys.tolist()]
-            self.depth = int(((keys >> 42) & 15).max()) if len(keys) else 0
-            table, *rest = (np.array([e[i] for e in rows]) for i in range(5))
-            m = table.shape[2] // 2 if len(keys) else 0
-            values, change = table[..., :m], table[..., m:]
-            flat = [np.ascontiguousarray(a).reshape(len(keys) * 4, m) for a in (values, change)]
+            values, change, *rest = self._columns[:6]
+            e, m = len(self._keys), values.shape[2]
             norms = None
-            if self._norms is not None and len(keys):
-                spread = self._norms(values[:, :, None, :] - values[:, None, :, :]).max(axis=2)
-                corner_norms = self._norms(change).reshape(len(keys) * 4, -1)  # as the rows
-                norms = corner_norms, (self._norms(values) - spread).max(axis=1)
-            self._index = (keys, *flat, *rest, norms)
+            if self._norms is not None and e:
+                corner_norms, size = self._columns[6:]
+                norms = corner_norms.reshape(e * 4, -1), size  # as the rows
+            flat = [a.reshape(e * 4, m) for a in (values, change)]
+            self._index = (self._keys, *flat, *rest, norms)
         return self._index
 
     def lookup(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per query: its entry's row (-1: no known stop square holds it) and its coordinates t
-        (n, 2) in that square: the coarsest level's entry that holds it, found level by level
-        from the coarsest, each level asked by the queries no coarser one holds."""
-        keys = self._table()[0]
-        rows, t = np.full(len(ids), -1, dtype=np.int64), np.zeros(s.shape)
-        left = np.arange(len(ids))  # the queries no coarser entry holds
-        for level in range(self.depth + 1):
-            corner, place = cell(s[left], level)
-            pos, hit = find(keys, square_key(ids[left], level, corner))
-            rows[left[hit]], t[left[hit]] = pos[hit], place[hit]
-            left = left[~hit]
-            if not len(left):
-                break
-        return rows, t
+        (n, 2) in that square: the coarsest entry that holds it, found by one search of its
+        finest-lattice Z-order code among the ranges of the entries (:meth:`_ranges`). A query
+        off the lattice (|s| >= 25) is held by none: :meth:`learn`'s walk raises for it."""
+        x = place(s)
+        finest = np.floor(x * STEP)  # exact: a power of 2
+        inside = np.all(np.abs(finest) < OFFSET, axis=1)
+        code = z_order(ids, np.where(inside[:, None], finest, 0.0).astype(np.int64))
+        starts, ends, entry = self._ranges()
+        pos = np.searchsorted(starts, code, side="right") - 1
+        hit = inside & (pos >= 0)
+        hit[hit] = code[hit] < ends[pos[hit]]
+        rows = np.where(hit, entry[np.maximum(pos, 0)] if len(entry) else -1, -1)
+        level = (self._table()[0][np.maximum(rows, 0)] >> 42) & 15 if len(entry) else rows
+        scaled = x * 2.0 ** level[:, None]  # exact, as :func:`cell`'s
+        return rows, scaled - np.floor(scaled)
+
+    def _ranges(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The entries' Z-order ranges of finest-lattice codes (:func:`z_order`), sorted, and
+        each range's entry row: an aligned square of level k covers the 4^(MAX_LEVEL - k) codes
+        from its lower-left corner's. An entry inside a coarser one (their ranges nest) is left
+        out: :meth:`lookup` answers from the coarsest entry holding a query."""
+        keys = self._table()[0]  # (rebuilt after a change: the ranges with it)
+        if self._ranges_index is None:
+            table, level, corner = square_corners(keys)
+            starts = z_order(table, corner)
+            ends = starts + (1 << (2 * (MAX_LEVEL - level)))
+            order = np.lexsort((-ends, starts))  # by start, a coarser entry first
+            starts, ends = starts[order], ends[order]
+            reach = np.maximum.accumulate(ends)
+            kept = np.ones(len(order), dtype=bool)
+            kept[1:] = starts[1:] >= reach[:-1]  # aligned squares: overlap means inside
+            self._ranges_index = starts[kept], ends[kept], order[kept]
+        return self._ranges_index
 
     def answer(
         self, rows: np.ndarray, t: np.ndarray, s: np.ndarray, strict: bool,

@@ -664,8 +664,8 @@ MUTANTS = (
         "estimate_bound_without_spread", "plantgrowth/unitcell/lattice.py", "wrong average",
         "the stop square's lower bound of |I| taken as its largest corner value's norm, without "
         "the corners' spread: the bound may fall below the estimate it stands in for",
-        (("norms = corner_norms, (self._norms(values) - spread).max(axis=1)",
-          "norms = corner_norms, self._norms(values).max(axis=1)"),),
+        (("columns += [self._norms(change), (self._norms(values) - spread).max(axis=1)]",
+          "columns += [self._norms(change), self._norms(values).max(axis=1)]"),),
     ),
     Mutant(
         "symmetric4_turned_back", "plantgrowth/base/tensors.py", "transposition",
