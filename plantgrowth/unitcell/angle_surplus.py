@@ -25,7 +25,6 @@ import numpy as np
 
 from plantgrowth.unitcell.surrogate import H0, STEP
 
-_SHIFT = 1 << 30  # grid units of a stretch |s| < 25 are within it
 _CORNERS = np.array([[0, 0], [1, 0], [0, 1], [1, 1]])  # a square's corners, in its spacing
 
 
@@ -36,9 +35,7 @@ def grid_squares(s: np.ndarray, level: int) -> tuple[np.ndarray, np.ndarray, np.
     x = s / (H0 / 2.0**level)
     base = np.floor(np.round(x, 9))
     t = np.clip(np.round(x - base, 9), 0.0, 1.0)
-    corner = base.astype(np.int64) + _SHIFT  # one sortable key per square: x, then y
-    keys, square = np.unique((corner[:, 0] << 32) | corner[:, 1], return_inverse=True)
-    squares = np.column_stack([keys >> 32, keys & 0xFFFFFFFF]) - _SHIFT
+    squares, square = np.unique(base.astype(np.int64), axis=0, return_inverse=True)
     tx, ty = t[:, 0:1], t[:, 1:2]
     hats = np.hstack([(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty])
     return squares, square.reshape(-1), hats
@@ -67,29 +64,23 @@ def surplus_weights(fine: np.ndarray, coarse: np.ndarray) -> np.ndarray:
     return surplus
 
 
-def corner_values(
-    node_tables: list[tuple], squares: np.ndarray, level: int, values: Mapping
-) -> np.ndarray:
-    """The exact values (u, 4 N, m) at the squares' corners (corner by corner, node by node):
-    node j's table ``node_tables[j]``, read off the lattice's ``values`` ((table, point) ->
-    packed values)."""
+def grid_term(
+    node_tables: list[tuple], squares: np.ndarray, level: int, square: np.ndarray,
+    hats: np.ndarray, surplus: np.ndarray, values: Mapping,
+) -> np.ndarray:  # fmt: skip
+    """``sum_j surplus_j(b) P_level f_j(s)`` per query (n, m): node j's table
+    ``node_tables[j]``, the query's grid square ``square`` (into ``squares``) and hats, the
+    exact corner values from the lattice's ``values`` ((table, point) -> packed values).
+    Per square, one product of its queries' weights ``hats_c surplus_j`` (q, 4 N) with its
+    corners' values (4 N, m)."""
     points = corner_points(squares, level)
     table = np.array([[values[node, p] for node in node_tables] for p in points])  # (u 4, N, m)
-    return table.reshape(len(squares), 4 * len(node_tables), -1)
-
-
-def grid_term(
-    corners: np.ndarray, square: np.ndarray, hats: np.ndarray, surplus: np.ndarray
-) -> np.ndarray:
-    """``sum_j surplus_j(b) P_level f_j(s)`` per query (n, m): the query's grid square
-    ``square`` (into the squares' ``corners``, :func:`corner_values`) and hats. Per square,
-    one product of its queries' weights ``hats_c surplus_j`` (q, 4 N) with its corners' values
-    (4 N, m)."""
+    table = table.reshape(len(squares), 4 * len(node_tables), -1)
     weights = (hats[:, :, None] * surplus[:, None, :]).reshape(len(square), -1)  # (n, 4 N)
-    out = np.zeros((len(square), corners.shape[-1]))
+    out = np.zeros((len(square), table.shape[-1]))
     order = np.argsort(square, kind="stable")
-    bounds = np.searchsorted(square[order], np.arange(len(corners) + 1))
-    for u in range(len(corners)):  # a few squares
+    bounds = np.searchsorted(square[order], np.arange(len(squares) + 1))
+    for u in range(len(squares)):  # a few squares
         mine = order[bounds[u] : bounds[u + 1]]
-        out[mine] = weights[mine] @ corners[u]
+        out[mine] = weights[mine] @ table[u]
     return out

@@ -171,7 +171,6 @@ class DirectorInterpolant:
         self.tolerance = tolerance
         self.comm = comm
         self.levels: dict[tuple, int] = {}  # fibred table -> L (M = 6 2^L fine nodes)
-        self._corners: dict[tuple, np.ndarray] = {}  # grid square -> its corner values
 
     def state(self) -> np.ndarray:
         """The tables' levels as int64 rows ``[table..., L]`` (a resumed run's :meth:`restore`)."""
@@ -314,10 +313,12 @@ class DirectorInterpolant:
                 for term, (nodes, squares, level, square, hats, surplus) in zip(
                     terms, grids, strict=True
                 ):
-                    term[need] = self._grid_term(nodes, squares, level, square, hats, surplus)
+                    term[need] = angle_surplus.grid_term(
+                        nodes, squares, level, square, hats, surplus, self._values
+                    )
                 (first, *_, surplus), (_, squares, level, square, hats, _) = grids
-                coarse[need] = self._grid_term(
-                    first, squares, level, square, hats, surplus
+                coarse[need] = angle_surplus.grid_term(
+                    first, squares, level, square, hats, surplus, self._values
                 )  # the first surplus term on the last term's (coarser) grid
             full = value + sum(terms)
             # near a node the angle's terms are O(distance to it): no estimate asks for more M
@@ -344,23 +345,8 @@ class DirectorInterpolant:
         own = answers[rows[np.arange(len(rows)), nearest]]  # S_k (a copy)
         if near is not None:
             far, nodes, squares, square, hats, change = near
-            own[far] += self._grid_term(nodes, squares, 0, square, hats, change)
+            own[far] += angle_surplus.grid_term(
+                nodes, squares, 0, square, hats, change, self._values
+            )
         w = blend[:, None]
         return np.where(w == 1.0, full, np.where(w == 0.0, own, w * full + (1.0 - w) * own))
-
-    def _grid_term(
-        self, nodes: list[tuple], squares: np.ndarray, level: int, square: np.ndarray,
-        hats: np.ndarray, surplus: np.ndarray,
-    ) -> np.ndarray:  # fmt: skip
-        """:func:`angle_surplus.grid_term` of the nodes' tables on the level-``level`` grid
-        squares, each square's corner values read once and kept (exact lattice values: a
-        node's table and count, the level and the square name them for good)."""
-        table, count = nodes[0][:-1], len(nodes)
-        for i, j in squares.tolist():
-            if (table, count, level, i, j) not in self._corners:
-                one = np.array([[i, j]])
-                self._corners[table, count, level, i, j] = angle_surplus.corner_values(
-                    nodes, one, level, self._values
-                )[0]
-        corners = np.array([self._corners[table, count, level, i, j] for i, j in squares.tolist()])
-        return angle_surplus.grid_term(corners, square, hats, surplus)
