@@ -56,6 +56,7 @@ import numpy as np
 from mpi4py import MPI
 
 from plantgrowth.unitcell import angle_surplus
+from plantgrowth.unitcell.lattice import by_rows
 from plantgrowth.unitcell.surrogate import KEEP, Answer, Point
 
 H0_ANGLE = 15.0
@@ -270,12 +271,12 @@ class DirectorInterpolant:
                 angle_surplus.surplus_weights(cardinal[factor], cardinal[factor // 2])
                 for factor in factors
             ]  # all zero at a fine node's angle: no grid asked for it (exactly, the terms are 0)
-            need = np.any([(c != 0.0).any(axis=1) for c in surpluses], axis=0) & (blend > 0.0)
+            need = by_rows(np.logical_or, np.hstack(surpluses) != 0.0) & (blend > 0.0)
             for (factor, level), surplus in zip(SURPLUS_TERMS, surpluses, strict=True):
                 nodes = [table + (j * PERIOD // (factor * count),) for j in range(factor * count)]
                 squares, square, hats = ask_grid(nodes, s[queries[need]], level)
                 grids.append((nodes, squares, level, square, hats, surplus[need]))
-            far = (blend < 1.0) & ((weights != 0.0) & ~own).any(axis=1)
+            far = (blend < 1.0) & by_rows(np.logical_or, (weights != 0.0) & ~own)
             near = None  # the near-node form's grid: the M nodes' level-0 squares
             if far.any():
                 near = (far, fine, *ask_grid(fine, s[queries[far]], 0), (weights - own)[far])
@@ -330,7 +331,9 @@ class DirectorInterpolant:
             values[queries] = self._blend(full, answer.values, rows, nearest, blend, near)
             used = weights != 0.0
             interpolated[queries] = (
-                (used.sum(axis=1) > 1) | (used & answer.interpolated[rows]).any(axis=1) | need
+                (used.sum(axis=1) > 1)
+                | by_rows(np.logical_or, used & answer.interpolated[rows])
+                | need
             )
         return values, estimates, interpolated
 

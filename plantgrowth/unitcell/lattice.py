@@ -79,6 +79,16 @@ def combine(weights: np.ndarray, rows: np.ndarray, table: np.ndarray) -> np.ndar
     return np.asarray(W @ table).reshape(n, table.shape[1])
 
 
+def by_rows(ufunc: np.ufunc, a: np.ndarray) -> np.ndarray:
+    """``ufunc.reduce(a, axis=1)`` of an (n, k) array with a small k, column by column: the same
+    values (a maximum, a logical and/or is exact), but numpy's reduction over a short last axis
+    is slow (25,000 x 4 values: 0.78 ms against 0.034 ms)."""
+    out = a[:, 0].copy()
+    for j in range(1, a.shape[1]):
+        ufunc(out, a[:, j], out=out)
+    return out
+
+
 def find(keys: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Positions of ``wanted`` among the sorted ``keys`` (any valid row where absent) and
     whether each is there."""
@@ -324,7 +334,7 @@ class StopSquares:
         off the lattice (|s| >= 25) is held by none: :meth:`learn`'s walk raises for it."""
         x = place(s)
         finest = np.floor(x * STEP)  # exact: a power of 2
-        inside = np.all(np.abs(finest) < OFFSET, axis=1)
+        inside = by_rows(np.logical_and, np.abs(finest) < OFFSET)
         code = z_order(ids, np.where(inside[:, None], finest, 0.0).astype(np.int64))
         starts, ends, entry = self._ranges()
         pos = np.searchsorted(starts, code, side="right") - 1
@@ -374,7 +384,7 @@ class StopSquares:
             "values": combine(weights, corners, values),
             "level": level[rows],
             "square": square[rows],
-            "on_point": (corner_point[rows] & (weights == 1.0)).any(axis=1),
+            "on_point": by_rows(np.logical_or, corner_point[rows] & (weights == 1.0)),
         }
         if quiet is None:
             found["change"] = combine(weights, corners, change)
@@ -384,7 +394,7 @@ class StopSquares:
             top = combine(weights, corners, norms[0])
             size = norms[1][rows]
             ratio = np.divide(top, size, out=np.full(top.shape, np.inf), where=size > 0.0)
-            found["bound"] = np.where(top == 0.0, 0.0, ratio).max(axis=1)
+            found["bound"] = by_rows(np.maximum, np.where(top == 0.0, 0.0, ratio))
         loud = np.flatnonzero((found["bound"] >= quiet) & (found["level"] >= 1))
         found["loud"], found["change"] = loud, combine(weights[loud], corners[loud], change)
         return found
