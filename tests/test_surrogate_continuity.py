@@ -351,6 +351,18 @@ def test_a_squares_z_order_codes_are_the_range_of_its_finest_squares():
         assert not ((other >= start) & (other < end)).any()
 
 
+def test_row_reductions_column_by_column_are_numpys():
+    """lattice.by_rows (the row-wise max, and, or of a short last axis, column by column) gives
+    numpy's reduction exactly, for one column too."""
+    rng = np.random.default_rng(5)
+    for k in (1, 2, 4, 24):
+        x = rng.normal(size=(300, k))
+        np.testing.assert_array_equal(lattice_walk.by_rows(np.maximum, x), x.max(axis=1))
+        flags = x > 0.5
+        np.testing.assert_array_equal(lattice_walk.by_rows(np.logical_or, flags), flags.any(1))
+        np.testing.assert_array_equal(lattice_walk.by_rows(np.logical_and, flags), flags.all(1))
+
+
 def test_the_lookup_answers_from_the_coarsest_stop_square_holding_a_query():
     """Of two cached squares one inside the other, a query in both takes the coarser (the
     walk's stop square: a walk stops at the first square without new points); one in the
