@@ -130,9 +130,22 @@ def project(solver: CellSolver, V: np.ndarray) -> ReducedModel:
     return ReducedModel(products, diagonal, loads, averages)
 
 
-def rb_solve(solver: CellSolver, model: ReducedModel, s: np.ndarray, b: float) -> CellResult:
-    """One RB solve: ``CellSolver.solve``'s math with the reduced matrix and moments."""
-    start = time.perf_counter()
+@dataclass(frozen=True)
+class ReducedSolution:
+    """The reduced solution y (r, 4) at U = stretch(s) and angle b, and what it was made of:
+    U, the wall tensors, their C[b_ij] per part and the loads (parts, 4, 4)."""
+
+    y: np.ndarray
+    Fg: np.ndarray
+    walls: list[np.ndarray]
+    wall_b: np.ndarray
+    loads: np.ndarray
+
+
+def reduced_solution(
+    solver: CellSolver, model: ReducedModel, s: np.ndarray, b: float
+) -> ReducedSolution:
+    """``CellSolver.solve``'s system with the reduced matrix and load moments, solved."""
     Fg = stretch(s)
     walls = solver.wall_tensors(Fg, E, NU, FIBRE, b)
     S = np.stack([tensor_weights(Fg, C) for C in walls])
@@ -144,10 +157,17 @@ def rb_solve(solver: CellSolver, model: ReducedModel, s: np.ndarray, b: float) -
     )  # fmt: skip
     columns = [[x.ravel() for x in list(b_f) + [np.eye(2)]] for b_f in wall_b]
     X = np.stack([np.stack(part, axis=1) for part in columns])
-    L = growth_map(Fg)
-    loads = -np.linalg.det(Fg) * L.T @ X
+    loads = -np.linalg.det(Fg) * growth_map(Fg).T @ X
     y = np.linalg.solve(A, np.einsum("fip,fpk->ik", model.loads, loads))
-    integrals = L @ np.einsum("fip,ik->fpk", model.averages, y)
+    return ReducedSolution(y, Fg, walls, wall_b, loads)
+
+
+def rb_solve(solver: CellSolver, model: ReducedModel, s: np.ndarray, b: float) -> CellResult:
+    """One RB solve: ``CellSolver.solve``'s math with the reduced matrix and moments."""
+    start = time.perf_counter()
+    solution = reduced_solution(solver, model, s, b)
+    walls, wall_b = solution.walls, solution.wall_b
+    integrals = growth_map(solution.Fg) @ np.einsum("fip,ik->fpk", model.averages, solution.y)
     # from here on CellSolver.solve's post-processing, unchanged
     grad_g = integrals.transpose(0, 2, 1).reshape(len(walls), -1, 2, 2)
     dbar_parts = 0.5 * (grad_g + grad_g.transpose(0, 1, 3, 2)) / solver.area
