@@ -476,6 +476,14 @@ MUTANTS = (
           "depth = min(int(((squares >> 42) & 15).max()), MAX_LEVEL)"),),
     ),
     Mutant(
+        "stop_square_lookup_finer_first", "plantgrowth/unitcell/lattice.py", "wrong index",
+        "of two nested stop squares the finer one kept in the lookup's Z-order ranges instead "
+        "of the coarser: a query in the coarser square but outside the finer one finds no "
+        "entry (issue 33 stop 52's one-search lookup; the walk stops at the coarser square)",
+        (("order = np.lexsort((-ends, starts))  # by start, a coarser entry first",
+          "order = np.lexsort((ends, starts))  # by start, a coarser entry first"),),
+    ),
+    Mutant(
         "near_node_zone_fixed", "plantgrowth/unitcell/director_lattice.py", "factor",
         "the near-node zone kept at its 1e-3 width whatever the tolerance: at the fine "
         "preset's 1e-4 the near-node form A_k answers where its error (2e-3 per degree) is the "
