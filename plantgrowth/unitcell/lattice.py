@@ -12,7 +12,8 @@ j <= k is bilinear on Q_j, which holds Q_k, so on this *stop square* Q_k
 
 and so is the estimate's term (the hats of the deepest built square's level). :class:`StopSquares`
 keeps, per stop square met, I and that term at its corners (found by one walk of the square's
-centre evaluated at its corners); a query in a known stop square is answered by one bilinear
+centre evaluated at its corners); a query in a known stop square, found by one search of its
+Z-order code among the squares' code ranges (:func:`z_order`), is answered by one bilinear
 combination instead of a walk over every level. A refinement drops the entries that meet the
 hat supports of the points it adds (elsewhere I and the stop squares stay as they were). The
 answer is the walk's to rounding (5e-16 relative measured: both place a query by the same
