@@ -235,7 +235,6 @@ class StopSquares:
     def __init__(self, norms: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         self._keys = np.zeros(0, dtype=np.int64)  # the entries' stop square keys
         self._columns: list[np.ndarray] | None = None  # per entry, as :meth:`_table` lists
-        self._index: tuple[np.ndarray, ...] | None = None
         self._ranges_index: tuple[np.ndarray, ...] | None = None
         self._norms = norms  # (..., m) -> (..., segments): the estimate's norms per segment
 
@@ -255,7 +254,7 @@ class StopSquares:
         kept = ~meets.any(axis=1)
         self._keys = self._keys[kept]
         self._columns = [column[kept] for column in self._columns]
-        self._index = self._ranges_index = None
+        self._ranges_index = None
 
     def add(self, found: dict[str, np.ndarray], keys: np.ndarray) -> None:
         """Entries for the stop squares ``keys`` (q,, none known yet) from :func:`walk` at
@@ -270,7 +269,7 @@ class StopSquares:
             columns = [np.concatenate([old, new])
                        for old, new in zip(self._columns, columns, strict=True)]  # fmt: skip
         self._keys, self._columns = np.concatenate([self._keys, keys]), columns
-        self._index = self._ranges_index = None
+        self._ranges_index = None
 
     def learn(
         self, squares: np.ndarray, keys: np.ndarray, surplus: np.ndarray, ids: np.ndarray,
@@ -310,23 +309,18 @@ class StopSquares:
         return self.answer(rows, t, s, strict, quiet)
 
     def _table(self) -> tuple[np.ndarray, ...]:
-        """Keys, corner rows of I and of S's term (each (4 E, m)), per entry its corner flags,
-        Q_0's corners' built flags, S's level and key, and (with ``norms``, else None) the
-        norms of S's term at its corners (4 E, segments) and a lower bound of |I| over the
-        square (E, segments): ``max_c (|I(c)| - max_c' |I(c') - I(c)|)``, as I is a convex
-        combination of the corners' values there."""
-        if self._index is None and not len(self._keys):  # no entry yet: the keys only
-            return (self._keys,)
-        if self._index is None:
-            values, change, *rest = self._columns[:6]
-            e, m = len(self._keys), values.shape[2]
-            norms = None
-            if self._norms is not None and e:
-                corner_norms, size = self._columns[6:]
-                norms = corner_norms.reshape(e * 4, -1), size  # as the rows
-            flat = [a.reshape(e * 4, m) for a in (values, change)]
-            self._index = (self._keys, *flat, *rest, norms)
-        return self._index
+        """Of the entries (at least one): corner rows of I and of S's term (each (4 E, m)), per
+        entry its corner flags, Q_0's corners' built flags, S's level and key, and (with
+        ``norms``, else None) the norms of S's term at its corners (4 E, segments) and a lower
+        bound of |I| over the square (E, segments): ``max_c (|I(c)| - max_c' |I(c') - I(c)|)``,
+        as I is a convex combination of the corners' values there. Views of the columns."""
+        values, change, *rest = self._columns[:6]
+        e, m = len(self._keys), values.shape[2]
+        norms = None
+        if self._norms is not None:
+            corner_norms, size = self._columns[6:]
+            norms = corner_norms.reshape(e * 4, -1), size  # as the rows
+        return (*(a.reshape(e * 4, m) for a in (values, change)), *rest, norms)
 
     def lookup(self, ids: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per query: its entry's row (-1: no known stop square holds it) and its coordinates t
@@ -342,7 +336,7 @@ class StopSquares:
         hit = inside & (pos >= 0)
         hit[hit] = code[hit] < ends[pos[hit]]
         rows = np.where(hit, entry[np.maximum(pos, 0)] if len(entry) else -1, -1)
-        level = (self._table()[0][np.maximum(rows, 0)] >> 42) & 15 if len(entry) else rows
+        level = (self._keys[np.maximum(rows, 0)] >> 42) & 15 if len(entry) else rows
         scaled = x * 2.0 ** level[:, None]  # exact, as :func:`cell`'s
         return rows, scaled - np.floor(scaled)
 
@@ -351,9 +345,8 @@ class StopSquares:
         each range's entry row: an aligned square of level k covers the 4^(MAX_LEVEL - k) codes
         from its lower-left corner's. An entry inside a coarser one (their ranges nest) is left
         out: :meth:`lookup` answers from the coarsest entry holding a query."""
-        keys = self._table()[0]  # (rebuilt after a change: the ranges with it)
-        if self._ranges_index is None:
-            table, level, corner = square_corners(keys)
+        if self._ranges_index is None:  # (None again after a change)
+            table, level, corner = square_corners(self._keys)
             starts = z_order(table, corner)
             ends = starts + (1 << (2 * (MAX_LEVEL - level)))
             order = np.lexsort((-ends, starts))  # by start, a coarser entry first
@@ -376,7 +369,7 @@ class StopSquares:
         of |I| (:meth:`_table`); only the queries ``loud`` (indices) whose bound is not below
         their threshold and whose S has an estimate (level >= 1) have their term summed:
         ``change`` holds theirs only."""
-        _, values, change, corner_point, base, level, square, norms = self._table()
+        values, change, corner_point, base, level, square, norms = self._table()
         weights = hats(t)
         if strict and not np.all(base[rows] | (hats(cell(s, 0)[1]) == 0.0)):
             raise KeyError("a query outside the refined lattice: refine() first")
