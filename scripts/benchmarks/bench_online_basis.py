@@ -45,7 +45,7 @@ from bench_reduced_basis import (
     SnapshotSolver,
     full_solve,
     project,
-    rb_solve,
+    rb_result,
     reduced_solution,
     scipy_matrix,
     segment_errors,
@@ -58,6 +58,7 @@ from plantgrowth.cli import main as plantgrowth_main
 from plantgrowth.meshes.honeycomb import HoneycombCell
 from plantgrowth.unitcell.homogenization import _pack
 from plantgrowth.unitcell.solver import CellSolver, tensor_weights
+from plantgrowth.unitcell.surrogate import split_growth
 
 REPO = Path(__file__).resolve().parents[2]
 OUTPUT = REPO / "benchmarks" / "results" / "online_basis.json"
@@ -82,12 +83,8 @@ def record_points() -> np.ndarray:
             plantgrowth_main(["run", f"{tmp}/scene.toml", "-o", f"{tmp}/o", "-q"])
     finally:
         CellSolver.solve = solve
-    rows = []
-    for U, b in points:  # U = expm(S), S = [[s1, s2], [s2, -s1]]: s from log of the eigenvalues
-        w, Q = np.linalg.eigh(U)
-        S = Q @ np.diag(np.log(w)) @ Q.T
-        rows.append((S[0, 0], S[0, 1], b))
-    return np.array(rows)
+    s = split_growth(np.array([U for U, _ in points]))[1]  # U is a lattice stretch: R = I
+    return np.column_stack([s, [b for _, b in points]])
 
 
 class Residual:
@@ -123,9 +120,10 @@ def replay(solver: SnapshotSolver, points: np.ndarray, full: np.ndarray, snaps: 
     accepted_errors, predicted, kept = [], [], 0
     for i, (s1, s2, b) in enumerate(points):
         if model is not None:
-            r = residual(V, reduced_solution(solver, model, np.array([s1, s2]), b))
+            solution = reduced_solution(solver, model, np.array([s1, s2]), b)
+            r = residual(V, solution)
             if r <= tau:
-                answer = _pack(rb_solve(solver, model, np.array([s1, s2]), b))
+                answer = _pack(rb_result(solver, model, solution, time.perf_counter()))
                 error = segment_errors(answer[None], full[i][None]).max()
                 accepted_errors.append(float(error))
                 predicted.append(float(r))

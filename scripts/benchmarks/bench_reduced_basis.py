@@ -165,7 +165,14 @@ def reduced_solution(
 def rb_solve(solver: CellSolver, model: ReducedModel, s: np.ndarray, b: float) -> CellResult:
     """One RB solve: ``CellSolver.solve``'s math with the reduced matrix and moments."""
     start = time.perf_counter()
-    solution = reduced_solution(solver, model, s, b)
+    return rb_result(solver, model, reduced_solution(solver, model, s, b), start)
+
+
+def rb_result(
+    solver: CellSolver, model: ReducedModel, solution: ReducedSolution, start: float
+) -> CellResult:
+    """``CellSolver.solve``'s averages of a reduced solution (its time from ``start``, a
+    ``time.perf_counter()``)."""
     walls, wall_b = solution.walls, solution.wall_b
     integrals = growth_map(solution.Fg) @ np.einsum("fip,ik->fpk", model.averages, solution.y)
     # from here on CellSolver.solve's post-processing, unchanged
