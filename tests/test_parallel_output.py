@@ -165,6 +165,60 @@ def test_each_steps_state_is_written_once_and_a_resume_keeps_its_step(mpi_tmp_pa
     assert StateFile(mpi_tmp_path, WORLD).steps() == [0]
 
 
+def test_the_older_state_file_takes_the_new_step_in_place(mpi_tmp_path, monkeypatch):
+    """From the third write on, state.h5 is the file that was state_previous.h5 (the same
+    inode), rewritten in place: not laid out afresh (which truncates it, freeing its disk
+    blocks), its size that of a fresh file's (the renamed group and the modified attribute
+    take no new space), and it reads back as written: every row of every rank overwritten,
+    the group and t of the new step."""
+    layouts = []
+    lay_out = h5_blocks._lay_out
+    monkeypatch.setattr(h5_blocks, "_lay_out", lambda *a: layouts.append(1) or lay_out(*a))
+    split = np.arange(12.0 * WORLD.size).reshape(-1, 2)
+    state = StateFile(mpi_tmp_path, WORLD)
+    inodes, sizes = [], []
+    for step in range(1, 7):
+        whole = np.full(3, -step, float)
+        state.write(step, step / 4, {"x": Block.split(step * split, WORLD),
+                                     "w": Block.whole(whole, WORLD)})  # fmt: skip
+        inodes.append((mpi_tmp_path / "state.h5").stat().st_ino)
+        sizes.append((mpi_tmp_path / "state.h5").stat().st_size)
+        with h5py.File(mpi_tmp_path / "state.h5", "r") as f:
+            assert list(f) == [f"step_{step:06d}"] and f[f"step_{step:06d}"].attrs["t"] == step / 4
+            np.testing.assert_array_equal(f[f"step_{step:06d}/x"][...], step * split)
+            np.testing.assert_array_equal(f[f"step_{step:06d}/w"][...], np.full(3, -step))
+    assert len(layouts) == (2 if WORLD.rank == 0 else 0)  # steps 1 and 2 only
+    assert inodes[2:] == inodes[:4]  # step k's file was step k - 2's
+    assert len(set(sizes)) == 1, sizes
+    assert not (mpi_tmp_path / ".state.h5.tmp").exists()
+
+
+def test_a_state_of_new_shapes_or_a_broken_leftover_is_laid_out_afresh(mpi_tmp_path):
+    """The older file is not rewritten in place where the new step's arrays differ from its
+    own (more rows, another key, another dtype) or where a killed write left bytes that are
+    not an HDF5 file at the temporary name: the new file then holds exactly the new arrays."""
+    state = StateFile(mpi_tmp_path, WORLD)
+    base = np.arange(8.0 * WORLD.size)
+    steps = [
+        {"x": base},
+        {"x": 2 * base},
+        {"x": np.arange(9.0 * WORLD.size)},  # more rows
+        {"x": 3 * base, "y": base[:2]},  # another key
+        {"x": (4 * base).astype(np.int64), "y": base[:2]},  # another dtype
+        {"x": 5 * base, "y": base[:2]},
+    ]
+    for step, arrays in enumerate(steps):
+        if step == 5 and WORLD.rank == 0:  # a leftover of a killed write, not HDF5
+            (mpi_tmp_path / "state_previous.h5").write_bytes(b"not hdf5" * 100)
+        WORLD.Barrier()
+        state.write(step, float(step), {k: Block.split(v, WORLD) for k, v in arrays.items()})
+        saved = state.read(step)
+        assert set(saved) == set(arrays), step
+        for key, values in arrays.items():
+            assert saved[key].dtype == values.dtype, (step, key)
+            np.testing.assert_array_equal(saved[key], values, err_msg=f"{step} {key}")
+
+
 SCENE = {
     "tissue": {"h": 0.35, "H": 1.0},
     "accuracy": {"cell_resolution": 1, "cell_tolerance": 0.0},

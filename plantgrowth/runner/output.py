@@ -170,8 +170,11 @@ class StateFile:
     (160 MB a step on the organ scene, 0.43 s of a 2-rank step; docs/large_tissues.md). Two
     steps, not one: a step's summary row is written before its state, so the newest state's
     row exists, and the previous state still serves if summary.csv lost its last row; a kill
-    between the rename and the new file leaves the previous state, one step behind. Written
-    collectively: every rank writes its blocks of the arrays.
+    between the rename and the new file leaves the previous state, one step behind. The older
+    state is not deleted: it is renamed to the new file's temporary name, and the new step is
+    written into its bytes where its arrays have the same shapes (``write_blocks``'s
+    ``recycle``), so no step frees and allocates its disk blocks (on rank 0 alone: 7 ms a step
+    on the 1e5-dof tissue). Written collectively: every rank writes its blocks of the arrays.
     """
 
     def __init__(self, outdir: Path, comm: MPI.Comm) -> None:
@@ -186,13 +189,15 @@ class StateFile:
         one (none before the first write of a run started afresh)."""
         if self.comm.rank == 0:
             if self._kept == self.path and self.path.is_file():
+                if self.previous_path.is_file():  # its disk blocks take the new step
+                    os.replace(self.previous_path, temporary_path(self.path))
                 os.replace(self.path, self.previous_path)
             elif self._kept is None:
                 self.previous_path.unlink(missing_ok=True)
         group = f"step_{step:06d}"
         datasets = [Dataset(f"{group}/{key}", block, block.values.dtype, False)
                     for key, block in state.items()]  # fmt: skip
-        write_blocks(self.path, datasets, {group: {"t": t}}, self.comm)
+        write_blocks(self.path, datasets, {group: {"t": t}}, self.comm, recycle=True)
         self._kept = self.path
 
     def _saved(self) -> dict[int, Path]:
