@@ -723,6 +723,14 @@ MUTANTS = (
         (("    shuffled = values.view(np.uint8).reshape(-1, values.dtype.itemsize).T\n",
           "    shuffled = values.view(np.uint8).reshape(-1, values.dtype.itemsize)\n"),),
     ),
+    Mutant(
+        "state_recycled_whatever_its_shapes", "plantgrowth/runner/h5_blocks.py", "missing check",
+        "the older state file rewritten in place without comparing its datasets' shapes and "
+        "dtypes with the new step's: a step whose arrays grew (the surrogate's squares) is "
+        "written into datasets of the old lengths",
+        (("                or (held[key].shape, held[key].dtype) != shape_dtype\n",
+          "                or False\n"),),
+    ),
 )  # fmt: skip
 
 
