@@ -131,7 +131,7 @@ def _relaid(
     untouched) if it does not: it is then laid out afresh. Rewriting a file in place frees
     and allocates no disk blocks: replacing the older of the two state files cost rank 0
     alone 7 ms a step on the 1e5-dof tissue (8 MB) and 50 ms on an 80 MB file
-    (docs/large_tissues.md, "Output")."""
+    (docs/large_tissues.md, "The older state rewritten in place")."""
     groups = {d.name.split("/", 1)[0] for d in datasets}
     if not tmp.is_file() or len(groups) != 1 or any(d.compressed for d in datasets):
         return None
