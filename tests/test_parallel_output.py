@@ -193,6 +193,39 @@ def test_the_older_state_file_takes_the_new_step_in_place(mpi_tmp_path, monkeypa
     assert not (mpi_tmp_path / ".state.h5.tmp").exists()
 
 
+def test_a_state_file_holding_an_older_steps_pages_is_not_resumed_from(mpi_tmp_path):
+    """Each contiguous array carries its ranks' rows and the CRC-32 of their bytes. A state
+    file rewritten in place that a machine crash left with some rows of the older step it
+    was (here the last rank's block of x, as step 1 wrote it) fails them and is not offered
+    to --resume: the previous state serves. A file that is not HDF5 at all is skipped, not
+    an error; with neither file whole there is no step to resume."""
+    split = np.arange(10.0 * WORLD.size).reshape(-1, 2)
+    state = StateFile(mpi_tmp_path, WORLD)
+    for step in (1, 2, 3):
+        state.write(step, step / 2, {"x": Block.split(step * split, WORLD),
+                                     "w": Block.whole(np.full(4, step, float), WORLD)})  # fmt: skip
+    offsets = block_offsets(len(split), WORLD.size)
+    with h5py.File(mpi_tmp_path / "state.h5", "r") as f:
+        rows = f["step_000003/x"].attrs["block_rows"]
+        np.testing.assert_array_equal(rows, np.column_stack([offsets[:-1], offsets[1:]]))
+        assert f["step_000003/w"].attrs["block_rows"].tolist()[0] == [0, 4]
+        offset = f["step_000003/x"].id.get_offset()
+    assert state.steps() == [2, 3]
+    WORLD.Barrier()
+    if WORLD.rank == 0:  # the last block's pages as step 1 left them in this file
+        start, stop = rows[-1]
+        with open(mpi_tmp_path / "state.h5", "r+b") as f:
+            f.seek(offset + start * split[0].nbytes)
+            f.write((1 * split[start:stop]).tobytes())
+    WORLD.Barrier()
+    assert StateFile(mpi_tmp_path, WORLD).steps() == [2]
+    np.testing.assert_array_equal(StateFile(mpi_tmp_path, WORLD).read(2)["x"], 2 * split)
+    if WORLD.rank == 0:
+        (mpi_tmp_path / "state_previous.h5").write_bytes(b"\0" * 4096)
+    WORLD.Barrier()
+    assert StateFile(mpi_tmp_path, WORLD).steps() == []
+
+
 def test_a_state_of_new_shapes_or_a_broken_leftover_is_laid_out_afresh(mpi_tmp_path):
     """The older file is not rewritten in place where the new step's arrays differ from its
     own (more rows, another key, another dtype) or where a killed write left bytes that are

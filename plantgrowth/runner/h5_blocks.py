@@ -15,11 +15,17 @@ What no rank does: gather another rank's values (only the chunks' lengths travel
 file through HDF5's MPI-IO driver, whose collective writes with filters scaled 1.3-1.5x from
 1 to 2 ranks on the 1e5-dof tissue (docs/large_tissues.md). The file is written under a
 temporary name that rank 0 renames once every rank has written (crash safety as before).
+
+A contiguous dataset carries each rank's rows and the CRC-32 of their bytes as written
+(:data:`CHECKSUMS`): no file is fsync'ed, so after a crash of the machine a file may hold some
+pages of its new bytes and some of what was there before (the state file is rewritten in
+place), and :func:`intact` tells such a file from a whole one.
 """
 
 from __future__ import annotations
 
 import os
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +35,10 @@ from mpi4py import MPI
 
 from plantgrowth.base.blocks import Block, block_offsets
 from plantgrowth.base.deflate import LEVEL, deflate
+
+CHECKSUMS = ("block_rows", "block_crc32")
+"""Attributes of a contiguous dataset: the rows ``[start, stop)`` of each rank's block (size, 2)
+and the CRC-32 of their bytes as the rank wrote them (size,), 0 for an empty block."""
 
 FIELD_FILTERS = {"compression": "gzip", "compression_opts": LEVEL, "shuffle": True}
 """How field datasets are compressed: gzip after byte shuffling (HDF5's built-in filters, which
@@ -82,13 +92,13 @@ def write_blocks(
     rewritten in place rather than laid out afresh."""
     tmp = temporary_path(path)
     payloads = [_payload(d, comm.size) for d in datasets]
-    lengths = comm.gather([len(p) if d.compressed else 0
-                           for d, p in zip(datasets, payloads, strict=True)])  # fmt: skip
+    written = comm.gather([_written(d, p) for d, p in zip(datasets, payloads, strict=True)])
     offsets = None
     if comm.rank == 0:
-        offsets = _relaid(tmp, datasets, attrs) if recycle else None
+        sums = [_checksums(written, i) for i in range(len(datasets))]
+        offsets = _relaid(tmp, datasets, attrs, sums) if recycle else None
         if offsets is None:
-            offsets = _lay_out(tmp, datasets, attrs, lengths, comm.size)
+            offsets = _lay_out(tmp, datasets, attrs, written, sums)
     offsets = comm.bcast(offsets, root=0)
     if any(len(p) for p in payloads):
         fd = os.open(tmp, os.O_WRONLY)
@@ -103,6 +113,50 @@ def write_blocks(
     if comm.rank == 0:
         os.replace(tmp, path)
     comm.Barrier()  # a later write of the same name starts after the rename
+
+
+def intact(dataset: h5py.Dataset) -> bool:
+    """Whether every rank's block of a contiguous dataset holds the bytes it wrote (the CRC-32s
+    of :data:`CHECKSUMS`); a dataset without them (compressed, or written before them) passes."""
+    if not all(name in dataset.attrs for name in CHECKSUMS):
+        return True
+    values = np.ascontiguousarray(dataset[...])
+    row = values.dtype.itemsize * int(np.prod(values.shape[1:], dtype=np.int64))
+    data = memoryview(values).cast("B") if values.size else memoryview(b"")
+    rows, sums = (dataset.attrs[name] for name in CHECKSUMS)
+    return all(
+        zlib.crc32(data[start * row : stop * row]) == crc
+        for (start, stop), crc in zip(rows.tolist(), sums.tolist(), strict=True)
+    )
+
+
+def whole_file(path: Path) -> bool:
+    """Whether ``path`` opens as an HDF5 file and every contiguous dataset in it is
+    :func:`intact`."""
+    arrays: list[h5py.Dataset] = []
+    try:
+        with h5py.File(path, "r") as f:
+            f.visititems(lambda _, item: arrays.append(item)
+                         if isinstance(item, h5py.Dataset) else None)  # fmt: skip
+            return all(intact(array) for array in arrays)
+    except OSError:
+        return False
+
+
+def _written(d: Dataset, payload: bytes | memoryview) -> tuple[int, int, int, int]:
+    """What rank 0 needs of this rank's bytes of a dataset: the chunk's length (compressed),
+    or the block's rows and their CRC-32 (contiguous)."""
+    if d.compressed:
+        return len(payload), 0, 0, 0
+    stop = d.block.start + len(d.block.values)
+    return 0, d.block.start if len(payload) else stop, stop, zlib.crc32(payload)
+
+
+def _checksums(written: list[list[tuple]], i: int) -> dict[str, np.ndarray]:
+    """The :data:`CHECKSUMS` attributes of dataset i from every rank's :func:`_written`."""
+    blocks = [w[i] for w in written]
+    rows = np.array([[start, stop] for _, start, stop, _ in blocks], dtype=np.int64)
+    return {CHECKSUMS[0]: rows, CHECKSUMS[1]: np.array([b[3] for b in blocks], dtype=np.uint32)}
 
 
 def _row_bytes(d: Dataset) -> int:
@@ -122,8 +176,9 @@ def _payload(d: Dataset, size: int) -> bytes | memoryview:
 
 
 def _relaid(
-    tmp: Path, datasets: list[Dataset], attrs: dict[str, dict[str, float]]
-) -> list | None:
+    tmp: Path, datasets: list[Dataset], attrs: dict[str, dict[str, float]],
+    sums: list[dict[str, np.ndarray]],
+) -> list | None:  # fmt: skip
     """Rank 0: where the datasets' bytes go in the file ``tmp`` if it holds exactly these
     contiguous datasets, shapes and dtypes and these attributes' names under one top-level
     group of another name (an earlier step's state); the group renamed and the attributes
@@ -154,13 +209,18 @@ def _relaid(
             if set(held) != names or any(
                 held[key] is None or held[key].chunks is not None
                 or (held[key].shape, held[key].dtype) != shape_dtype
-                for key, shape_dtype in wanted.items()
+                or any(held[key].attrs.get(name, np.zeros(0)).shape != value.shape
+                       for name, value in checks.items())
+                for (key, shape_dtype), checks in zip(wanted.items(), sums, strict=True)
             ):  # fmt: skip
                 return None
             if old != group:
                 f.move(old, group)
             for key, value in attrs[group].items():
                 f[group].attrs.modify(key, value)
+            for d, checks in zip(datasets, sums, strict=True):
+                for name, value in checks.items():
+                    f[d.name].attrs.modify(name, value)
             return [f[d.name].id.get_offset() for d in datasets]
     except (OSError, KeyError):  # not a whole HDF5 file (a layout killed mid-way): afresh
         return None
@@ -168,11 +228,13 @@ def _relaid(
 
 def _lay_out(
     tmp: Path, datasets: list[Dataset], attrs: dict[str, dict[str, float]],
-    lengths: list[list[int]], size: int,
+    written: list[list[tuple]], sums: list[dict[str, np.ndarray]],
 ) -> list:  # fmt: skip
     """Rank 0: the file with every dataset and attribute, each rank's chunks as
-    placeholders of their lengths; per dataset, where its bytes go (compressed: the byte
-    offset of each rank's chunk; contiguous: the dataset's)."""
+    placeholders of their lengths (:func:`_written`), a contiguous dataset's checksums;
+    per dataset, where its bytes go (compressed: the byte offset of each rank's chunk;
+    contiguous: the dataset's)."""
+    size = len(written)
     offsets: list = []
     contiguous = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
     contiguous.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)  # its offset exists before any write
@@ -184,6 +246,8 @@ def _lay_out(
             if not d.compressed:
                 dataset = f.create_dataset(d.name, shape=shape, dtype=d.dtype, dcpl=contiguous)
                 offsets.append(dataset.id.get_offset())  # None: no bytes (no rank writes)
+                for name, value in sums[i].items():
+                    dataset.attrs[name] = value
                 continue
             rows = chunk_rows(d.block.total, size)
             dataset = f.create_dataset(
@@ -191,9 +255,9 @@ def _lay_out(
             )
             where = [0] * size
             for rank in range(size):
-                if lengths[rank][i]:
+                if written[rank][i][0]:
                     corner = (rank * rows, *(0,) * len(tail))
-                    dataset.id.write_direct_chunk(corner, bytes(lengths[rank][i]))
+                    dataset.id.write_direct_chunk(corner, bytes(written[rank][i][0]))
                     where[rank] = dataset.id.get_chunk_info_by_coord(corner).byte_offset
             offsets.append(where)
         for name, values in attrs.items():

@@ -30,6 +30,7 @@ ever removed (:func:`run_files`).
 from __future__ import annotations
 
 import csv
+import logging
 import os
 import re
 from collections.abc import Iterator
@@ -44,7 +45,7 @@ from mpi4py import MPI
 
 from plantgrowth.base.blocks import Block, CanonicalBlocks
 from plantgrowth.models.step import SideMesh
-from plantgrowth.runner.h5_blocks import Dataset, temporary_path, write_blocks
+from plantgrowth.runner.h5_blocks import Dataset, temporary_path, whole_file, write_blocks
 from plantgrowth.runner.xdmf import (
     ATTRIBUTE_TYPES,
     STEP_DIR,
@@ -54,6 +55,8 @@ from plantgrowth.runner.xdmf import (
     pad,
     series_xml,
 )
+
+log = logging.getLogger("plantgrowth")
 
 PREVIOUS_STATE = "state_previous.h5"
 """The state of the step before state.h5's (:class:`StateFile`)."""
@@ -201,12 +204,19 @@ class StateFile:
         self._kept = self.path
 
     def _saved(self) -> dict[int, Path]:
-        """Rank 0: the steps whose state is saved and the file of each (state.h5's first)."""
+        """Rank 0: the steps whose state is saved and the file of each (state.h5's first). A
+        file that is not a :func:`~plantgrowth.runner.h5_blocks.whole_file` (a crash of the
+        machine before its bytes reached the disk) is not offered: the other one serves."""
         saved: dict[int, Path] = {}
         for path in (self.previous_path, self.path):
-            if path.is_file():
-                with h5py.File(path, "r") as f:
-                    saved |= {int(name.removeprefix("step_")): path for name in f}
+            if not path.is_file():
+                continue
+            if not whole_file(path):
+                log.warning("%s does not hold what its step wrote (a crash of the machine before "
+                            "it reached the disk?): --resume does not use it", path)  # fmt: skip
+                continue
+            with h5py.File(path, "r") as f:
+                saved |= {int(name.removeprefix("step_")): path for name in f}
         return saved
 
     def steps(self) -> list[int]:
