@@ -177,7 +177,10 @@ class StateFile:
     state is not deleted: it is renamed to the new file's temporary name, and the new step is
     written into its bytes where its arrays have the same shapes (``write_blocks``'s
     ``recycle``), so no step frees and allocates its disk blocks (on rank 0 alone: 7 ms a step
-    on the 1e5-dof tissue). Written collectively: every rank writes its blocks of the arrays.
+    on the 1e5-dof tissue). Nothing is fsync'ed, so a crash of the machine may leave a file
+    rewritten in place with some of the older step's pages: every array carries its blocks'
+    CRC-32s, and a file that fails them is not resumed from (:meth:`_saved`). Written
+    collectively: every rank writes its blocks of the arrays.
     """
 
     def __init__(self, outdir: Path, comm: MPI.Comm) -> None:
