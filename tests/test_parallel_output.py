@@ -187,6 +187,7 @@ def test_the_older_state_file_takes_the_new_step_in_place(mpi_tmp_path, monkeypa
             assert list(f) == [f"step_{step:06d}"] and f[f"step_{step:06d}"].attrs["t"] == step / 4
             np.testing.assert_array_equal(f[f"step_{step:06d}/x"][...], step * split)
             np.testing.assert_array_equal(f[f"step_{step:06d}/w"][...], np.full(3, -step))
+        WORLD.Barrier()  # read by every rank before rank 0 renames it for the next step
     assert len(layouts) == (2 if WORLD.rank == 0 else 0)  # steps 1 and 2 only
     assert inodes[2:] == inodes[:4]  # step k's file was step k - 2's
     assert len(set(sizes)) == 1, sizes
@@ -220,6 +221,7 @@ def test_a_state_file_holding_an_older_steps_pages_is_not_resumed_from(mpi_tmp_p
     WORLD.Barrier()
     assert StateFile(mpi_tmp_path, WORLD).steps() == [2]
     np.testing.assert_array_equal(StateFile(mpi_tmp_path, WORLD).read(2)["x"], 2 * split)
+    WORLD.Barrier()  # every rank has read the file before rank 0 spoils it
     if WORLD.rank == 0:
         (mpi_tmp_path / "state_previous.h5").write_bytes(b"\0" * 4096)
     WORLD.Barrier()
@@ -246,6 +248,7 @@ def test_a_state_of_new_shapes_or_a_broken_leftover_is_laid_out_afresh(mpi_tmp_p
         WORLD.Barrier()
         state.write(step, float(step), {k: Block.split(v, WORLD) for k, v in arrays.items()})
         saved = state.read(step)
+        WORLD.Barrier()  # read by every rank before rank 0 renames it for the next step
         assert set(saved) == set(arrays), step
         for key, values in arrays.items():
             assert saved[key].dtype == values.dtype, (step, key)
