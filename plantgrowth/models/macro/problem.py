@@ -89,6 +89,15 @@ is symmetric positive definite, so no pivoting is needed), MUMPS on several. On 
 scene (4,340 dofs) the solve phase took 0.58 s over 61 steps against MUMPS's 0.77 s, results
 within 1.2e-11 in u and 4e-10 in elastic_strain_max of MUMPS's (docs/large_tissues.md,
 "Start-up"). Newton's Jacobians keep MUMPS."""
+CG_MATRIX = "baij"
+"""The CG path's matrix format: PETSc's block CSR in the 2 x 2 node blocks of the P1 vector
+dofmap, whose blocks dolfinx inserts whole (one index per block instead of four). On the 1e5-dof
+tissue of the scaling study (t = 0-10, CG) the solve phase took 0.146 s a step against AIJ's
+0.171 on 1 rank and 0.0995 against 0.1075 on 2 (assembly, CG's products), with the same CG
+iterations and summaries within 3.2e-10 (elastic_strain_max; docs/large_tissues.md, "The CG
+matrix in 2 x 2 blocks"); BoomerAMG converts it to hypre's CSR when it builds its hierarchy.
+LU keeps AIJ (PETSc's serial LU and its kept factors, which hold the reference scene to 7c43f7c's
+results)."""
 PREFIX = "plantgrowth_macro_"
 NEWTON_PREFIX = PREFIX + "newton_"  # its own GAMG options (see linear.gamg_solver)
 NEWTON_KRYLOV_MAX_IT = 500
@@ -226,7 +235,7 @@ class MacroProblem:
         self.held.set_residual(lambda: ufl.action(a, self.u) - rhs)
         self.a = fem.form(a)
         self.L = fem.form(rhs)
-        self.A = fem.petsc.create_matrix(self.a)
+        self.A = fem.petsc.create_matrix(self.a, CG_MATRIX if self.solver == "iterative" else None)
         self.b = fem.petsc.create_vector(self.L)
         self.ksp = self._linear_solver(self.A)
         self.reuse, self.history, self.factors = None, None, None
