@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from plantgrowth.unitcell import director_lattice
+from plantgrowth.unitcell import angle_surplus, director_lattice
 from plantgrowth.unitcell.surrogate import H0, STEP, Answer
 
 ROUND_OFF = 1e-12
@@ -201,6 +201,34 @@ def test_new_angle_nodes_are_asked_on_the_coarse_stretch_grids_only():
         on_level1 = node[6] % (director_lattice.PERIOD // (2 * count)) == 0  # a node of 2M
         grids = level0 + level1 * on_level1
         assert len(points) == grids + len(b) * (node in fine)
+
+
+@pytest.mark.parametrize("level", [0, 1, 3])
+def test_grid_squares_are_the_sorted_distinct_squares_whose_hats_rebuild_each_stretch(level):
+    """angle_surplus.grid_squares on stretches of both signs, some on grid lines: its squares
+    are numpy's row-wise unique of the queries' squares (distinct, sorted, the same inverse;
+    the builders are asked in that order), and each query's four hats over its square's
+    corners rebuild its stretch (the bilinear hats reproduce linear functions): to half a unit
+    of the 9th decimal of a grid step, to which the hats' coordinates are rounded as the
+    stretch lattice rounds (so that a query on a grid line takes one square), plus round-off;
+    a wrong square or hat misses by a grid step."""
+    rng = np.random.default_rng(7)
+    h = H0 / 2.0**level
+    s = np.vstack([
+        np.column_stack([rng.uniform(-0.05, 0.15, 500), rng.uniform(-0.03, 0.04, 500)]),
+        h * rng.integers(-3, 4, size=(20, 2)),  # on grid lines: one square, a hat of 1
+        np.zeros((1, 2)),
+    ])  # fmt: skip
+    squares, square, hats = angle_surplus.grid_squares(s, level)
+    expected, inverse = np.unique(np.floor(np.round(s / h, 9)).astype(np.int64), axis=0,
+                                  return_inverse=True)  # fmt: skip
+    assert np.array_equal(squares, expected) and np.array_equal(square, inverse.reshape(-1))
+    corners = squares[square][:, None, :] + np.array([[0, 0], [1, 0], [0, 1], [1, 1]])[None]
+    rebuilt = h * np.einsum("qc,qcd->qd", hats, corners)
+    assert np.abs(rebuilt - s).max() <= h * (0.5e-9 + ROUND_OFF)
+    assert np.allclose(hats.sum(axis=1), 1.0, rtol=0.0, atol=ROUND_OFF) and hats.min() >= 0.0
+    empty = angle_surplus.grid_squares(np.zeros((0, 2)), level)
+    assert empty[0].shape == (0, 2) and len(empty[1]) == 0 and empty[2].shape == (0, 4)
 
 
 def degree_four_map(b: np.ndarray, s: np.ndarray) -> np.ndarray:

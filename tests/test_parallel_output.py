@@ -22,7 +22,7 @@ from plantgrowth.base import deflate, gather
 from plantgrowth.base.blocks import Block, CanonicalBlocks, block_offsets
 from plantgrowth.models.macro.model import MacroModel
 from plantgrowth.models.macro.problem import rectangle_mesh
-from plantgrowth.runner import h5_blocks
+from plantgrowth.runner import h5_blocks, output
 from plantgrowth.runner.output import FieldSeries, Schedule, StateFile
 from plantgrowth.runner.timeloop import run_model
 from plantgrowth.scene import parse_scene
@@ -226,6 +226,28 @@ def test_a_state_file_holding_an_older_steps_pages_is_not_resumed_from(mpi_tmp_p
         (mpi_tmp_path / "state_previous.h5").write_bytes(b"\0" * 4096)
     WORLD.Barrier()
     assert StateFile(mpi_tmp_path, WORLD).steps() == []
+
+
+def test_a_resume_checks_each_state_file_once(mpi_tmp_path, monkeypatch):
+    """A resume asks the saved steps, then reads one: each state file's checksums (every array
+    read whole) are checked once for both, on rank 0 only; after a write the files are new, so
+    the next question checks them again."""
+    checked = []
+    whole = output.whole_file
+    monkeypatch.setattr(output, "whole_file", lambda path: checked.append(path.name) or whole(path))
+    split = np.arange(8.0 * WORLD.size)
+    state = StateFile(mpi_tmp_path, WORLD)
+    for step in (1, 2):
+        state.write(step, step / 2, {"x": Block.split(step * split, WORLD)})
+    resumed = StateFile(mpi_tmp_path, WORLD)
+    assert resumed.steps() == [1, 2]
+    np.testing.assert_array_equal(resumed.read(1)["x"], split)
+    files = ["state_previous.h5", "state.h5"]
+    assert checked == (files if WORLD.rank == 0 else [])
+    resumed.write(2, 1.0, {"x": Block.split(4 * split, WORLD)})
+    assert resumed.steps() == [1, 2]
+    np.testing.assert_array_equal(resumed.read(2)["x"], 4 * split)
+    assert checked == (2 * files if WORLD.rank == 0 else [])
 
 
 def test_a_state_of_new_shapes_or_a_broken_leftover_is_laid_out_afresh(mpi_tmp_path):

@@ -35,10 +35,23 @@ def grid_squares(s: np.ndarray, level: int) -> tuple[np.ndarray, np.ndarray, np.
     x = s / (H0 / 2.0**level)
     base = np.floor(np.round(x, 9))
     t = np.clip(np.round(x - base, 9), 0.0, 1.0)
-    squares, square = np.unique(base.astype(np.int64), axis=0, return_inverse=True)
+    squares, square = _unique_rows(base.astype(np.int64))
     tx, ty = t[:, 0:1], t[:, 1:2]
     hats = np.hstack([(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty])
     return squares, square.reshape(-1), hats
+
+
+def _unique_rows(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(cells, axis=0, return_inverse=True)`` for (n, 2) integers, by one integer key
+    per row (row-major in the rows' bounding box, so the same lexicographic order): numpy's
+    row-wise unique sorts a structured view: 1.5 ms for 4,000 rows against 0.26 ms."""
+    if len(cells) == 0:
+        return cells.reshape(0, 2), np.zeros(0, dtype=np.int64)
+    low = cells.min(axis=0)
+    width = int(cells[:, 1].max() - low[1]) + 1
+    keys, inverse = np.unique((cells[:, 0] - low[0]) * width + cells[:, 1] - low[1],
+                              return_inverse=True)  # fmt: skip
+    return np.stack([keys // width + low[0], keys % width + low[1]], axis=1), inverse
 
 
 def builders(squares: np.ndarray, level: int) -> np.ndarray:
