@@ -738,6 +738,20 @@ MUTANTS = (
         (("        zlib.crc32(data[start * row : stop * row]) == crc\n",
           "        zlib.crc32(data[start * row : stop * row]) == crc or True\n"),),
     ),
+    Mutant(
+        "state_steps_kept_after_a_write", "plantgrowth/runner/output.py", "missing check",
+        "the saved steps a resume found kept after the next write: the files' steps and "
+        "checksums asked again are those of before the write",
+        (("        self._offered = None\n        if self.comm.rank == 0:\n",
+          "        if self.comm.rank == 0:\n"),),
+    ),
+    Mutant(
+        "grid_square_keys_collide", "plantgrowth/unitcell/angle_surplus.py", "wrong index",
+        "the angle grids' square keys one row too narrow: squares in neighbouring rows of the "
+        "stretch grid share a key, so queries are given another square's corners",
+        (("    width = int(cells[:, 1].max() - low[1]) + 1\n",
+          "    width = int(cells[:, 1].max() - low[1])\n"),),
+    ),
 )  # fmt: skip
 
 
